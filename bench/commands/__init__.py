@@ -1,0 +1,1 @@
+"""Subcommands of `dpcbench`: one module each, each with ``register(subparsers)``."""

@@ -1,0 +1,136 @@
+"""Reading and writing single PLY point cloud frames.
+
+Parsing is done by `plyfile` (binary little/big endian and ASCII, any numeric property type).
+Frames are written as binary little-endian PLY in the layout MPEG's tools (pc_error, TMC2) read:
+``float x y z``, then optional ``uchar red green blue``, then optional ``float nx ny nz``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import plyfile
+
+from bench.errors import UserError
+
+
+@dataclass
+class PointCloud:
+    """One frame.
+
+    points:  (N, 3) float64 coordinates.
+    colors:  (N, 3) uint8 RGB, or None.
+    normals: (N, 3) float64, or None.
+    """
+
+    points: np.ndarray
+    colors: np.ndarray | None = None
+    normals: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def subset(self, mask_or_index: np.ndarray) -> "PointCloud":
+        """The points selected by a boolean mask or index array, with their attributes."""
+        return PointCloud(
+            self.points[mask_or_index],
+            None if self.colors is None else self.colors[mask_or_index],
+            None if self.normals is None else self.normals[mask_or_index],
+        )
+
+
+def _vertex_element(data: plyfile.PlyData, path: Path) -> plyfile.PlyElement:
+    for element in data.elements:
+        if element.name == "vertex":
+            return element
+    raise UserError(f"{path}: PLY file has no 'vertex' element; is it a point cloud?")
+
+
+def _stack(vertex: plyfile.PlyElement, names: tuple[str, ...], dtype) -> np.ndarray:
+    return np.column_stack([np.asarray(vertex[n], dtype=dtype) for n in names])
+
+
+def read_ply(path: str | os.PathLike, *, check: bool = True) -> PointCloud:
+    """Read one PLY frame. Colours are read from red/green/blue (or r/g/b), normals from nx/ny/nz.
+
+    With ``check`` (default) a frame with zero points or non-finite coordinates is refused with a
+    UserError naming the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: no such file")
+    try:
+        data = plyfile.PlyData.read(str(path))
+        vertex = _vertex_element(data, path)
+        names = {p.name for p in vertex.properties}
+        if not {"x", "y", "z"} <= names:
+            raise UserError(f"{path}: the vertex element has no x, y, z properties (has {sorted(names)})")
+        points = _stack(vertex, ("x", "y", "z"), np.float64)
+        colors = None
+        for rgb in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
+            if set(rgb) <= names:
+                raw = _stack(vertex, rgb, np.float64)
+                if raw.size and raw.max() <= 1.0 and vertex[rgb[0]].dtype.kind == "f":
+                    raw = raw * 255.0  # float colours in [0, 1]
+                colors = np.clip(np.rint(raw), 0, 255).astype(np.uint8)
+                break
+        normals = _stack(vertex, ("nx", "ny", "nz"), np.float64) if {"nx", "ny", "nz"} <= names else None
+    except UserError:
+        raise
+    except Exception as err:  # plyfile raises many types on corrupt input
+        raise UserError(
+            f"{path}: cannot parse PLY ({type(err).__name__}: {err}); the file is truncated or not a "
+            "valid PLY: re-export or re-copy it"
+        ) from err
+    cloud = PointCloud(points, colors, normals)
+    if check:
+        check_cloud(cloud, str(path))
+    return cloud
+
+
+def check_cloud(cloud: PointCloud, label: str) -> None:
+    """Refuse empty clouds and non-finite coordinates with a message naming ``label``."""
+    if cloud.points.ndim != 2 or cloud.points.shape[1] != 3:
+        raise UserError(f"{label}: coordinates must be an (N, 3) array, got shape {cloud.points.shape}")
+    if len(cloud.points) == 0:
+        raise UserError(f"{label}: the frame has zero points; remove it from the sequence or re-export it")
+    bad = ~np.isfinite(cloud.points).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise UserError(
+            f"{label}: {int(bad.sum())} point(s) have NaN or infinite coordinates (first at index {first}); "
+            "clean the frame (drop those points) before using it"
+        )
+
+
+def write_ply(path: str | os.PathLike, cloud: PointCloud | np.ndarray, *, ascii: bool = False) -> Path:
+    """Write one frame as binary little-endian PLY (or ASCII with ``ascii=True``).
+
+    Written atomically: to a temporary file in the same folder, then renamed, so a reader never sees
+    a half-written frame.
+    """
+    if isinstance(cloud, np.ndarray):
+        cloud = PointCloud(np.asarray(cloud, dtype=np.float64))
+    path = Path(path)
+    n = len(cloud.points)
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    if cloud.colors is not None:
+        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    if cloud.normals is not None:
+        fields += [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
+    table = np.empty(n, dtype=fields)
+    table["x"], table["y"], table["z"] = cloud.points.T
+    if cloud.colors is not None:
+        colors = np.asarray(cloud.colors)
+        table["red"], table["green"], table["blue"] = colors.T
+    if cloud.normals is not None:
+        table["nx"], table["ny"], table["nz"] = cloud.normals.T
+    element = plyfile.PlyElement.describe(table, "vertex")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    plyfile.PlyData([element], text=ascii, byte_order="<").write(str(tmp))
+    os.replace(tmp, path)
+    return path

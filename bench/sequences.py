@@ -1,0 +1,116 @@
+"""Dynamic point cloud sequences: ordered lists of frames, read from and written to PLY folders."""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bench.errors import UserError
+from bench.plyio import PointCloud, read_ply, write_ply
+
+
+def natural_key(name: str) -> list:
+    """Sort key that orders embedded numbers by value: ``x_9.ply`` before ``x_10.ply``."""
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", name)]
+
+
+@dataclass
+class Sequence:
+    """A dynamic point cloud: frames in time order.
+
+    name:      label used in reports.
+    frames:    list of PointCloud (each with (N_f, 3) points; N_f varies per frame).
+    bit_depth: for voxelized data (integer coordinates in 0..2^b-1), b; None when unvoxelized.
+    files:     the PLY file each frame came from, when read from disk.
+    meta:      free-form provenance (generator parameters, licence notes, ...).
+    """
+
+    name: str
+    frames: list[PointCloud]
+    bit_depth: int | None = None
+    files: list[Path] = field(default_factory=list)
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    @property
+    def points(self) -> list[np.ndarray]:
+        """The frames as the list of (N_f, 3) arrays that methods/, holes/ and metrics/ take."""
+        return [f.points for f in self.frames]
+
+    @property
+    def colors(self) -> list[np.ndarray | None]:
+        return [f.colors for f in self.frames]
+
+
+def list_frame_files(source: str | os.PathLike) -> list[Path]:
+    """The PLY files of a sequence, in natural order. ``source`` is a folder, a glob or one file."""
+    text = str(source)
+    path = Path(text)
+    if any(ch in text for ch in "*?["):
+        files = [Path(p) for p in glob.glob(text) if p.lower().endswith(".ply")]
+        if not files:
+            raise UserError(f"{text}: the pattern matches no .ply file")
+    elif path.is_dir():
+        files = [p for p in path.iterdir() if p.suffix.lower() == ".ply" and p.is_file()]
+        if not files:
+            raise UserError(f"{path}: the folder holds no .ply file; point to the folder of PLY frames")
+    elif path.is_file():
+        files = [path]
+    else:
+        raise UserError(f"{path}: no such file or folder")
+    return sorted(files, key=lambda p: natural_key(p.name))
+
+
+def infer_bit_depth(frames: list[PointCloud]) -> int | None:
+    """b when every coordinate is a non-negative integer below 2^b (voxelized data), else None."""
+    top = 0.0
+    for frame in frames:
+        pts = frame.points
+        if pts.min() < 0 or not np.array_equal(pts, np.round(pts)):
+            return None
+        top = max(top, float(pts.max()))
+    return max(1, int(np.ceil(np.log2(top + 1))))
+
+
+def load_sequence(source: str | os.PathLike, *, name: str | None = None, progress: bool = False) -> Sequence:
+    """Read every PLY frame of a folder (or glob, or single file) in natural order.
+
+    All frames must carry the same attributes (all with colours or none, all with normals or none).
+    """
+    files = list_frame_files(source)
+    iterator = files
+    if progress and len(files) > 3:
+        from bench.progress import progress_bar
+
+        iterator = progress_bar(files, desc="reading frames", unit="frame")
+    frames = [read_ply(f) for f in iterator]
+    for attr in ("colors", "normals"):
+        has = [getattr(f, attr) is not None for f in frames]
+        if any(has) and not all(has):
+            odd = files[has.index(not has[0])]
+            raise UserError(
+                f"{odd}: frames have mismatched attributes: {files[0].name} "
+                f"{'has' if has[0] else 'has no'} {attr}, {odd.name} {'has' if not has[0] else 'has no'}; "
+                "re-export the sequence with the same attributes in every frame"
+            )
+    label = name or (Path(str(source)).name if Path(str(source)).is_dir() else Path(str(source)).stem)
+    return Sequence(label, frames, infer_bit_depth(frames), files, {"source": str(source)})
+
+
+def save_sequence(seq: Sequence | list, out_dir: str | os.PathLike, *, prefix: str | None = None) -> list[Path]:
+    """Write frames as ``<prefix>_<0000>.ply`` binary PLY files in ``out_dir``; returns the paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    frames = seq.frames if isinstance(seq, Sequence) else [
+        f if isinstance(f, PointCloud) else PointCloud(np.asarray(f, dtype=np.float64)) for f in seq
+    ]
+    stem = prefix or (seq.name if isinstance(seq, Sequence) else "frame")
+    width = max(4, len(str(len(frames) - 1)))
+    return [write_ply(out / f"{stem}_{i:0{width}d}.ply", frame) for i, frame in enumerate(frames)]

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Sets up dpcbench on a fresh Debian/Ubuntu machine: the system libraries open3d needs, a virtual
+# environment in .venv, and the package (editable). `./install.sh --dev` adds the test tools,
+# Dask and the headless browser the dashboard test uses.
+set -euo pipefail
+cd "$(dirname "$0")"
+dev=0
+[ "${1:-}" = "--dev" ] && dev=1
+
+packages="python3-venv libusb-1.0-0 libgomp1 libgl1 libegl1"
+[ "$dev" = 1 ] && packages="$packages chromium"
+if command -v apt-get >/dev/null 2>&1 && command -v dpkg >/dev/null 2>&1; then
+  missing=""
+  for p in $packages; do
+    dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"
+  done
+  if [ -n "$missing" ]; then
+    sudo=""
+    [ "$(id -u)" = 0 ] || sudo="sudo"
+    echo "installing system packages:$missing"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq $missing >/dev/null
+  fi
+fi
+
+python3 -m venv .venv
+.venv/bin/python -m pip install -q --upgrade pip
+if [ "$dev" = 1 ]; then
+  .venv/bin/python -m pip install -q -e '.[dev,dask]'
+else
+  .venv/bin/python -m pip install -q -e .
+fi
+echo "dpcbench installed in .venv: run .venv/bin/dpcbench --help"

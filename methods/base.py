@@ -1,0 +1,114 @@
+"""The interface every inpainting method implements.
+
+Convention (after scikit-learn's estimators): ``__init__`` takes keyword parameters with defaults
+and only stores them under the same names; all the work happens in `inpaint`. `get_params` reads
+the parameters back from the ``__init__`` signature, so configs and result records can store them.
+
+``inpaint(frames, regions=None)``:
+  frames:  list of F arrays of shape (N_f, 3), the damaged sequence. Never modified.
+  regions: None (blind: the method finds the missing data itself, if it can) or a list of F lists
+           of `holes.regions.HoleRegion`, the hole regions of each frame. A method never receives
+           the removed ground-truth points: the interface has no way to pass them.
+  returns: a new list of F arrays of shape (N'_f, 3), float64, all finite.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import ClassVar
+
+import numpy as np
+
+
+class InpaintingMethod:
+    name: ClassVar[str] = ""
+    #: short human description shown by `dpcbench list`
+    summary: ClassVar[str] = ""
+    #: bump when a change alters the output: results stored under another version are recomputed
+    version: ClassVar[str] = "1"
+    #: True when frame f's result depends on frames other than f
+    uses_neighbour_frames: ClassVar[bool] = False
+    #: True when the method cannot run without hole regions
+    needs_regions: ClassVar[bool] = False
+    #: True when the method can find the missing data itself (blind protocol, regions=None)
+    detects_holes: ClassVar[bool] = False
+
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        sig = inspect.signature(cls.__init__)
+        kinds = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+        return [p.name for p in sig.parameters.values() if p.name != "self" and p.kind in kinds]
+
+    def get_params(self) -> dict:
+        """The constructor parameters and their current values."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self, **params) -> "InpaintingMethod":
+        valid = set(self._param_names())
+        for key, value in params.items():
+            if key not in valid:
+                raise ValueError(f"{self.name}: unknown parameter {key!r}; valid parameters: {sorted(valid)}")
+            setattr(self, key, value)
+        return self
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+    def inpaint(self, frames: list[np.ndarray], regions: list | None = None) -> list[np.ndarray]:
+        raise NotImplementedError
+
+    # -- helpers shared by every method ------------------------------------------------------
+    def _check_inputs(self, frames, regions) -> tuple[list[np.ndarray], list | None]:
+        """Validate the sequence and regions; return float64 views (inputs are never written)."""
+        return check_sequence(frames, regions, method=self.name, needs_regions=self.needs_regions,
+                              detects_holes=self.detects_holes)
+
+
+class PerFrameMethod(InpaintingMethod):
+    """A method that inpaints each frame on its own: implement `inpaint_frame`."""
+
+    def inpaint(self, frames, regions=None):
+        frames, regions = self._check_inputs(frames, regions)
+        out = []
+        for i, frame in enumerate(frames):
+            frame_regions = None if regions is None else regions[i]
+            if frame_regions is not None and len(frame_regions) == 0:
+                out.append(frame.copy())
+                continue
+            out.append(np.asarray(self.inpaint_frame(frame, frame_regions), dtype=np.float64))
+        return out
+
+    def inpaint_frame(self, points: np.ndarray, regions: list | None) -> np.ndarray:
+        raise NotImplementedError
+
+
+def check_sequence(frames, regions=None, *, method: str = "method", needs_regions: bool = False,
+                   detects_holes: bool = True):
+    """Shared input validation with messages that say what is wrong and what to do."""
+    if isinstance(frames, np.ndarray) and frames.ndim == 2:
+        raise ValueError(f"{method}: expected a list of (N, 3) frames, got one array; wrap it: [frame]")
+    frames = list(frames)
+    if not frames:
+        raise ValueError(f"{method}: the sequence has no frames")
+    checked = []
+    for i, frame in enumerate(frames):
+        arr = np.asarray(frame, dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[1] != 3:
+            raise ValueError(f"{method}: frame {i} must be an (N, 3) array, got shape {arr.shape}")
+        if len(arr) == 0:
+            raise ValueError(f"{method}: frame {i} has zero points; drop empty frames before inpainting")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"{method}: frame {i} has NaN or infinite coordinates; remove those points first")
+        checked.append(arr)
+    if regions is None:
+        if needs_regions or not detects_holes:
+            raise ValueError(
+                f"{method}: needs the hole regions (regions=None is the blind protocol, which this method "
+                "does not support); pass regions from holes.json or run hole detection first"
+            )
+        return checked, None
+    regions = list(regions)
+    if len(regions) != len(checked):
+        raise ValueError(f"{method}: got {len(regions)} region lists for {len(checked)} frames; give one list per frame")
+    return checked, [list(r) for r in regions]

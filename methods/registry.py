@@ -1,0 +1,40 @@
+"""Methods by name. Entries are import strings, so a heavy dependency (pymeshlab, open3d) loads
+only when its method is used."""
+
+from __future__ import annotations
+
+import importlib
+
+# name -> "module:ClassName"
+METHODS: dict[str, str] = {
+    "none": "methods.reference:NoFill",
+    "temporal-copy": "methods.reference:TemporalCopy",
+    "temporal-graph": "methods.temporal_graph:TemporalGraph",
+    "fu-nonlocal": "methods.temporal_graph:FuNonlocal",
+    "lozes-pde": "methods.lozes_pde:LozesPDE",
+    "meshlab": "methods.meshlab:MeshlabFill",
+}
+
+
+def method_class(name: str):
+    if name not in METHODS:
+        raise KeyError(f"unknown method {name!r}; known methods: {', '.join(sorted(METHODS))}")
+    module_name, _, attr = METHODS[name].partition(":")
+    return getattr(importlib.import_module(module_name), attr)
+
+
+def get_method(name: str, **params):
+    """A configured method instance: ``get_method("temporal-graph", beta=0.5)``."""
+    return method_class(name)(**params)
+
+
+def available_methods() -> dict[str, str | None]:
+    """name -> None when the method imports, else the reason it cannot be used here."""
+    status = {}
+    for name in sorted(METHODS):
+        try:
+            method_class(name)
+            status[name] = None
+        except Exception as err:  # report, never crash a listing
+            status[name] = f"{type(err).__name__}: {err}"
+    return status

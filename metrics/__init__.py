@@ -1,0 +1,1 @@
+"""Point cloud quality metrics on numpy arrays."""
