@@ -1,0 +1,301 @@
+"""The results store: one SQLite database (stdlib `sqlite3`) that runs, reports and the dashboard share.
+
+Location: a parameter everywhere; the default is ``$DPCBENCH_STORE`` or, when unset,
+``$XDG_CACHE_HOME/dpcbench/results.sqlite`` (``~/.cache/dpcbench/results.sqlite``): never the source tree.
+
+Schema (version `SCHEMA_VERSION`)::
+
+    schema_version(version INTEGER)
+    runs(run_id TEXT PRIMARY KEY, status TEXT 'done'|'failed', error TEXT,
+         sequence, holes, holes_params (JSON), seed, method, method_params (JSON), method_version,
+         code_version (git commit), spec (JSON), wall_time_s, peak_mem_mb, env (JSON),
+         created_at, finished_at, output_dir)
+    experiment_runs(experiment TEXT, run_id TEXT)      -- a run may belong to several experiments
+    results(run_id, frame INTEGER, metric, scope, peak, value REAL)
+        PRIMARY KEY (run_id, frame, metric, scope, peak)  -- frame = -1 for sequence-level values
+
+Write discipline (what makes a killed run harmless and a rerun idempotent):
+- Only the driver process writes (workers send their results back to it); WAL mode and a busy
+  timeout still let readers (reports, the dashboard) and a second driver work concurrently.
+- `record_run` writes a run's results *and* its 'done' status in ONE transaction, after deleting
+  any earlier rows of that run id: the store holds either all of a run's rows or none, and a rerun
+  replaces rather than duplicates. A run killed before `record_run` leaves no trace.
+- `record_failure` writes the 'failed' status and message (and drops stale results) in one transaction.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sqlite3
+from contextlib import contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+
+import pandas as pd
+
+SCHEMA_VERSION = 1
+
+#: columns of `ResultsStore.results_frame`, in order
+RESULT_COLUMNS = [
+    "run_id", "experiment", "sequence", "holes", "holes_params", "seed", "method", "method_params",
+    "method_version", "code_version", "frame", "metric", "scope", "peak", "value", "created_at",
+]
+#: columns of `ResultsStore.runs_frame`, in order
+RUN_COLUMNS = [
+    "run_id", "experiment", "status", "error", "sequence", "holes", "holes_params", "seed", "method",
+    "method_params", "method_version", "code_version", "spec", "wall_time_s", "peak_mem_mb", "env",
+    "created_at", "finished_at", "output_dir",
+]
+
+_RUN_TABLE_COLUMNS = [
+    "run_id", "status", "error", "sequence", "holes", "holes_params", "seed", "method", "method_params",
+    "method_version", "code_version", "spec", "wall_time_s", "peak_mem_mb", "env", "created_at", "finished_at",
+    "output_dir",
+]
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS runs (
+    run_id TEXT PRIMARY KEY,
+    status TEXT NOT NULL CHECK (status IN ('done', 'failed')),
+    error TEXT,
+    sequence TEXT, holes TEXT, holes_params TEXT, seed INTEGER,
+    method TEXT, method_params TEXT, method_version TEXT, code_version TEXT,
+    spec TEXT NOT NULL,
+    wall_time_s REAL, peak_mem_mb REAL, env TEXT,
+    created_at TEXT NOT NULL, finished_at TEXT, output_dir TEXT
+);
+CREATE TABLE IF NOT EXISTS experiment_runs (
+    experiment TEXT NOT NULL,
+    run_id TEXT NOT NULL,
+    PRIMARY KEY (experiment, run_id)
+);
+CREATE TABLE IF NOT EXISTS results (
+    run_id TEXT NOT NULL,
+    frame INTEGER NOT NULL,
+    metric TEXT NOT NULL,
+    scope TEXT NOT NULL,
+    peak TEXT NOT NULL DEFAULT '',
+    value REAL,
+    PRIMARY KEY (run_id, frame, metric, scope, peak)
+);
+CREATE INDEX IF NOT EXISTS results_run ON results (run_id);
+"""
+
+
+def default_store_path() -> Path:
+    """``$DPCBENCH_STORE``, else ``$XDG_CACHE_HOME/dpcbench/results.sqlite`` (``~/.cache/...``)."""
+    env = os.environ.get("DPCBENCH_STORE")
+    if env:
+        return Path(env).expanduser()
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return cache / "dpcbench" / "results.sqlite"
+
+
+def now_iso() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def _json(value) -> str:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def _corrupt_message(path: Path, err: Exception) -> str:
+    return (
+        f"{path}: the results store is unreadable ({type(err).__name__}: {err}). It is not a dpcbench "
+        "SQLite store or it is corrupt: move it aside (e.g. rename it to results.sqlite.bad) and rerun, "
+        "which rebuilds the results from the cached run folders' frames, or pass another --store PATH"
+    )
+
+
+class ResultsStore:
+    """The SQLite results store at ``path`` (created with its folder on first write).
+
+    ``readonly=True`` never creates or alters anything (for reports and the dashboard): a missing
+    file is then an error. Every error about an unusable file is a ValueError whose message says
+    what to do.
+    """
+
+    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0):
+        self.path = Path(path).expanduser() if path is not None else default_store_path()
+        self.readonly = readonly
+        self.timeout_s = timeout_s
+        if self.path.is_dir():
+            raise ValueError(f"{self.path}: is a folder; the store is a file: pass e.g. {self.path / 'results.sqlite'}")
+        if readonly and not self.path.is_file():
+            raise ValueError(f"{self.path}: no results store there; run `dpcbench run CONFIG --store {self.path}` first")
+        if not readonly:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._init()
+
+    # -- connection ------------------------------------------------------------------------
+    def _connect(self) -> sqlite3.Connection:
+        if self.readonly:
+            conn = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=self.timeout_s)
+        else:
+            conn = sqlite3.connect(str(self.path), timeout=self.timeout_s)
+        conn.execute(f"PRAGMA busy_timeout = {int(self.timeout_s * 1000)}")
+        return conn
+
+    @contextmanager
+    def _conn(self):
+        try:
+            conn = self._connect()
+        except sqlite3.Error as err:
+            raise ValueError(_corrupt_message(self.path, err)) from err
+        try:
+            yield conn
+        except sqlite3.DatabaseError as err:
+            # "file is not a database" / "database disk image is malformed" mean a damaged file;
+            # other errors (locked, programming errors) pass through unchanged.
+            if type(err) is sqlite3.DatabaseError or "malformed" in str(err) or "not a database" in str(err):
+                raise ValueError(_corrupt_message(self.path, err)) from err
+            raise
+        finally:
+            conn.close()
+
+    def _init(self) -> None:
+        with self._conn() as conn:
+            tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            if not tables:
+                if self.readonly:
+                    raise ValueError(f"{self.path}: the file is empty, not a results store; run `dpcbench run` first")
+                conn.execute("PRAGMA journal_mode = WAL")
+                with conn:
+                    conn.executescript(_SCHEMA)
+                    conn.execute("INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,))
+                return
+            if "schema_version" not in tables or not {"runs", "results"} <= tables:
+                raise ValueError(
+                    f"{self.path}: this SQLite file is not a dpcbench results store (tables: {sorted(tables)}); "
+                    "pass the store's path, or a new path to start one"
+                )
+            row = conn.execute("SELECT MAX(version) FROM schema_version").fetchone()
+            if row[0] != SCHEMA_VERSION:
+                raise ValueError(
+                    f"{self.path}: store schema version {row[0]}, this dpcbench reads version {SCHEMA_VERSION}; "
+                    "use a new --store path (or the dpcbench version that wrote it)"
+                )
+            if not self.readonly:
+                conn.execute("PRAGMA journal_mode = WAL")
+
+    # -- writes ----------------------------------------------------------------------------
+    @staticmethod
+    def _run_row(run_id: str, record: dict, status: str, error: str | None) -> tuple:
+        return (
+            run_id, status, error,
+            record.get("sequence"), record.get("holes"), _json(record.get("holes_params", {})),
+            record.get("seed"), record.get("method"), _json(record.get("method_params", {})),
+            record.get("method_version"), record.get("code_version"), _json(record.get("spec", {})),
+            record.get("wall_time_s"), record.get("peak_mem_mb"), _json(record.get("env", {})),
+            record.get("created_at") or now_iso(), record.get("finished_at") or now_iso(),
+            None if record.get("output_dir") is None else str(record.get("output_dir")),
+        )
+
+    def _write(self, run_id: str, record: dict, status: str, error: str | None, results: list[dict],
+               experiments: list[str]) -> None:
+        if self.readonly:
+            raise ValueError(f"{self.path}: opened read-only")
+        rows = []
+        for r in results:
+            value = r["value"]
+            value = None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
+            peak = r.get("peak")
+            rows.append((run_id, int(r["frame"]), str(r["metric"]), str(r.get("scope", "frame")),
+                         "" if peak is None else str(peak), value))
+        with self._conn() as conn:
+            with conn:  # one transaction: all of it or nothing
+                conn.execute("DELETE FROM results WHERE run_id = ?", (run_id,))
+                conn.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_RUN_TABLE_COLUMNS)}) "
+                             f"VALUES ({', '.join('?' * len(_RUN_TABLE_COLUMNS))})",
+                             self._run_row(run_id, record, status, error))
+                conn.executemany("INSERT OR REPLACE INTO results VALUES (?,?,?,?,?,?)", rows)
+                conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)",
+                                 [(e, run_id) for e in experiments if e])
+
+    def record_run(self, run_id: str, record: dict, results: list[dict], experiments: list[str] = ()) -> None:
+        """Store a finished run and all its results in one transaction (replacing earlier rows).
+
+        record:  run facts: sequence, holes, holes_params (dict), seed, method, method_params (dict),
+                 method_version, code_version, spec (dict), wall_time_s, peak_mem_mb, env (dict),
+                 created_at, finished_at, output_dir.
+        results: dicts with frame (int, -1 = sequence level), metric, scope, peak ("" if none), value.
+        """
+        self._write(run_id, record, "done", None, results, list(experiments))
+
+    def record_failure(self, run_id: str, record: dict, error: str, experiments: list[str] = ()) -> None:
+        """Mark a run failed with its message (stale results of that id are dropped)."""
+        self._write(run_id, record, "failed", str(error), [], list(experiments))
+
+    def add_to_experiment(self, experiment: str, run_ids: list[str]) -> None:
+        """Make already-stored (cached) runs part of ``experiment`` too."""
+        with self._conn() as conn:
+            with conn:
+                conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)", [(experiment, r) for r in run_ids])
+
+    def delete_runs(self, run_ids: list[str]) -> None:
+        with self._conn() as conn:
+            with conn:
+                for table in ("results", "experiment_runs", "runs"):
+                    conn.executemany(f"DELETE FROM {table} WHERE run_id = ?", [(r,) for r in run_ids])
+
+    # -- reads -----------------------------------------------------------------------------
+    def statuses(self, run_ids: list[str] | None = None) -> dict[str, str]:
+        """run_id -> 'done' | 'failed' for stored runs (optionally only those in ``run_ids``)."""
+        with self._conn() as conn:
+            rows = conn.execute("SELECT run_id, status FROM runs").fetchall()
+        out = dict(rows)
+        if run_ids is not None:
+            wanted = set(run_ids)
+            out = {k: v for k, v in out.items() if k in wanted}
+        return out
+
+    def experiments(self) -> list[str]:
+        with self._conn() as conn:
+            return [r[0] for r in conn.execute("SELECT DISTINCT experiment FROM experiment_runs ORDER BY experiment")]
+
+    def _frame(self, sql: str, params: tuple) -> pd.DataFrame:
+        with self._conn() as conn:
+            return pd.read_sql_query(sql, conn, params=params)
+
+    def results_frame(self, experiment: str | None = None, *, status: str = "done") -> pd.DataFrame:
+        """The tidy long table, one row per (run, experiment, frame, metric, scope, peak).
+
+        Columns `RESULT_COLUMNS`; ``experiment`` filters; runs in no experiment get experiment ''.
+        Only results of runs whose status is ``status`` ('done'; failed runs have no results).
+        """
+        where = ["r.status = ?"]
+        params: list = [status]
+        if experiment is not None:
+            where.append("e.experiment = ?")
+            params.append(experiment)
+        sql = f"""
+            SELECT x.run_id, COALESCE(e.experiment, '') AS experiment, r.sequence, r.holes, r.holes_params,
+                   r.seed, r.method, r.method_params, r.method_version, r.code_version,
+                   x.frame, x.metric, x.scope, x.peak, x.value, r.finished_at AS created_at
+            FROM results x JOIN runs r ON r.run_id = x.run_id
+            LEFT JOIN experiment_runs e ON e.run_id = x.run_id
+            WHERE {' AND '.join(where)}
+            ORDER BY experiment, r.sequence, r.holes, r.seed, r.method, x.run_id, x.frame, x.metric, x.scope, x.peak
+        """
+        df = self._frame(sql, tuple(params))
+        df["value"] = df["value"].astype(float)
+        return df[RESULT_COLUMNS]
+
+    def runs_frame(self, experiment: str | None = None) -> pd.DataFrame:
+        """One row per (run, experiment): columns `RUN_COLUMNS` (spec/env as JSON text)."""
+        params: tuple = ()
+        where = ""
+        if experiment is not None:
+            where = "WHERE e.experiment = ?"
+            params = (experiment,)
+        sql = f"""
+            SELECT r.run_id, COALESCE(e.experiment, '') AS experiment, r.status, r.error, r.sequence, r.holes,
+                   r.holes_params, r.seed, r.method, r.method_params, r.method_version, r.code_version, r.spec,
+                   r.wall_time_s, r.peak_mem_mb, r.env, r.created_at, r.finished_at, r.output_dir
+            FROM runs r LEFT JOIN experiment_runs e ON e.run_id = r.run_id {where}
+            ORDER BY experiment, r.sequence, r.method, r.run_id
+        """
+        return self._frame(sql, params)[RUN_COLUMNS]
