@@ -1,0 +1,495 @@
+"""Regression summaries and their comparison (`dpcbench compare`).
+
+A **summary** condenses the results store into one row per
+(sequence, holes, holes_params, method, method_params, metric, scope, peak):
+
+    mean     = (1/n) * sum_f value_f           over the n stored values (frames x seeds)
+    std      = sqrt((1/n) * sum_f (value_f - mean)^2)   (population std, 0 for one value)
+    n_frames = n
+
+Only the latest run of each (sequence, holes, holes_params, seed, method, method_params) enters, so
+a store holding several code versions summarizes the newest unless `code_version` is given.
+Per-frame wall time is the metric ``time_s`` (scope "frame"), as the runner stores it.
+
+A summary is saved as CSV (a ``# key: value`` header block, then the rows) or JSON
+(``{"format": "dpcbench-summary", "meta": {...}, "rows": [...]}``); both carry ``meta`` with the
+code version (git commit), the date and the environment that produced it. results/README.md
+documents the format.
+
+**Comparison** (`compare_summaries`): rows are matched on the key columns, and per metric kind
+    "delta" (PSNR in dB, F-score):        change = current - baseline
+    "ratio" (NSHD, Hausdorff, Chamfer,
+             time, memory):               change = current / baseline   (0/0 -> 1)
+A row REGRESSED when the change passes its tolerance in the bad direction (direction from
+``metrics.registry.METRICS[name].higher_is_better`` when the metrics package has the metric, else
+`HIGHER_IS_BETTER` below); improved when it passes it in the good direction. Resource metrics
+(time_s, peak_mem_mb) are compared and shown, but fail the gate only with ``gate_time=True``.
+A row present in the baseline and absent from the current summary is MISSING and fails the gate
+(a method that started crashing must not pass silently).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import io
+import json
+import math
+import os
+import platform
+import subprocess
+import tomllib
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+#: what identifies one summary row (besides the metric values)
+KEY_COLUMNS = ["sequence", "holes", "holes_params", "method", "method_params", "metric", "scope", "peak"]
+SUMMARY_COLUMNS = KEY_COLUMNS + ["mean", "std", "n_frames"]
+#: a run is one (data, damage, method) cell; the newest of each enters a summary
+RUN_KEY = ["sequence", "holes", "holes_params", "seed", "method", "method_params"]
+#: metrics that measure cost, not quality: gated only on request (machines are noisy)
+RESOURCE_METRICS = ("time_s", "peak_mem_mb")
+
+#: fallback when metrics.registry does not know a metric
+HIGHER_IS_BETTER = {
+    "gpsnr_d1": True, "gpsnr_d2": True, "fscore": True,
+    "nshd": False, "hausdorff": False, "chamfer": False,
+    "temporal_consistency": False, "time_s": False, "peak_mem_mb": False,
+}
+#: how a change is measured: "delta" = current - baseline (dB for PSNR), "ratio" = current / baseline
+CHANGE_KIND = {
+    "gpsnr_d1": "delta", "gpsnr_d2": "delta", "fscore": "delta",
+    "nshd": "ratio", "hausdorff": "ratio", "chamfer": "ratio",
+    "temporal_consistency": "ratio", "time_s": "ratio", "peak_mem_mb": "ratio",
+}
+#: used when the tolerances file does not name a metric. PSNR in dB; ratios as factors (1.10 = 10 %).
+DEFAULT_TOLERANCES = {
+    "gpsnr_d1": 0.1, "gpsnr_d2": 0.1, "fscore": 0.01,
+    "nshd": 1.10, "hausdorff": 1.10, "chamfer": 1.10, "temporal_consistency": 1.10,
+    "time_s": 1.5, "peak_mem_mb": 1.5,
+}
+#: per-frame times below this (seconds) are too noisy to gate on; compared but never REGRESSED
+TIME_FLOOR_S = 0.05
+
+STATUS_OK, STATUS_IMPROVED, STATUS_REGRESSED = "✓", "improved", "REGRESSED"
+STATUS_MISSING, STATUS_NEW, STATUS_SLOWER, STATUS_FASTER = "MISSING", "new", "slower", "faster"
+
+SUMMARY_FORMAT = "dpcbench-summary"
+
+
+# ---------------------------------------------------------------------------------------------
+# metric facts
+def _registry_metric(name: str):
+    try:
+        from metrics.registry import METRICS
+    except Exception:  # the metrics package is optional for comparing two summary files
+        return None
+    return METRICS.get(name)
+
+
+def higher_is_better(metric: str) -> bool:
+    """Direction of a metric: metrics.registry when it knows the metric, else HIGHER_IS_BETTER."""
+    entry = _registry_metric(metric)
+    if entry is not None and hasattr(entry, "higher_is_better"):
+        return bool(entry.higher_is_better)
+    if metric in HIGHER_IS_BETTER:
+        return HIGHER_IS_BETTER[metric]
+    raise KeyError(
+        f"metric {metric!r}: unknown direction (higher or lower is better); it is neither in "
+        "metrics.registry.METRICS nor in bench.compare.HIGHER_IS_BETTER"
+    )
+
+
+def change_kind(metric: str) -> str:
+    """'delta' for dB-valued and bounded scores, 'ratio' for distances, time and memory."""
+    if metric in CHANGE_KIND:
+        return CHANGE_KIND[metric]
+    entry = _registry_metric(metric)
+    unit = str(getattr(entry, "unit", "") or "").lower()
+    return "delta" if unit == "db" or metric.startswith("gpsnr") else "ratio"
+
+
+# ---------------------------------------------------------------------------------------------
+# environment and code version
+def git_commit(repo: str | os.PathLike | None = None) -> str:
+    """The checked-out commit (with '-dirty' when tracked files are modified), or 'unknown'."""
+    cwd = Path(repo) if repo else Path(__file__).resolve().parents[1]
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True,
+                                timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return commit + ("-dirty" if dirty else "")
+
+
+def environment_info() -> dict:
+    """Python and library versions and the machine, for a summary's header block."""
+    info = {"python": platform.python_version()}
+    for package in ("numpy", "scipy", "open3d", "pymeshlab", "pandas"):
+        try:
+            info[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            info[package] = "not installed"
+    info["machine"] = f"{platform.system()} {platform.machine()}, {os.cpu_count()} cpus"
+    info["processor"] = platform.processor() or platform.machine()
+    return info
+
+
+# ---------------------------------------------------------------------------------------------
+# summaries
+def _canonical_json(text) -> str:
+    """Parameters as canonical JSON text (sorted keys), so equal parameters always match."""
+    if text is None or (isinstance(text, float) and math.isnan(text)) or text == "":
+        return "{}"
+    value = json.loads(text) if isinstance(text, str) else text
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+
+
+def _normalize_keys(df: pd.DataFrame) -> pd.DataFrame:
+    df = df.copy()
+    for column in ("holes_params", "method_params"):
+        df[column] = df[column].map(_canonical_json)
+    for column in ("sequence", "holes", "method", "metric", "scope", "peak"):
+        df[column] = df[column].fillna("").astype(str)
+    return df
+
+
+def summarize(results: pd.DataFrame, *, experiment: str | None = None,
+              code_version: str | None = None) -> pd.DataFrame:
+    """One row per KEY_COLUMNS: mean, std (population) and count of the stored values.
+
+    results: the store's tidy table (`ResultsStore.results_frame()`), columns at least RUN_KEY +
+             run_id, metric, scope, peak, value, created_at (+ experiment, code_version to filter).
+    Keeps, per RUN_KEY, only the run with the newest created_at, then averages over frames and seeds.
+    Values that are NaN are left out of mean/std; n_frames counts the finite and infinite ones.
+    """
+    required = set(RUN_KEY) | {"run_id", "metric", "scope", "peak", "value", "created_at"}
+    missing = sorted(required - set(results.columns))
+    if missing:
+        raise ValueError(f"results table lacks the columns {missing}; pass ResultsStore(path).results_frame()")
+    df = results
+    if experiment is not None:
+        df = df[df["experiment"] == experiment]
+    if code_version is not None:
+        df = df[df["code_version"] == code_version]
+    if df.empty:
+        what = " and ".join(f"{k} {v!r}" for k, v in (("experiment", experiment), ("code version", code_version)) if v)
+        raise ValueError(f"no results to summarize{' for ' + what if what else ''}; run the experiment first "
+                         "(dpcbench run CONFIG)")
+    df = _normalize_keys(df)
+    # the newest run per cell: its first created_at stands for the run
+    run_times = df.groupby("run_id", sort=False, dropna=False).agg(created=("created_at", "min"),
+                                                     **{k: (k, "first") for k in RUN_KEY})
+    newest = run_times.sort_values("created").groupby(RUN_KEY, sort=False, dropna=False).tail(1).index
+    df = df[df["run_id"].isin(newest)]
+    grouped = df.groupby(KEY_COLUMNS, sort=True)["value"]
+    summary = grouped.agg(mean="mean", std=lambda v: float(np.std(v.dropna())) if v.notna().any() else np.nan,
+                          n_frames="count").reset_index()
+    summary["n_frames"] = summary["n_frames"].astype(int)
+    return summary[SUMMARY_COLUMNS]
+
+
+def summary_meta(code_version: str | None = None, *, results: pd.DataFrame | None = None,
+                 environment: dict | None = None, **extra) -> dict:
+    """The header block: code version, date (UTC, ISO), environment, plus any extra fields."""
+    if code_version is None and results is not None and "code_version" in results.columns and len(results):
+        versions = results["code_version"].dropna().unique()
+        code_version = ",".join(sorted(map(str, versions)))
+    meta = {
+        "code_version": code_version or git_commit(),
+        "date": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
+    }
+    env = environment if environment is not None else environment_info()
+    meta.update({f"env.{k}": str(v) for k, v in env.items()})
+    meta.update({k: str(v) for k, v in extra.items()})
+    return meta
+
+
+def write_summary(summary: pd.DataFrame, path: str | os.PathLike, meta: dict | None = None) -> Path:
+    """Write a summary as .csv (``# key: value`` header lines, then the table) or .json; atomic."""
+    path = Path(path)
+    meta = dict(meta or {})
+    summary = summary[SUMMARY_COLUMNS]
+    if path.suffix.lower() == ".json":
+        rows = json.loads(summary.to_json(orient="records", double_precision=15))
+        text = json.dumps({"format": SUMMARY_FORMAT, "version": 1, "meta": meta, "rows": rows}, indent=1)
+    elif path.suffix.lower() == ".csv":
+        header = [f"# format: {SUMMARY_FORMAT} 1"] + [f"# {k}: {v}" for k, v in meta.items()]
+        buffer = io.StringIO()
+        summary.to_csv(buffer, index=False, float_format="%.12g", lineterminator="\n")
+        text = "\n".join(header) + "\n" + buffer.getvalue()
+    else:
+        raise ValueError(f"{path}: a summary file must end in .csv or .json")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)  # atomic: a reader never sees half a file
+    return path
+
+
+def read_summary(path: str | os.PathLike) -> tuple[pd.DataFrame, dict]:
+    """(summary table, meta) from a file written by `write_summary`."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such summary file")
+    text = path.read_text(encoding="utf-8")
+    if path.suffix.lower() == ".json":
+        try:
+            payload = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{path}: not valid JSON ({err}); regenerate it with dpcbench compare --save") from None
+        if not isinstance(payload, dict) or payload.get("format") != SUMMARY_FORMAT:
+            raise ValueError(f"{path}: not a dpcbench summary (no \"format\": \"{SUMMARY_FORMAT}\")")
+        table = pd.DataFrame(payload.get("rows", []), columns=SUMMARY_COLUMNS)
+        meta = dict(payload.get("meta", {}))
+    elif path.suffix.lower() == ".csv":
+        lines = text.splitlines()
+        meta, body_start = {}, 0
+        for body_start, line in enumerate(lines):
+            if not line.startswith("# "):
+                break
+            key, _, value = line[2:].partition(": ")
+            meta[key] = value
+        else:
+            body_start = len(lines)
+        if meta.get("format", "").split(" ")[0] != SUMMARY_FORMAT:
+            raise ValueError(f"{path}: not a dpcbench summary (first line must be '# format: {SUMMARY_FORMAT} 1')")
+        meta.pop("format")
+        body = "\n".join(lines[body_start:])
+        table = pd.read_csv(io.StringIO(body), dtype={c: str for c in KEY_COLUMNS}, keep_default_na=False,
+                            na_values={"mean": ["", "nan", "NaN"], "std": ["", "nan", "NaN"]})
+    else:
+        raise ValueError(f"{path}: a summary file must end in .csv or .json")
+    absent = [c for c in SUMMARY_COLUMNS if c not in table.columns]
+    if absent:
+        raise ValueError(f"{path}: summary lacks the columns {absent}")
+    table = _normalize_keys(table)
+    table["mean"] = pd.to_numeric(table["mean"], errors="coerce")
+    table["std"] = pd.to_numeric(table["std"], errors="coerce")
+    table["n_frames"] = pd.to_numeric(table["n_frames"], errors="coerce").fillna(0).astype(int)
+    return table[SUMMARY_COLUMNS], meta
+
+
+# ---------------------------------------------------------------------------------------------
+# tolerances
+def load_tolerances(path: str | os.PathLike | None = None) -> dict[str, float]:
+    """DEFAULT_TOLERANCES updated with the ``[tolerances]`` table of a TOML file (if given).
+
+    Values: dB for "delta" metrics (0.1 = a PSNR drop of more than 0.1 dB regresses), factors > 1
+    for "ratio" metrics (1.10 = more than 10 % worse regresses).
+    """
+    tolerances = dict(DEFAULT_TOLERANCES)
+    if path is None:
+        return tolerances
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            data = tomllib.load(handle)
+    except FileNotFoundError:
+        raise ValueError(f"{path}: tolerances file not found") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not valid TOML ({err})") from None
+    table = data.get("tolerances")
+    if table is None:
+        raise ValueError(f"{path}: has no [tolerances] table; add e.g. '[tolerances]' then 'gpsnr_d1 = 0.1'")
+    if not isinstance(table, dict):
+        raise ValueError(f"{path}: 'tolerances' must be a table of metric = number")
+    for metric, value in table.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ValueError(f"{path}: tolerances.{metric}: expected a number, got {value!r}")
+        if change_kind(metric) == "ratio" and value < 1:
+            raise ValueError(f"{path}: tolerances.{metric}: a ratio tolerance is a factor >= 1 (1.10 = 10 %), "
+                             f"got {value}")
+        if change_kind(metric) == "delta" and value < 0:
+            raise ValueError(f"{path}: tolerances.{metric}: a difference tolerance must be >= 0, got {value}")
+        tolerances[metric] = float(value)
+    return tolerances
+
+
+# ---------------------------------------------------------------------------------------------
+# comparison
+def _change(kind: str, baseline: float, current: float) -> float:
+    if kind == "delta":
+        if math.isinf(baseline) and math.isinf(current) and baseline == current:
+            return 0.0  # e.g. both PSNR inf (identical clouds)
+        return current - baseline
+    if baseline == 0:
+        return 1.0 if current == 0 else math.inf
+    return current / baseline
+
+
+def _status(metric: str, kind: str, change: float, tolerance: float, baseline: float) -> str:
+    """Status of one matched row; see the module docstring for the rule."""
+    if math.isnan(change):
+        return STATUS_REGRESSED  # a defined value became undefined (or the reverse): never pass silently
+    better_high = higher_is_better(metric)
+    if kind == "delta":
+        worse, better = (change < -tolerance, change > tolerance) if better_high else (change > tolerance,
+                                                                                      change < -tolerance)
+    else:
+        worse, better = (change < 1 / tolerance, change > tolerance) if better_high else (change > tolerance,
+                                                                                         change < 1 / tolerance)
+    if metric in RESOURCE_METRICS:
+        if metric == "time_s" and abs(baseline) < TIME_FLOOR_S:
+            return STATUS_OK
+        return STATUS_SLOWER if worse else STATUS_FASTER if better else STATUS_OK
+    return STATUS_REGRESSED if worse else STATUS_IMPROVED if better else STATUS_OK
+
+
+@dataclass
+class Comparison:
+    """The outcome of `compare_summaries`.
+
+    table: one row per key present in either summary: KEY_COLUMNS + baseline, current, kind,
+           change, tolerance, status, gated (True when this row can fail the comparison).
+    failed: True when a gated row REGRESSED (or slower with gate_time) or is MISSING.
+    """
+
+    table: pd.DataFrame
+    gate_time: bool = False
+    baseline_meta: dict = field(default_factory=dict)
+    current_meta: dict = field(default_factory=dict)
+
+    @property
+    def failures(self) -> pd.DataFrame:
+        bad = self.table["status"].isin([STATUS_REGRESSED, STATUS_MISSING])
+        if self.gate_time:
+            bad |= self.table["status"] == STATUS_SLOWER
+        return self.table[bad & self.table["gated"]]
+
+    @property
+    def failed(self) -> bool:
+        return not self.failures.empty
+
+    def counts(self) -> dict[str, int]:
+        return {str(k): int(v) for k, v in self.table["status"].value_counts().items()}
+
+    def format(self, *, only_changes: bool = False, width: int = 160) -> str:
+        """A readable text table (see `format_comparison`)."""
+        return format_comparison(self, only_changes=only_changes, width=width)
+
+
+def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances: dict[str, float] | None = None,
+                      *, gate_time: bool = False) -> Comparison:
+    """Match two summaries on KEY_COLUMNS and rate each change against its tolerance."""
+    tolerances = dict(DEFAULT_TOLERANCES if tolerances is None else tolerances)
+    base = _normalize_keys(baseline)[KEY_COLUMNS + ["mean"]].rename(columns={"mean": "baseline"})
+    cur = _normalize_keys(current)[KEY_COLUMNS + ["mean"]].rename(columns={"mean": "current"})
+    for name, table in (("baseline", base), ("current", cur)):
+        duplicated = table.duplicated(KEY_COLUMNS)
+        if duplicated.any():
+            raise ValueError(f"the {name} summary repeats {int(duplicated.sum())} key(s); "
+                             "summaries have one row per (sequence, holes, method, params, metric, scope, peak)")
+    merged = base.merge(cur, on=KEY_COLUMNS, how="outer", indicator="side")
+    rows = []
+    for row in merged.itertuples(index=False):
+        record = {c: getattr(row, c) for c in KEY_COLUMNS}
+        metric = record["metric"]
+        kind = change_kind(metric)
+        if metric not in tolerances:
+            raise KeyError(f"no tolerance for metric {metric!r}; add it to the [tolerances] table "
+                           f"(a {'difference' if kind == 'delta' else 'ratio, e.g. 1.10'})")
+        tolerance = tolerances[metric]
+        b, c = float(row.baseline), float(row.current)
+        if row.side == "left_only":
+            change, status = math.nan, STATUS_MISSING
+        elif row.side == "right_only":
+            change, status = math.nan, STATUS_NEW
+        elif math.isnan(b) and math.isnan(c):
+            change, status = math.nan, STATUS_OK
+        else:
+            change = _change(kind, b, c)
+            status = _status(metric, kind, change, tolerance, b)
+        gated = metric not in RESOURCE_METRICS or gate_time
+        record.update(baseline=b, current=c, kind=kind, change=change, tolerance=tolerance,
+                      status=status, gated=gated)
+        rows.append(record)
+    table = pd.DataFrame(rows, columns=KEY_COLUMNS + ["baseline", "current", "kind", "change", "tolerance",
+                                                      "status", "gated"])
+    table = table.sort_values(["sequence", "holes", "method", "method_params", "scope", "metric", "peak"],
+                              kind="stable").reset_index(drop=True)
+    return Comparison(table=table, gate_time=gate_time)
+
+
+# ---------------------------------------------------------------------------------------------
+# text output
+def _fmt_value(value: float) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    magnitude = abs(value)
+    if magnitude != 0 and (magnitude < 1e-3 or magnitude >= 1e6):
+        return f"{value:.4g}"
+    return f"{value:.4f}" if magnitude < 100 else f"{value:.2f}"
+
+
+def format_change(kind: str, change: float, metric: str = "") -> str:
+    """'+0.12 dB' / '-0.012' for differences, 'x1.25' for ratios, '-' when undefined."""
+    if change is None or math.isnan(change):
+        return "-"
+    if kind == "delta":
+        unit = " dB" if metric.startswith("gpsnr") else ""
+        return f"{change:+.3f}{unit}"
+    return "x inf" if math.isinf(change) else f"x{change:.3f}"
+
+
+def format_tolerance(kind: str, tolerance: float, metric: str = "") -> str:
+    if kind == "delta":
+        return f"±{tolerance:g}{' dB' if metric.startswith('gpsnr') else ''}"
+    return f"x{tolerance:g}"
+
+
+def short_params(params_json: str, limit: int = 40) -> str:
+    """Compact 'k=v, k=v' form of a params JSON text for tables."""
+    try:
+        params = json.loads(params_json) if params_json else {}
+    except (TypeError, json.JSONDecodeError):
+        return str(params_json)[:limit]
+    if not isinstance(params, dict):
+        return str(params)[:limit]
+    text = ", ".join(f"{k}={v}" for k, v in params.items())
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def format_comparison(comparison: Comparison, *, only_changes: bool = False, width: int = 160) -> str:
+    """The comparison as an aligned text table plus a one-line verdict."""
+    table = comparison.table
+    if only_changes:
+        table = table[table["status"] != STATUS_OK]
+    display = pd.DataFrame({
+        "sequence": table["sequence"],
+        "holes": [h + (f" ({short_params(p, 24)})" if p != "{}" else "") for h, p in
+                  zip(table["holes"], table["holes_params"])],
+        "method": [m + (f" ({short_params(p)})" if p != "{}" else "") for m, p in
+                   zip(table["method"], table["method_params"])],
+        "metric": [m + (f"@{p}" if p else "") for m, p in zip(table["metric"], table["peak"])],
+        "scope": table["scope"],
+        "baseline": table["baseline"].map(_fmt_value),
+        "current": table["current"].map(_fmt_value),
+        "change": [format_change(k, c, m) for k, c, m in zip(table["kind"], table["change"], table["metric"])],
+        "tolerance": [format_tolerance(k, t, m) for k, t, m in
+                      zip(table["kind"], table["tolerance"], table["metric"])],
+        "status": [s if g or s in (STATUS_OK, STATUS_NEW) else f"{s} (not gated)"
+                   for s, g in zip(table["status"], table["gated"])],
+    })
+    lines = []
+    if display.empty:
+        lines.append("(no rows)" if not only_changes else "(no changes beyond tolerance)")
+    else:
+        with pd.option_context("display.width", width, "display.max_colwidth", 60, "display.max_rows", None):
+            lines.append(display.to_string(index=False))
+    counts = comparison.counts()
+    failures = comparison.failures
+    verdict = (f"FAILED: {len(failures)} regression(s) beyond tolerance" if comparison.failed
+               else "PASSED: no quality metric regressed beyond tolerance")
+    summary = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
+    time_note = "" if comparison.gate_time else " (time compared, not gated: use --gate-time)"
+    lines.append("")
+    lines.append(f"{verdict}; {len(comparison.table)} rows: {summary}{time_note}")
+    return "\n".join(lines)
