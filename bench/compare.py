@@ -181,6 +181,8 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
         what = " and ".join(f"{k} {v!r}" for k, v in (("experiment", experiment), ("code version", code_version)) if v)
         raise ValueError(f"no results to summarize{' for ' + what if what else ''}; run the experiment first "
                          "(dpcbench run CONFIG)")
+    # a run in two experiments appears once per experiment in the store's table: count it once
+    df = df.drop_duplicates(["run_id", "frame", "metric", "scope", "peak"])
     df = _normalize_keys(df)
     # the newest run per cell: its first created_at stands for the run
     run_times = df.groupby("run_id", sort=False, dropna=False).agg(created=("created_at", "min"),

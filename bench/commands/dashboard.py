@@ -1,0 +1,78 @@
+"""`dpcbench dashboard --out FILE.html`: the regression dashboard as one static HTML page."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from bench.errors import UserError
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "dashboard",
+        help="write the regression dashboard (one self-contained HTML page)",
+        description="History of the runs in the results store across code versions, the latest comparison "
+                    "with regressions flagged, the paper's values as reference lines, and the benchmark "
+                    "suite's speed history. No server, no network: everything is inside the page.",
+    )
+    parser.add_argument("--out", required=True, help="HTML file to write")
+    parser.add_argument("--store", action="append", default=None, metavar="PATH",
+                        help="results store (repeat to merge several, e.g. one per commit; "
+                             "default: DPCBENCH_STORE or ~/.cache/dpcbench/results.sqlite)")
+    parser.add_argument("--experiment", default=None, help="only this experiment's runs (default: all)")
+    parser.add_argument("--benchmarks", action="append", default=None, metavar="DIR_OR_JSON",
+                        help="pytest-benchmark JSON file or storage folder (repeatable; default: ./.benchmarks "
+                             "when it exists)")
+    parser.add_argument("--baseline", default=None,
+                        help="compare the newest code version against this summary .csv/.json instead of "
+                             "the previous code version")
+    parser.add_argument("--tolerances", default=None, help="TOML file with a [tolerances] table")
+    parser.add_argument("--title", default="dpcbench regression dashboard")
+    parser.set_defaults(func=run)
+
+
+def load_stores(paths, experiment):
+    """(results, runs) of one or several stores, concatenated."""
+    import pandas as pd
+
+    from bench.store import ResultsStore
+
+    results, runs = [], []
+    for path in paths or [None]:
+        try:
+            store = ResultsStore(path, readonly=True)
+            results.append(store.results_frame(experiment))
+            runs.append(store.runs_frame(experiment))
+        except ValueError as err:
+            raise UserError(str(err)) from None
+    return pd.concat(results, ignore_index=True), pd.concat(runs, ignore_index=True)
+
+
+def run(args) -> int:
+    from bench import benchsuite, compare, dashboard
+    from bench.commands.compare import DEFAULT_TOLERANCES
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".html", ".htm"):
+        raise UserError(f"{out}: --out must name an .html file")
+    results, runs = load_stores(args.store, args.experiment)
+    benchmarks = None
+    bench_paths = args.benchmarks or ([".benchmarks"] if Path(".benchmarks").is_dir() else [])
+    if bench_paths:
+        try:
+            benchmarks = benchsuite.load_benchmark_runs(bench_paths)
+        except ValueError as err:
+            raise UserError(str(err)) from None
+    try:
+        baseline = compare.read_summary(args.baseline) if args.baseline else None
+        tolerance_file = args.tolerances or (DEFAULT_TOLERANCES if DEFAULT_TOLERANCES.is_file() else None)
+        tolerances = compare.load_tolerances(tolerance_file)
+        sources = [str(p) for p in (args.store or ["default results store"])] + [str(p) for p in bench_paths]
+        written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
+                                            tolerances=tolerances, title=args.title, sources=sources)
+    except (ValueError, KeyError) as err:
+        raise UserError(str(err).strip('"')) from None
+    n_versions = results["code_version"].nunique() if len(results) else 0
+    print(f"dashboard written to {written} ({n_versions} code version(s), {results['run_id'].nunique()} runs"
+          f"{', ' + str(benchmarks['fullname'].nunique()) + ' benchmarks' if benchmarks is not None else ''})")
+    return 0

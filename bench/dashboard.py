@@ -1,0 +1,590 @@
+"""The regression dashboard: one self-contained static HTML page (`dpcbench dashboard`).
+
+Input: the results store's tidy table (one or several stores, concatenated), optionally its runs
+table, a baseline summary, and pytest-benchmark runs (`bench.benchsuite`). Output: an HTML file
+with inline CSS and inline SVG charts (matplotlib, text kept as text) and no script, link or
+request to anything outside the file, so it opens from disk, from a CI artifact, or by mail.
+
+Sections:
+  cards        commits tracked, runs done/failed, regressions in the latest comparison, benchmarks
+  comparison   the newest code version against the previous one (or against a baseline summary):
+               every row beyond tolerance first (REGRESSED rows in red), the full table folded
+  quality      per (sequence, holes): rows = scopes, columns = quality metrics, x = code versions
+               in time order, one line per method configuration (same colour everywhere), the
+               paper's value as a dashed line where the sequence is one of the paper's
+  latest       the newest code version's means per method (best per column in bold)
+  speed        time per frame over code versions (from the store) and the pytest-benchmark
+               history (median seconds per session, log scale) with the newest figures
+  runs         code versions with their dates and run counts, and failed runs with their messages
+
+A code version is the store's ``code_version`` (git commit); versions are ordered by the time of
+their first run. Summaries come from `bench.compare.summarize`, one per code version.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import html
+import io
+import json
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench import compare
+
+QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
+METRIC_LABELS = {
+    "gpsnr_d1": "GPSNR D1 (dB)", "gpsnr_d2": "GPSNR D2 (dB)", "nshd": "NSHD", "hausdorff": "Hausdorff",
+    "chamfer": "Chamfer", "fscore": "F-score", "temporal_consistency": "temporal consistency",
+    "time_s": "time per frame (s)", "peak_mem_mb": "peak memory (MB)",
+}
+#: the paper's methods first, so that their colours never change when other methods come and go
+METHOD_ORDER = ["temporal-graph", "fu-nonlocal", "lozes-pde", "meshlab", "temporal-copy", "none"]
+PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+           "#bcbd22", "#17becf"]
+
+# The paper's Tables 1 and 2 (Fu, Hu, Guo, ICME 2020; /work/shared/SPEC.md section 1), used when
+# bench.paper is absent. Columns map to our method names; NSHD is in units of 1e-7.
+_PAPER_METHODS = {"Meshlab": "meshlab", "Lozes": "lozes-pde", "Hu": "fu-nonlocal", "Proposed": "temporal-graph"}
+_PAPER_GPSNR = {
+    "longdress": (11.7926, 30.3883, 41.5686, 43.1301), "loot": (16.4451, 27.3715, 40.1546, 47.5648),
+    "redandblack": (13.1772, 24.4810, 33.9921, 39.0103), "soldier": (17.4697, 23.1571, 34.5062, 42.2980),
+    "ulliwegner": (24.9424, 31.5455, 41.3037, 45.8411),
+}
+_PAPER_NSHD = {
+    "longdress": (24.8631, 7.1362, 2.9174, 0.9131), "loot": (14.1925, 8.9410, 3.1102, 0.3549),
+    "redandblack": (22.8300, 9.6233, 5.9856, 1.9324), "soldier": (17.1376, 10.0044, 5.2145, 1.2057),
+    "ulliwegner": (11.2509, 6.7370, 1.9658, 0.6362),
+}
+
+
+def paper_reference() -> pd.DataFrame:
+    """The paper's values as rows (sequence, method, metric, value); metric gpsnr_d1 / nshd.
+
+    Taken from bench.paper when it offers the tables, else from the copy in this module. The
+    paper's GPSNR is plotted against our gpsnr_d1 (point-to-point, as pc_error's D1), and its NSHD
+    (given x1e-7) against our nshd.
+    """
+    rows = []
+    source = "bench.dashboard (copy of SPEC.md section 1)"
+    gpsnr, nshd = _PAPER_GPSNR, _PAPER_NSHD
+    try:
+        from bench import paper  # the runner helper's module, when present
+        tables = getattr(paper, "PAPER_TABLES", None) or {}
+        if "gpsnr" in tables and "nshd" in tables:
+            gpsnr, nshd = tables["gpsnr"], tables["nshd"]
+            source = "bench.paper"
+    except ImportError:
+        pass
+    for metric, table, scale in (("gpsnr_d1", gpsnr, 1.0), ("nshd", nshd, 1e-7)):
+        for sequence, values in table.items():
+            if isinstance(values, dict):
+                items = values.items()
+            else:
+                items = zip(_PAPER_METHODS.values(), values)
+            for method, value in items:
+                rows.append({"sequence": str(sequence).lower(), "method": _PAPER_METHODS.get(method, method),
+                             "metric": metric, "value": float(value) * scale, "source": source})
+    return pd.DataFrame(rows, columns=["sequence", "method", "metric", "value", "source"])
+
+
+# ---------------------------------------------------------------------------------------------
+# data preparation
+@dataclass
+class History:
+    """Summaries per code version. versions: code versions oldest first; table: summarize() rows
+    plus columns code_version and label (method + short params)."""
+
+    versions: list[str]
+    version_dates: dict[str, str]
+    table: pd.DataFrame
+
+
+def short_version(version: str) -> str:
+    """'0123456789abcdef...-dirty' -> '01234567+' (a trailing + marks uncommitted changes)."""
+    version = str(version)
+    dirty = version.endswith("-dirty")
+    core = version[: -len("-dirty")] if dirty else version
+    short = core[:8] if re.fullmatch(r"[0-9a-f]{9,}", core) else core[:12]
+    return short + ("+" if dirty else "")
+
+
+def method_label(method: str, params_json: str) -> str:
+    return method if params_json in ("", "{}") else f"{method} ({compare.short_params(params_json, 32)})"
+
+
+def build_history(results: pd.DataFrame) -> History:
+    """Summarize each code version of the results table (see module docstring)."""
+    if results.empty:
+        return History([], {}, pd.DataFrame(columns=compare.SUMMARY_COLUMNS + ["code_version", "label"]))
+    results = results.copy()
+    results["code_version"] = results["code_version"].fillna("unknown").astype(str)
+    first_seen = results.groupby("code_version")["created_at"].min().sort_values()
+    versions = list(first_seen.index)
+    parts = []
+    for version in versions:
+        summary = compare.summarize(results, code_version=version)
+        summary["code_version"] = version
+        parts.append(summary)
+    table = pd.concat(parts, ignore_index=True)
+    table["label"] = [method_label(m, p) for m, p in zip(table["method"], table["method_params"])]
+    dates = {v: str(first_seen[v])[:16].replace("T", " ") for v in versions}
+    return History(versions, dates, table)
+
+
+def method_colours(labels) -> dict[str, str]:
+    """A fixed colour per method configuration: the paper's methods first, then by name."""
+    def rank(label: str):
+        method = label.split(" (")[0]
+        return (METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER), label)
+
+    ordered = sorted(set(labels), key=rank)
+    return {label: PALETTE[i % len(PALETTE)] for i, label in enumerate(ordered)}
+
+
+# ---------------------------------------------------------------------------------------------
+# charts (matplotlib -> inline SVG)
+def _svg(fig) -> str:
+    """The figure as an inline <svg> element scaled to its container."""
+    import matplotlib.pyplot as plt
+
+    buffer = io.StringIO()
+    fig.savefig(buffer, format="svg", bbox_inches="tight")
+    plt.close(fig)
+    text = buffer.getvalue()
+    text = text[text.index("<svg"):]  # drop the XML declaration and DOCTYPE: invalid inside HTML
+    # natural size as max-width: charts shrink with the window but never blow up past their design size
+    return re.sub(r'<svg([^>]*?) width="([0-9.]+)pt" height="[^"]*"', r'<svg\1 class="chart" style="max-width:\2pt"',
+                  text, count=1)
+
+
+def _matplotlib():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update({
+        "svg.fonttype": "none",  # text stays text: searchable and crisp in the page
+        "svg.hashsalt": "dpcbench",  # deterministic element ids
+        "font.size": 9, "axes.spines.top": False, "axes.spines.right": False,
+        "axes.grid": True, "grid.color": "#e5e7eb", "grid.linewidth": 0.6,
+        "axes.edgecolor": "#9ca3af", "axes.titlesize": 10, "axes.titleweight": "bold",
+    })
+    return plt
+
+
+def quality_chart(history: History, sequence: str, holes: str, holes_params: str, metrics: list[str],
+                  colours: dict[str, str], paper: pd.DataFrame) -> str:
+    """rows = scopes, columns = metrics; x = code versions; one line per method configuration."""
+    plt = _matplotlib()
+    sub = history.table[(history.table["sequence"] == sequence) & (history.table["holes"] == holes)
+                        & (history.table["holes_params"] == holes_params)]
+    scopes = [s for s in ("frame", "holes") if s in set(sub["scope"])] + \
+        sorted(set(sub["scope"]) - {"frame", "holes"})
+    x_of = {v: i for i, v in enumerate(history.versions)}
+    fig, axes = plt.subplots(len(scopes), len(metrics), figsize=(3.3 * len(metrics), 2.5 * len(scopes) + 0.5),
+                             squeeze=False)
+    paper_rows = paper[paper["sequence"] == sequence.lower()]
+    for r, scope in enumerate(scopes):
+        for c, metric in enumerate(metrics):
+            ax = axes[r][c]
+            cell = sub[(sub["scope"] == scope) & (sub["metric"] == metric)]
+            for label, rows in cell.groupby("label", sort=False):
+                rows = rows.assign(x=rows["code_version"].map(x_of)).sort_values("x")
+                for peak, line in rows.groupby("peak"):
+                    ax.plot(line["x"], line["mean"], marker="o", markersize=4, linewidth=1.6,
+                            color=colours[label], linestyle="-" if peak in ("", "intrinsic") else ":")
+            for _, ref in paper_rows[paper_rows["metric"] == metric].iterrows():
+                colour = next((v for k, v in colours.items() if k.split(" (")[0] == ref["method"]), "#6b7280")
+                ax.axhline(ref["value"], color=colour, linestyle="--", linewidth=0.9, alpha=0.7)
+            if metric in ("nshd", "hausdorff", "chamfer") and (cell["mean"] > 0).all() and len(cell):
+                ax.set_yscale("log")
+            ax.set_xticks(range(len(history.versions)))
+            ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right",
+                               fontsize=7.5)
+            ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
+            ax.set_title(f"{METRIC_LABELS.get(metric, metric)} · {scope}", loc="left")
+    handles = [plt.Line2D([], [], color=colours[l], marker="o", linewidth=1.6, label=l)
+               for l in sorted(set(sub["label"]), key=list(colours).index)]
+    if not paper_rows.empty:
+        handles.append(plt.Line2D([], [], color="#6b7280", linestyle="--", label="paper (Table 1/2)"))
+    fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 6), frameon=False,
+               bbox_to_anchor=(0.5, 1.0))
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))
+    return _svg(fig)
+
+
+def time_chart(history: History, colours: dict[str, str]) -> str | None:
+    """Time per frame over code versions: one panel per sequence, one line per method."""
+    plt = _matplotlib()
+    times = history.table[history.table["metric"] == "time_s"]
+    if times.empty:
+        return None
+    groups = list(times.groupby(["sequence", "holes", "holes_params"], sort=True))
+    fig, axes = plt.subplots(1, len(groups), figsize=(max(4.2 * len(groups), 6), 2.9), squeeze=False)
+    x_of = {v: i for i, v in enumerate(history.versions)}
+    for ax, ((sequence, holes, _), rows) in zip(axes[0], groups):
+        for label, line in rows.groupby("label", sort=False):
+            line = line.assign(x=line["code_version"].map(x_of)).sort_values("x")
+            ax.plot(line["x"], line["mean"], marker="o", markersize=4, linewidth=1.6, color=colours[label],
+                    label=label)
+        if (rows["mean"] > 0).all():
+            ax.set_yscale("log")
+        ax.set_xticks(range(len(history.versions)))
+        ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right", fontsize=7.5)
+        ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
+        ax.set_title(f"{sequence} · {holes}: seconds per frame", loc="left")
+    handles, labels = [], []
+    for ax in axes[0]:
+        for h, l in zip(*ax.get_legend_handles_labels()):
+            if l not in labels:
+                handles.append(h)
+                labels.append(l)
+    order = sorted(range(len(labels)), key=lambda i: list(colours).index(labels[i]))
+    handles, labels = [handles[i] for i in order], [labels[i] for i in order]
+    fig.legend(handles, labels, loc="upper center", ncol=min(len(labels), 6), frameon=False,
+               bbox_to_anchor=(0.5, 1.0))
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))
+    return _svg(fig)
+
+
+def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
+    """Median seconds per pytest-benchmark session: one panel per group, one line per benchmark;
+    with a single session, horizontal bars of the figures instead."""
+    plt = _matplotlib()
+    if benchmarks is None or benchmarks.empty:
+        return None
+    sessions = benchmarks.drop_duplicates(["datetime", "commit"]).sort_values("datetime")
+    session_labels = [f"{short_version(c)}\n{str(d)[5:16]}" for c, d in zip(sessions["commit"], sessions["datetime"])]
+    x_of = {(d, c): i for i, (d, c) in enumerate(zip(sessions["datetime"], sessions["commit"]))}
+    groups = list(benchmarks.assign(group=benchmarks["group"].replace("", "other")).groupby("group", sort=True))
+    if len(sessions) == 1:
+        latest = benchmarks.sort_values("median")
+        fig, ax = plt.subplots(figsize=(9, 0.28 * len(latest) + 1.0))
+        ax.barh(range(len(latest)), latest["median"], color="#1f77b4", alpha=0.85)
+        ax.set_yticks(range(len(latest)))
+        ax.set_yticklabels(latest["fullname"].str.split("::").str[-1], fontsize=7.5)
+        ax.set_xscale("log")
+        ax.set_xlabel("median seconds (log)")
+        ax.set_title(f"benchmark session {session_labels[0].replace(chr(10), ' ')}", loc="left")
+        fig.tight_layout()
+        return _svg(fig)
+    ncols = min(3, len(groups))
+    nrows = math.ceil(len(groups) / ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.0 * nrows), squeeze=False)
+    for ax, (group, rows) in zip(axes.flat, groups):
+        for i, (name, line) in enumerate(rows.groupby("fullname", sort=True)):
+            xs = [x_of[(d, c)] for d, c in zip(line["datetime"], line["commit"])]
+            ax.plot(xs, line["median"], marker="o", markersize=3.5, linewidth=1.3, color=PALETTE[i % len(PALETTE)],
+                    label=name.split("::")[-1])
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(sessions)))
+        ax.set_xticklabels(session_labels, fontsize=6.5)
+        ax.set_title(f"{group}: median s", loc="left")
+        ax.legend(fontsize=6.5, frameon=False, loc="best")
+    for ax in list(axes.flat)[len(groups):]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    return _svg(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# HTML
+CSS = """
+:root { --ink:#111827; --muted:#6b7280; --line:#e5e7eb; --bg:#f8fafc; --bad:#b91c1c; --badbg:#fef2f2;
+        --good:#047857; --goodbg:#ecfdf5; --accent:#1d4ed8; }
+* { box-sizing: border-box; }
+body { margin:0; font:14px/1.45 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif;
+       color:var(--ink); background:var(--bg); }
+header { background:#0f172a; color:#f8fafc; padding:22px 32px 18px; }
+header h1 { margin:0 0 4px; font-size:22px; font-weight:650; }
+header p { margin:0; color:#cbd5e1; font-size:13px; }
+main { max-width:1320px; margin:0 auto; padding:18px 32px 40px; }
+.cards { display:grid; grid-template-columns:repeat(auto-fit, minmax(180px, 1fr)); gap:12px; margin:0 0 8px; }
+.card { background:#fff; border:1px solid var(--line); border-radius:10px; padding:12px 14px; }
+.card .k { color:var(--muted); font-size:12px; text-transform:uppercase; letter-spacing:.04em; }
+.card .v { font-size:24px; font-weight:650; margin-top:2px; }
+.card .s { color:var(--muted); font-size:12px; }
+.card.bad { border-color:#fecaca; background:var(--badbg); } .card.bad .v { color:var(--bad); }
+.card.warn { border-color:#fde68a; background:#fffbeb; } .card.warn .v { color:#92400e; }
+.card.good { border-color:#a7f3d0; background:var(--goodbg); } .card.good .v { color:var(--good); }
+section { background:#fff; border:1px solid var(--line); border-radius:10px; padding:16px 20px; margin:16px 0; }
+section h2 { margin:0 0 4px; font-size:17px; }
+section h3 { margin:16px 0 4px; font-size:14px; }
+.note { color:var(--muted); font-size:12.5px; margin:2px 0 10px; }
+table { border-collapse:collapse; width:100%; font-size:12.5px; font-variant-numeric:tabular-nums; }
+th, td { padding:5px 8px; border-bottom:1px solid var(--line); text-align:left; vertical-align:top; }
+th { background:#f1f5f9; font-weight:600; position:sticky; top:0; }
+td.num { text-align:right; white-space:nowrap; }
+tr.regressed td { background:var(--badbg); color:var(--bad); font-weight:600; }
+tr.missing td { background:#fff7ed; color:#9a3412; font-weight:600; }
+tr.improved td { background:var(--goodbg); color:var(--good); }
+tr.slower td { color:#92400e; }
+.badge { display:inline-block; padding:1px 8px; border-radius:999px; font-size:11.5px; font-weight:600; }
+.badge.bad { background:#fee2e2; color:var(--bad); } .badge.good { background:#d1fae5; color:var(--good); }
+.badge.ok { background:#e0e7ff; color:#3730a3; }
+.swatch { display:inline-block; width:10px; height:10px; border-radius:2px; margin-right:6px; vertical-align:-1px; }
+svg.chart { width:100%; height:auto; display:block; }
+.figure { margin:8px 0 14px; }
+details summary { cursor:pointer; color:var(--accent); margin:8px 0; }
+td.best { font-weight:700; }
+footer { color:var(--muted); font-size:12px; text-align:center; margin-top:20px; }
+"""
+
+
+def _e(value) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def _fmt(value) -> str:
+    return compare._fmt_value(float(value)) if value is not None else "-"
+
+
+def _card(key: str, value, sub: str = "", tone: str = "") -> str:
+    return (f'<div class="card {tone}" data-card="{_e(key)}"><div class="k">{_e(key)}</div>'
+            f'<div class="v">{_e(value)}</div><div class="s">{_e(sub)}</div></div>')
+
+
+STATUS_CLASS = {compare.STATUS_REGRESSED: "regressed", compare.STATUS_MISSING: "missing",
+                compare.STATUS_IMPROVED: "improved", compare.STATUS_SLOWER: "slower",
+                compare.STATUS_FASTER: "improved", compare.STATUS_OK: "ok", compare.STATUS_NEW: "new"}
+
+
+def comparison_table(comparison: compare.Comparison, colours: dict[str, str], rows: pd.DataFrame | None = None) -> str:
+    table = comparison.table if rows is None else rows
+    out = ['<table class="comparison"><thead><tr><th>sequence</th><th>holes</th><th>method</th><th>metric</th>'
+           '<th>scope</th><th>baseline</th><th>current</th><th>change</th><th>tolerance</th><th>status</th>'
+           '</tr></thead><tbody>']
+    for row in table.itertuples(index=False):
+        label = method_label(row.method, row.method_params)
+        css = STATUS_CLASS.get(row.status, "")
+        status = row.status if row.gated or row.status in (compare.STATUS_OK, compare.STATUS_NEW) \
+            else f"{row.status} (not gated)"
+        metric = row.metric + (f" @{row.peak}" if row.peak else "")
+        out.append(
+            f'<tr class="{css}" data-status="{_e(row.status)}"><td>{_e(row.sequence)}</td><td>{_e(row.holes)}</td>'
+            f'<td><span class="swatch" style="background:{colours.get(label, "#999")}"></span>{_e(label)}</td>'
+            f'<td>{_e(metric)}</td><td>{_e(row.scope)}</td><td class="num">{_e(_fmt(row.baseline))}</td>'
+            f'<td class="num">{_e(_fmt(row.current))}</td>'
+            f'<td class="num">{_e(compare.format_change(row.kind, row.change, row.metric))}</td>'
+            f'<td class="num">{_e(compare.format_tolerance(row.kind, row.tolerance, row.metric))}</td>'
+            f'<td>{_e(status)}</td></tr>')
+    out.append("</tbody></table>")
+    return "".join(out)
+
+
+def latest_table(history: History, colours: dict[str, str], metrics: list[str]) -> str:
+    """Newest version's means: one table per (sequence, holes), rows = methods, cols = metric x scope."""
+    latest = history.table[history.table["code_version"] == history.versions[-1]]
+    parts = []
+    for (sequence, holes, holes_params), sub in latest.groupby(["sequence", "holes", "holes_params"], sort=True):
+        columns = [(m, s) for s in ("frame", "holes") for m in metrics + ["time_s"]
+                   if not sub[(sub["metric"] == m) & (sub["scope"] == s)].empty]
+        best = {}
+        for metric, scope in columns:
+            cell = sub[(sub["metric"] == metric) & (sub["scope"] == scope)].dropna(subset=["mean"])
+            if len(cell) and metric != "time_s":
+                best[(metric, scope)] = cell["mean"].max() if compare.higher_is_better(metric) else cell["mean"].min()
+        head = "".join(f"<th>{_e(METRIC_LABELS.get(m, m))}<br><span class='note'>{_e(s)}</span></th>"
+                       for m, s in columns)
+        body = []
+        for label in sorted(set(sub["label"]), key=list(colours).index):
+            cells = []
+            for metric, scope in columns:
+                cell = sub[(sub["label"] == label) & (sub["metric"] == metric) & (sub["scope"] == scope)]
+                if cell.empty:
+                    cells.append('<td class="num">-</td>')
+                    continue
+                mean, std = float(cell["mean"].iloc[0]), float(cell["std"].iloc[0])
+                css = "num best" if best.get((metric, scope)) == mean else "num"
+                spread = f" ± {_fmt(std)}" if std and not math.isnan(std) else ""
+                cells.append(f'<td class="{css}">{_e(_fmt(mean))}{_e(spread)}</td>')
+            body.append(f'<tr><td><span class="swatch" style="background:{colours[label]}"></span>{_e(label)}</td>'
+                        + "".join(cells) + "</tr>")
+        params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
+        parts.append(f"<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>"
+                     f"<table class='latest'><thead><tr><th>method</th>{head}</tr></thead>"
+                     f"<tbody>{''.join(body)}</tbody></table>")
+    return "".join(parts)
+
+
+def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
+                     benchmarks: pd.DataFrame | None = None,
+                     baseline: tuple[pd.DataFrame, dict] | None = None,
+                     tolerances: dict[str, float] | None = None, title: str = "dpcbench regression dashboard",
+                     sources: list[str] | None = None) -> str:
+    """The dashboard page as one HTML string (see the module docstring for its sections)."""
+    history = build_history(results)
+    paper = paper_reference()
+    colours = method_colours(history.table["label"]) if len(history.table) else {}
+    metrics_present = set(history.table["metric"]) if len(history.table) else set()
+    quality_metrics = [m for m in QUALITY_ORDER if m in metrics_present] + \
+        sorted(metrics_present - set(QUALITY_ORDER) - set(compare.RESOURCE_METRICS))
+
+    # the latest comparison: newest version vs the previous one, or vs a given baseline
+    comparison, compared_what = None, ""
+    if history.versions and (baseline is not None or len(history.versions) >= 2):
+        current = history.table[history.table["code_version"] == history.versions[-1]]
+        if baseline is not None:
+            base, base_meta = baseline
+            compared_what = (f"code {short_version(history.versions[-1])} against the baseline summary "
+                             f"(code {short_version(base_meta.get('code_version', '?'))}, {base_meta.get('date', '?')})")
+        else:
+            base = history.table[history.table["code_version"] == history.versions[-2]]
+            compared_what = (f"code {short_version(history.versions[-1])} against the previous version "
+                             f"{short_version(history.versions[-2])}")
+        comparison = compare.compare_summaries(base, current, tolerances)
+
+    n_done = int(results["run_id"].nunique()) if len(results) else 0
+    n_failed = 0
+    if runs is not None and len(runs):
+        n_failed = int(runs.loc[runs["status"] == "failed", "run_id"].nunique())
+    cards = [
+        _card("code versions", len(history.versions),
+              f"{short_version(history.versions[0])} → {short_version(history.versions[-1])}" if history.versions else "none"),
+        _card("runs", n_done, f"{n_failed} failed (see Code versions)" if n_failed else "none failed",
+              "warn" if n_failed else ""),
+    ]
+    if comparison is not None:
+        n_bad = len(comparison.failures)
+        n_improved = int((comparison.table["status"] == compare.STATUS_IMPROVED).sum())
+        cards.append(_card("regressions", n_bad, f"{n_improved} improved · latest comparison",
+                           "bad" if n_bad else "good"))
+    else:
+        cards.append(_card("regressions", "–", "needs two code versions or a baseline"))
+    if history.versions:
+        latest = history.table[(history.table["code_version"] == history.versions[-1])
+                               & (history.table["metric"] == "gpsnr_d1") & (history.table["scope"] == "holes")]
+        if latest.empty:
+            latest = history.table[(history.table["code_version"] == history.versions[-1])
+                                   & (history.table["metric"] == "gpsnr_d1")]
+        if len(latest):
+            by_method = latest.groupby("label")["mean"].mean().sort_values(ascending=False)
+            cards.append(_card("best GPSNR D1", by_method.index[0], f"{by_method.iloc[0]:.2f} dB mean over sequences"))
+    n_bench = int(benchmarks["fullname"].nunique()) if benchmarks is not None and len(benchmarks) else 0
+    n_sessions = int(benchmarks.drop_duplicates(["datetime", "commit"]).shape[0]) if n_bench else 0
+    cards.append(_card("benchmarks", n_bench, f"{n_sessions} session(s)" if n_bench else "no JSON given"))
+
+    sections = []
+    # comparison
+    if comparison is not None:
+        flagged = comparison.table[comparison.table["status"] != compare.STATUS_OK]
+        severity = {compare.STATUS_REGRESSED: 0, compare.STATUS_MISSING: 1, compare.STATUS_SLOWER: 2}
+        flagged = flagged.assign(_rank=flagged["status"].map(severity).fillna(3)).sort_values(
+            "_rank", kind="stable").drop(columns="_rank")
+        verdict = ('<span class="badge bad">FAILED</span>' if comparison.failed
+                   else '<span class="badge good">PASSED</span>')
+        body = (comparison_table(comparison, colours, flagged) if len(flagged)
+                else "<p>Every row is within tolerance.</p>")
+        sections.append(
+            f'<section id="comparison"><h2>Latest comparison {verdict}</h2>'
+            f'<p class="note">{_e(compared_what)}. Changes: dB for PSNR, ratios for NSHD, distances and time; '
+            f'a row regresses when its change passes the tolerance in the bad direction. Time is shown but '
+            f'not gated.</p>{body}<details><summary>all {len(comparison.table)} rows</summary>'
+            f'{comparison_table(comparison, colours)}</details></section>')
+    # quality history
+    if history.versions:
+        charts = []
+        keys = history.table[["sequence", "holes", "holes_params"]].drop_duplicates().sort_values(
+            ["sequence", "holes", "holes_params"])
+        for sequence, holes, holes_params in keys.itertuples(index=False):
+            params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
+            chart = quality_chart(history, sequence, holes, holes_params, quality_metrics, colours, paper)
+            charts.append(f'<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>'
+                          f'<div class="figure" data-chart="quality" data-sequence="{_e(sequence)}" '
+                          f'data-commits="{len(history.versions)}">{chart}</div>')
+        has_paper = bool(set(history.table["sequence"].str.lower()) & set(paper["sequence"]))
+        paper_note = ("Dashed lines: the paper's Table 1 (GPSNR) and Table 2 (NSHD) values for this sequence."
+                      if has_paper else
+                      "The paper's values (Tables 1-2) are for its own sequences (Longdress, Loot, Redandblack, "
+                      "Soldier, UlliWegner); none is in this store, so no reference lines are drawn.")
+        sections.append(
+            f'<section id="quality"><h2>Quality over code versions</h2><p class="note">Mean over frames (and seeds) '
+            f'of the newest run per cell, per code version in time order. Scope "frame" scores whole frames, '
+            f'"holes" only the hole regions. {_e(paper_note)}</p>{"".join(charts)}</section>')
+        sections.append(f'<section id="latest"><h2>Latest results: {_e(short_version(history.versions[-1]))}</h2>'
+                        f'<p class="note">Mean ± std over frames; best per column in bold.</p>'
+                        f'{latest_table(history, colours, quality_metrics)}</section>')
+    # speed
+    speed = []
+    chart = time_chart(history, colours) if history.versions else None
+    if chart:
+        speed.append(f'<h3>Inpainting time per frame (results store)</h3>'
+                     f'<div class="figure" data-chart="time" data-commits="{len(history.versions)}">{chart}</div>')
+    if n_bench:
+        from bench import benchsuite
+
+        bench_chart = benchmark_chart(benchmarks)
+        latest_bench = benchsuite.latest_per_benchmark(benchmarks)
+        rows = "".join(
+            f'<tr><td>{_e(r.group or "")}</td><td>{_e(r.fullname)}</td><td class="num">{r.median:.4g}</td>'
+            f'<td class="num">{r.min:.4g}</td><td class="num">{int(r.rounds)}</td>'
+            f'<td>{_e(short_version(r.commit))}</td><td>{_e(str(r.datetime)[:16])}</td></tr>'
+            for r in latest_bench.itertuples(index=False))
+        speed.append(f'<h3>Benchmark suite (pytest-benchmark)</h3>'
+                     f'<p class="note">{n_sessions} session(s); machines are shared and noisy: read trends, '
+                     f'not single points.</p><div class="figure" data-chart="benchmarks" '
+                     f'data-sessions="{n_sessions}">{bench_chart}</div>'
+                     f'<details><summary>newest figure of each of the {n_bench} benchmarks</summary>'
+                     f'<table class="benchmarks"><thead><tr><th>group</th><th>benchmark</th><th>median s</th>'
+                     f'<th>min s</th><th>rounds</th><th>commit</th><th>date</th></tr></thead><tbody>{rows}</tbody>'
+                     f'</table></details>')
+    if speed:
+        sections.append(f'<section id="speed"><h2>Speed</h2>{"".join(speed)}</section>')
+    # runs
+    if history.versions:
+        counts = results.groupby("code_version")["run_id"].nunique()
+        version_rows = "".join(
+            f'<tr><td>{_e(short_version(v))}</td><td>{_e(v)}</td><td>{_e(history.version_dates[v])}</td>'
+            f'<td class="num">{int(counts.get(v, 0))}</td></tr>' for v in reversed(history.versions))
+        failed_html = ""
+        if runs is not None and n_failed:
+            failed = runs[runs["status"] == "failed"].drop_duplicates("run_id")
+            failed_html = ("<h3>Failed runs</h3><table><thead><tr><th>method</th><th>sequence</th><th>code</th>"
+                           "<th>error</th></tr></thead><tbody>" + "".join(
+                               f'<tr class="regressed"><td>{_e(method_label(r.method, r.method_params or "{}"))}</td>'
+                               f'<td>{_e(r.sequence)}</td><td>{_e(short_version(r.code_version))}</td>'
+                               f'<td>{_e(str(r.error)[:300])}</td></tr>' for r in failed.itertuples(index=False))
+                           + "</tbody></table>")
+        sections.append(f'<section id="runs"><h2>Code versions</h2><table><thead><tr><th>short</th><th>code version'
+                        f'</th><th>first run (UTC)</th><th>runs</th></tr></thead><tbody>{version_rows}</tbody>'
+                        f'</table>{failed_html}</section>')
+    if not sections:
+        sections.append('<section><h2>No results yet</h2><p>Run <code>dpcbench run bench/presets/regression.toml'
+                        '</code>, then build this page again.</p></section>')
+
+    generated = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    source_text = "; ".join(sources or []) or "results store"
+    return (
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"><title>{_e(title)}</title>"
+        f"<style>{CSS}</style></head><body><header><h1>{_e(title)}</h1>"
+        f"<p>3D dynamic point cloud inpainting · generated {generated} from {_e(source_text)}</p></header><main>"
+        f"<div class=\"cards\">{''.join(cards)}</div>{''.join(sections)}"
+        "<footer>dpcbench · static page: every chart and number is inside this file</footer></main></body></html>\n"
+    )
+
+
+def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, **kwargs) -> Path:
+    """Render and write the page atomically; returns its path."""
+    out = Path(out)
+    page = render_dashboard(results, **kwargs)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp{os.getpid()}")
+    tmp.write_text(page, encoding="utf-8")
+    os.replace(tmp, out)
+    return out
+
+
+def external_references(page: str) -> list[str]:
+    """URLs the page would fetch (src/href/url() to http(s) or protocol-relative); [] for a static page.
+    SVG namespace declarations (xmlns=...) are identifiers, not requests, and are not counted."""
+    pattern = r"""(?:src|href)\s*=\s*["'](?:https?:)?//[^"']+|url\(\s*["']?(?:https?:)?//[^)]+\)|@import"""
+    return re.findall(pattern, page, flags=re.IGNORECASE)
