@@ -1,0 +1,475 @@
+"""Experiment configs (TOML) and their expansion into runs with stable ids.
+
+A config names sequences, hole generators (with parameters and seeds), methods (with parameter
+grids), and the metrics with their options::
+
+    [experiment]
+    name = "my-sweep"               # required; results are grouped under it in the store
+    description = "..."
+    timeout_s = 1800                # per run; a run past it is killed and recorded as failed
+    give_regions = true             # hand the hole regions to the methods (synthetic-hole protocol)
+    data_dir = "/data/8i"           # where named paper sequences (longdress, ...) are found
+
+    [[sequences]]
+    name = "human"                  # an embedded dataset name (bench.datasets), or ...
+    # path = "/data/longdress/Ply"  # ... a folder of PLY frames
+    params = { size = "small" }     # passed to bench.datasets.load_dataset
+    frames = 4                      # the first N frames, or [start, stop) as [0, 8]
+    label = "Human (stand-in)"      # how reports name it (default: name)
+
+    [[holes]]
+    generator = "region"            # holes.registry name
+    params = { preset = "medium", count = 2 }
+    seeds = [0, 1]                  # or seed = 0
+
+    [[methods]]
+    name = "temporal-graph"         # methods.registry name
+    params = { beta = [0.25, 0.5] } # a list is a grid axis; write [[1, 2]] for a literal list value
+
+    [metrics]
+    names = ["gpsnr_d1", "gpsnr_d2", "nshd"]     # default: every registered metric
+    peaks = ["intrinsic", 1023]                  # PSNR peaks: "intrinsic" (pc_error default) or numbers
+    scopes = ["frame", "holes"]                  # whole frame and/or hole region
+    region_margin = 0.0                          # grows the regions for scope "holes"
+    temporal_consistency = true
+
+Every list in ``params`` (of sequences, holes and methods) is an axis of a grid; the runs are the
+cartesian product sequences x holes (params x seeds) x methods (params).
+
+Run ids. ``inpaint_key = H(sequence spec, data fingerprint, holes spec + seed + generator version,
+method spec + method version, protocol)`` names the inpainted frames on disk;
+``run_id = H(inpaint_key, metrics spec + metric versions)``. H is the first 16 hex digits of the
+SHA-256 of canonical JSON (sorted keys, floats that are whole numbers written as ints, so 1 and 1.0
+give the same id). Labels and descriptions are presentation only and never change an id. The data
+fingerprint is the dataset's name and parameters (embedded data, generated deterministically) or
+the name, size and modification time of every frame file (folders).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import os
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+PAPER_SEQUENCES = ("longdress", "loot", "redandblack", "soldier", "ulliwegner")
+DEFAULT_TIMEOUT_S = 3600.0
+SCOPES = ("frame", "holes")
+
+_TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
+_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "give_regions", "data_dir"}
+_SEQUENCE_KEYS = {"name", "path", "params", "frames", "label"}
+_HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
+_METHOD_KEYS = {"name", "params", "label"}
+_METRICS_KEYS = {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
+
+
+class ConfigError(ValueError):
+    """A config mistake; the message starts with the offending key."""
+
+
+# -- canonical hashing -----------------------------------------------------------------------
+def _normalize(value):
+    """Canonical form for hashing: whole floats -> int, tuples -> lists, dict keys sorted (by json)."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, float):
+        if math.isfinite(value) and value == int(value) and abs(value) < 2**53:
+            return int(value)
+        return float(repr(value)) if math.isfinite(value) else str(value)
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, dict):
+        return {str(k): _normalize(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_normalize(v) for v in value]
+    return str(value)
+
+
+def canonical_json(value) -> str:
+    return json.dumps(_normalize(value), sort_keys=True, separators=(",", ":"))
+
+
+def stable_hash(value) -> str:
+    """First 16 hex digits of SHA-256 of the canonical JSON of ``value``."""
+    return hashlib.sha256(canonical_json(value).encode()).hexdigest()[:16]
+
+
+# -- runs ------------------------------------------------------------------------------------
+@dataclass
+class RunSpec:
+    """One run: a sequence damaged by one generator with one seed, inpainted by one configured method.
+
+    sequence: {"name", "path", "params", "frames", "label", "data_dir"}
+    holes:    {"generator", "params", "seed", "label", "entry"}  (entry = "module:Class")
+    method:   {"name", "params", "label", "entry"}
+    metrics:  {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
+    protocol: {"give_regions"}
+    versions: {"method", "generator", "metrics", "data"} (data = fingerprint)
+    """
+
+    run_id: str
+    inpaint_key: str
+    experiment: str
+    sequence: dict
+    holes: dict
+    method: dict
+    metrics: dict
+    protocol: dict
+    versions: dict
+    timeout_s: float = DEFAULT_TIMEOUT_S
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "RunSpec":
+        return cls(**data)
+
+    @property
+    def sequence_label(self) -> str:
+        return self.sequence.get("label") or self.sequence["name"]
+
+    def summary(self) -> str:
+        params = ", ".join(f"{k}={v}" for k, v in sorted(self.method["params"].items()))
+        hp = ", ".join(f"{k}={v}" for k, v in sorted(self.holes["params"].items()))
+        return (f"{self.run_id}  {self.sequence_label}  {self.holes['generator']}({hp}) seed={self.holes['seed']}  "
+                f"{self.method['name']}({params})")
+
+    def identity(self) -> dict:
+        """What the ids hash (labels excluded)."""
+        # where the data lives is not what it is: the fingerprint in `versions` identifies it
+        seq = {k: v for k, v in self.sequence.items() if k not in ("label", "data_dir", "path")}
+        # "entry" is the import string workers load the class from (so test-registered names work in
+        # spawned processes); where the code lives is not what the run computes, so it is not hashed.
+        holes = {k: v for k, v in self.holes.items() if k not in ("label", "entry")}
+        method = {k: v for k, v in self.method.items() if k not in ("label", "entry")}
+        return {"sequence": seq, "holes": holes, "method": method, "protocol": self.protocol,
+                "versions": {k: self.versions[k] for k in ("method", "generator", "data")}}
+
+
+def compute_ids(spec: RunSpec) -> RunSpec:
+    spec.inpaint_key = stable_hash(spec.identity())
+    spec.run_id = stable_hash({"inpaint": spec.inpaint_key, "metrics": spec.metrics,
+                               "metric_versions": spec.versions.get("metrics", {})})
+    return spec
+
+
+# -- validation helpers ----------------------------------------------------------------------
+def _is_scalar(v) -> bool:
+    return isinstance(v, (str, int, float, bool))
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _expand_params(params: dict, where: str) -> list[dict]:
+    """Cartesian product of the list-valued entries; ``[[...]]`` is one literal list value."""
+    if not isinstance(params, dict):
+        raise ConfigError(f"{where}: expected a table of parameters, got {type(params).__name__}")
+    axes = []
+    for key, value in params.items():
+        if isinstance(value, list):
+            if not value:
+                raise ConfigError(f"{where}.{key}: an empty list gives no runs; give at least one value")
+            for item in value:
+                if not (_is_scalar(item) or (isinstance(item, list) and all(_is_scalar(x) for x in item))):
+                    raise ConfigError(f"{where}.{key}: grid values must be numbers, strings or booleans, got {item!r}")
+            axes.append([(key, v) for v in value])
+        elif _is_scalar(value):
+            axes.append([(key, value)])
+        else:
+            raise ConfigError(f"{where}.{key}: expected a value or a list of values, got {type(value).__name__}")
+    return [dict(combo) for combo in itertools.product(*axes)] if axes else [{}]
+
+
+def _check_param_types(cls, params: dict, where: str) -> None:
+    """Parameter names must exist in ``cls.__init__``; a numeric default requires numbers."""
+    import inspect
+
+    sig = inspect.signature(cls.__init__)
+    known = {n: p for n, p in sig.parameters.items() if n != "self" and p.kind in
+             (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)}
+    accepts_any = any(p.kind == inspect.Parameter.VAR_KEYWORD for p in sig.parameters.values())
+    for key, value in params.items():
+        if key not in known:
+            if accepts_any:
+                continue
+            raise ConfigError(f"{where}.{key}: unknown parameter; valid parameters: {', '.join(sorted(known)) or 'none'}")
+        default = known[key].default
+        values = value if isinstance(value, list) else [value]
+        if _is_number(default) and not all(_is_number(v) for v in values):
+            raise ConfigError(f"{where}.{key}: expected a number or a list of numbers, got {value!r}")
+        if isinstance(default, bool) and not all(isinstance(v, bool) for v in values):
+            raise ConfigError(f"{where}.{key}: expected true/false or a list of them, got {value!r}")
+
+
+def _unknown_keys(table: dict, allowed: set, where: str) -> None:
+    extra = sorted(set(table) - allowed)
+    if extra:
+        raise ConfigError(f"{where}.{extra[0]}: unknown key; allowed keys: {', '.join(sorted(allowed))}")
+
+
+def _table_list(data: dict, key: str) -> list[dict]:
+    items = data.get(key)
+    if items is None or items == []:
+        raise ConfigError(f"{key}: missing; give at least one [[{key}]] table")
+    if isinstance(items, dict):
+        items = [items]
+    if not isinstance(items, list) or not all(isinstance(t, dict) for t in items):
+        raise ConfigError(f"{key}: expected [[{key}]] tables")
+    return items
+
+
+# -- data fingerprints -----------------------------------------------------------------------
+def _folder_fingerprint(folder: Path) -> dict:
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".ply")
+    stats = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
+    return {"folder": folder.name, "files": len(files), "stat_hash": stable_hash(stats)}
+
+
+def data_fingerprint(sequence: dict, where: str) -> dict:
+    """What identifies a sequence's data: dataset name + params (+ the datasets module's version if it
+    declares one) for generated data; file names, sizes and mtimes for folders on disk."""
+    if sequence.get("path"):
+        path = Path(sequence["path"]).expanduser()
+        if not path.exists():
+            raise ConfigError(f"{where}.path: {path} does not exist; give a folder of PLY frames")
+        return _folder_fingerprint(path if path.is_dir() else path.parent)
+    name = sequence["name"]
+    if name.lower() in PAPER_SEQUENCES:
+        data_dir = sequence.get("data_dir")
+        if not data_dir:
+            raise ConfigError(f"{where}.name: {name!r} is a paper sequence whose data cannot ship with dpcbench; "
+                              "set experiment.data_dir (or --data-dir) to the folder holding it, or use `path`")
+        root = Path(data_dir).expanduser()
+        candidates = [p for p in root.rglob("*") if p.is_dir() and name.lower() in p.name.lower()
+                      and any(q.suffix.lower() == ".ply" for q in p.iterdir())] if root.is_dir() else []
+        if not candidates:
+            raise ConfigError(f"{where}.name: no folder of {name} PLY frames under {root}")
+        return _folder_fingerprint(sorted(candidates, key=lambda p: len(str(p)))[0])
+    try:
+        import bench.datasets as datasets
+    except ImportError as err:
+        raise ConfigError(f"{where}.name: embedded datasets are unavailable ({err}); use `path` to a PLY folder") from err
+    version = getattr(datasets, "DATASETS_VERSION", getattr(datasets, "VERSION", "1"))
+    return {"dataset": name, "params": sequence.get("params", {}), "version": str(version)}
+
+
+# -- the config ------------------------------------------------------------------------------
+@dataclass
+class ExperimentConfig:
+    name: str
+    description: str = ""
+    timeout_s: float = DEFAULT_TIMEOUT_S
+    give_regions: bool = True
+    data_dir: str | None = None
+    sequences: list[dict] = field(default_factory=list)
+    holes: list[dict] = field(default_factory=list)
+    methods: list[dict] = field(default_factory=list)
+    metrics: dict = field(default_factory=dict)
+    source: str = "<config>"
+
+    def expand(self) -> list[RunSpec]:
+        """Every run of the grid, in order sequences x holes x methods; ids computed."""
+        return expand_config(self)
+
+
+def _metric_registry():
+    try:
+        from metrics.registry import METRICS
+    except ImportError:
+        return None
+    return METRICS
+
+
+def _parse_metrics(table: dict) -> dict:
+    if not isinstance(table, dict):
+        raise ConfigError("metrics: expected a [metrics] table")
+    _unknown_keys(table, _METRICS_KEYS, "metrics")
+    registry = _metric_registry()
+    names = table.get("names")
+    if names is None:
+        if registry is None:
+            raise ConfigError("metrics.names: the metrics package is unavailable, so no default list; name the metrics")
+        names = [n for n in registry if n != "temporal_consistency"]
+    if isinstance(names, str):
+        names = [names]
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise ConfigError("metrics.names: expected a non-empty list of metric names")
+    if registry is not None:
+        for i, n in enumerate(names):
+            if n not in registry:
+                raise ConfigError(f"metrics.names[{i}]: unknown metric {n!r}; known metrics: {', '.join(sorted(registry))}")
+    peaks = table.get("peaks", ["intrinsic"])
+    if not isinstance(peaks, list):
+        peaks = [peaks]
+    for i, p in enumerate(peaks):
+        if not (p == "intrinsic" or (_is_number(p) and p > 0)):
+            raise ConfigError(f"metrics.peaks[{i}]: expected \"intrinsic\" or a positive number, got {p!r}")
+    scopes = table.get("scopes", list(SCOPES))
+    if isinstance(scopes, str):
+        scopes = [scopes]
+    if not isinstance(scopes, list) or not scopes or any(s not in SCOPES for s in scopes):
+        raise ConfigError(f"metrics.scopes: expected a list of {list(SCOPES)}, got {scopes!r}")
+    margin = table.get("region_margin", 0.0)
+    if not _is_number(margin) or margin < 0:
+        raise ConfigError(f"metrics.region_margin: expected a non-negative number, got {margin!r}")
+    tc = table.get("temporal_consistency", True)
+    if not isinstance(tc, bool):
+        raise ConfigError("metrics.temporal_consistency: expected true or false")
+    return {"names": list(names), "peaks": list(peaks), "scopes": list(scopes), "region_margin": margin,
+            "temporal_consistency": tc}
+
+
+def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLike | None = None) -> ExperimentConfig:
+    """Validate a config dict (as read from TOML); ConfigError names the offending key."""
+    if not isinstance(data, dict):
+        raise ConfigError("config: expected a table")
+    _unknown_keys(data, _TOP_KEYS, "config")
+    exp = data.get("experiment")
+    if not isinstance(exp, dict) or not exp.get("name"):
+        raise ConfigError("experiment.name: missing; add [experiment] with name = \"...\"")
+    _unknown_keys(exp, _EXPERIMENT_KEYS, "experiment")
+    if not isinstance(exp["name"], str):
+        raise ConfigError("experiment.name: expected a string")
+    timeout = exp.get("timeout_s", DEFAULT_TIMEOUT_S)
+    if not _is_number(timeout) or timeout <= 0:
+        raise ConfigError(f"experiment.timeout_s: expected a positive number of seconds, got {timeout!r}")
+    give_regions = exp.get("give_regions", True)
+    if not isinstance(give_regions, bool):
+        raise ConfigError("experiment.give_regions: expected true or false")
+    cfg = ExperimentConfig(name=exp["name"], description=str(exp.get("description", "")), timeout_s=float(timeout),
+                           give_regions=give_regions, data_dir=exp.get("data_dir"), source=source)
+
+    for i, seq in enumerate(_table_list(data, "sequences")):
+        where = f"sequences[{i}]"
+        _unknown_keys(seq, _SEQUENCE_KEYS, where)
+        if not seq.get("name") and not seq.get("path"):
+            raise ConfigError(f"{where}: give `name` (an embedded or paper dataset) or `path` (a PLY folder)")
+        frames = seq.get("frames")
+        if frames is not None:
+            ok = (isinstance(frames, int) and not isinstance(frames, bool) and frames > 0) or (
+                isinstance(frames, list) and len(frames) == 2 and all(isinstance(x, int) for x in frames)
+                and 0 <= frames[0] < frames[1])
+            if not ok:
+                raise ConfigError(f"{where}.frames: expected a positive count or [start, stop) with start < stop, got {frames!r}")
+        path = None
+        if seq.get("path"):  # relative paths are relative to the config file's folder
+            path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())
+        entry = {"name": seq.get("name") or Path(seq["path"]).name, "path": path,
+                 "params": seq.get("params", {}), "frames": frames, "label": seq.get("label")}
+        for j, params in enumerate(_expand_params(entry["params"], f"{where}.params")):
+            cfg.sequences.append({**entry, "params": params, "_where": where})
+
+    from holes.registry import GENERATORS, generator_class
+
+    for i, hole in enumerate(_table_list(data, "holes")):
+        where = f"holes[{i}]"
+        _unknown_keys(hole, _HOLES_KEYS, where)
+        gen = hole.get("generator")
+        if gen not in GENERATORS:
+            raise ConfigError(f"{where}.generator: unknown hole generator {gen!r}; known: {', '.join(sorted(GENERATORS)) or 'none registered'}")
+        if "seeds" in hole and "seed" in hole:
+            raise ConfigError(f"{where}: give `seeds` or `seed`, not both")
+        seeds = hole.get("seeds", [hole.get("seed", 0)])
+        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+            raise ConfigError(f"{where}.seeds: expected a non-empty list of integers, got {seeds!r}")
+        cls = generator_class(gen)
+        _check_param_types(cls, hole.get("params", {}), f"{where}.params")
+        for params in _expand_params(hole.get("params", {}), f"{where}.params"):
+            for seed in seeds:
+                cfg.holes.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
+                                  "entry": GENERATORS[gen], "version": str(getattr(cls, "version", "1"))})
+
+    from methods.registry import METHODS, method_class
+
+    for i, meth in enumerate(_table_list(data, "methods")):
+        where = f"methods[{i}]"
+        _unknown_keys(meth, _METHOD_KEYS, where)
+        name = meth.get("name")
+        if name not in METHODS:
+            raise ConfigError(f"{where}.name: unknown method {name!r}; known methods: {', '.join(sorted(METHODS))}")
+        try:
+            cls = method_class(name)
+        except Exception as err:
+            raise ConfigError(f"{where}.name: method {name!r} cannot be loaded here ({type(err).__name__}: {err})") from err
+        _check_param_types(cls, meth.get("params", {}), f"{where}.params")
+        for params in _expand_params(meth.get("params", {}), f"{where}.params"):
+            cfg.methods.append({"name": name, "params": params, "label": meth.get("label"),
+                                "entry": METHODS[name], "version": str(getattr(cls, "version", "1"))})
+
+    cfg.metrics = _parse_metrics(data.get("metrics", {}))
+    return cfg
+
+
+def load_config(path: str | os.PathLike, overrides: dict | None = None) -> ExperimentConfig:
+    """Read and validate a TOML config; ``overrides`` (a dict) is merged over the file's tables."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such config file")
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: not valid TOML ({err}); fix the syntax at that line") from err
+    if overrides:
+        data = merge_config(data, overrides)
+    try:
+        return parse_config(data, source=str(path), base_dir=path.parent)
+    except ConfigError as err:
+        raise ConfigError(f"{path}: {err}") from err
+
+
+def merge_config(base: dict, overrides: dict) -> dict:
+    """``base`` with ``overrides`` applied: tables merge key by key, everything else is replaced."""
+    out = copy.deepcopy(base)
+    for key, value in overrides.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge_config(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
+    metric_versions = {}
+    registry = _metric_registry()
+    if registry is not None:
+        for n in cfg.metrics["names"] + (["temporal_consistency"] if cfg.metrics["temporal_consistency"] else []):
+            if n in registry:
+                metric_versions[n] = str(getattr(registry[n], "version", "1"))
+    runs: list[RunSpec] = []
+    seen: set[str] = set()
+    for seq in cfg.sequences:
+        sequence = {k: v for k, v in seq.items() if k != "_where"}
+        sequence["data_dir"] = cfg.data_dir
+        fingerprint = data_fingerprint(sequence, seq["_where"])
+        for hole in cfg.holes:
+            for meth in cfg.methods:
+                spec = RunSpec(
+                    run_id="", inpaint_key="", experiment=cfg.name,
+                    sequence=copy.deepcopy(sequence),
+                    holes={k: copy.deepcopy(v) for k, v in hole.items() if k != "version"},
+                    method={k: copy.deepcopy(v) for k, v in meth.items() if k != "version"},
+                    metrics=copy.deepcopy(cfg.metrics),
+                    protocol={"give_regions": cfg.give_regions},
+                    versions={"method": meth["version"], "generator": hole["version"], "data": fingerprint,
+                              "metrics": metric_versions},
+                    timeout_s=cfg.timeout_s,
+                )
+                compute_ids(spec)
+                if spec.run_id not in seen:  # the same run listed twice in a grid runs once
+                    seen.add(spec.run_id)
+                    runs.append(spec)
+    return runs

@@ -1,0 +1,151 @@
+"""Experiment configs: validation naming the offending key, grid expansion, stable run ids."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from bench.config import ConfigError, load_config, parse_config, stable_hash
+from tests import test_runner_helpers as helpers
+
+
+@pytest.fixture
+def seq_dir(tmp_path, monkeypatch):
+    helpers.register(monkeypatch)
+    return helpers.write_sequence(tmp_path / "seq", n_frames=2, n_points=200)
+
+
+def _config(seq_dir):
+    return {
+        "experiment": {"name": "t", "timeout_s": 60},
+        "sequences": [{"path": str(seq_dir), "frames": 2}],
+        "holes": [{"generator": "test-ball", "params": {"radius": [0.2, 0.3]}, "seeds": [0, 1]}],
+        "methods": [{"name": "test-identity", "params": {"shift": [0.0, 0.5, 1.0]}},
+                    {"name": "test-raises"}],
+        "metrics": {"names": ["gpsnr_d1"], "peaks": ["intrinsic"], "scopes": ["frame", "holes"]},
+    }
+
+
+def _ids(cfg_dict):
+    return [r.run_id for r in parse_config(cfg_dict).expand()]
+
+
+def test_grid_is_the_cartesian_product(seq_dir):
+    runs = parse_config(_config(seq_dir)).expand()
+    # holes: 2 radii x 2 seeds; methods: 3 shifts + 1
+    assert len(runs) == 4 * 4
+    assert len({r.run_id for r in runs}) == 16
+    combos = {(r.holes["params"]["radius"], r.holes["seed"], r.method["name"], r.method["params"].get("shift"))
+              for r in runs}
+    assert len(combos) == 16
+    assert all(r.method["entry"].startswith("tests.") for r in runs)
+
+
+def test_ids_are_stable_and_change_with_every_parameter(seq_dir):
+    base = _config(seq_dir)
+    ids = _ids(base)
+    assert ids == _ids(copy.deepcopy(base))
+    changes = [
+        ("holes", 0, "seeds", [0, 2]),
+        ("holes", 0, "params", {"radius": [0.2, 0.31]}),
+        ("methods", 0, "params", {"shift": [0.0, 0.5, 1.5]}),
+    ]
+    for table, i, key, value in changes:
+        changed = copy.deepcopy(base)
+        changed[table][i][key] = value
+        assert set(_ids(changed)) != set(ids), (table, key)
+    for key, value in [("names", ["gpsnr_d1", "nshd"]), ("peaks", [1023]), ("scopes", ["frame"]),
+                       ("region_margin", 2.0)]:
+        changed = copy.deepcopy(base)
+        changed["metrics"][key] = value
+        new = parse_config(changed).expand()
+        old = parse_config(base).expand()
+        assert all(a.run_id != b.run_id for a, b in zip(new, old)), key
+        # the inpainted frames do not depend on the metrics: they are reused
+        assert [a.inpaint_key for a in new] == [b.inpaint_key for b in old]
+    changed = copy.deepcopy(base)
+    changed["sequences"][0]["frames"] = [0, 1]
+    assert set(_ids(changed)).isdisjoint(ids)
+
+
+def test_key_order_numbers_and_labels_do_not_change_ids(seq_dir):
+    base = _config(seq_dir)
+    reordered = {k: base[k] for k in reversed(list(base))}
+    reordered["methods"] = [{"params": {"shift": [0.0, 0.5, 1.0]}, "name": "test-identity"}, {"name": "test-raises"}]
+    reordered["metrics"] = dict(reversed(list(base["metrics"].items())))
+    assert _ids(reordered) == _ids(base)
+    floats = copy.deepcopy(base)
+    floats["methods"][0]["params"]["shift"] = [0, 0.5, 1]  # ints for whole floats
+    assert _ids(floats) == _ids(base)
+    labelled = copy.deepcopy(base)
+    labelled["methods"][0]["label"] = "Shifted"
+    labelled["experiment"]["description"] = "words"
+    assert _ids(labelled) == _ids(base)
+    assert stable_hash({"a": 1, "b": [1.0, 2.5]}) == stable_hash({"b": [1, 2.5], "a": 1.0})
+
+
+def test_method_version_and_data_change_ids(seq_dir, monkeypatch):
+    base = _config(seq_dir)
+    ids = _ids(base)
+    monkeypatch.setattr(helpers.IdentityFill, "version", "2")
+    assert set(_ids(base)) != set(ids)
+    monkeypatch.setattr(helpers.IdentityFill, "version", "1")
+    assert _ids(base) == ids
+    helpers.write_sequence(seq_dir, n_frames=2, n_points=210)  # data changed on disk
+    assert set(_ids(base)).isdisjoint(ids)
+
+
+@pytest.mark.parametrize("mutate, key", [
+    (lambda c: c["methods"][0]["params"].update(shift="big"), "methods[0].params.shift: expected a number"),
+    (lambda c: c["methods"][1].update(name="nope"), "methods[1].name: unknown method 'nope'"),
+    (lambda c: c["methods"][0]["params"].update(shfit=1), "methods[0].params.shfit: unknown parameter"),
+    (lambda c: c["holes"][0].update(generator="nope"), "holes[0].generator: unknown hole generator"),
+    (lambda c: c["holes"][0].update(seeds=["a"]), "holes[0].seeds: expected a non-empty list of integers"),
+    (lambda c: c["metrics"].update(peaks=[-1]), "metrics.peaks[0]"),
+    (lambda c: c["metrics"].update(scopes=["everywhere"]), "metrics.scopes"),
+    (lambda c: c["sequences"][0].update(frames=0), "sequences[0].frames"),
+    (lambda c: c["sequences"][0].update(path="/does/not/exist"), "sequences[0].path"),
+    (lambda c: c["sequences"][0].update(colour=1), "sequences[0].colour: unknown key"),
+    (lambda c: c["experiment"].pop("name"), "experiment.name: missing"),
+    (lambda c: c.pop("methods"), "methods: missing"),
+    (lambda c: c["methods"][0]["params"].update(shift=[]), "methods[0].params.shift: an empty list"),
+])
+def test_validation_names_the_offending_key(seq_dir, mutate, key):
+    cfg = _config(seq_dir)
+    mutate(cfg)
+    with pytest.raises(ConfigError) as info:
+        parse_config(cfg).expand()
+    assert key in str(info.value)
+
+
+def test_toml_file_and_syntax_errors(seq_dir, tmp_path):
+    path = tmp_path / "exp.toml"
+    path.write_text(f'''
+[experiment]
+name = "file"
+
+[[sequences]]
+path = "seq"
+frames = [0, 2]
+
+[[holes]]
+generator = "test-ball"
+seed = 3
+
+[[methods]]
+name = "test-identity"
+params = {{ shift = [0.0, 1.0] }}
+
+[metrics]
+names = ["gpsnr_d1"]
+''')
+    (tmp_path / "seq").exists() or helpers.write_sequence(tmp_path / "seq", 2, 200)
+    runs = load_config(path).expand()
+    assert len(runs) == 2 and runs[0].sequence["path"] == str((tmp_path / "seq").resolve())
+    assert runs[0].holes["seed"] == 3
+    path.write_text("[experiment\nname = 1")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(path)
+    with pytest.raises(ConfigError, match="no such config file"):
+        load_config(tmp_path / "missing.toml")

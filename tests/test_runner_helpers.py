@@ -1,0 +1,121 @@
+"""Test-only methods and a hole generator that worker processes can import by name
+(``tests.test_runner_helpers:Class``), plus tiny synthetic sequences. No tests here.
+
+Registering them: tests monkeypatch ``methods.registry.METHODS`` / ``holes.registry.GENERATORS`` in
+the driver; the run spec carries the import string, so spawned workers (which never see the
+monkeypatch) load the same classes.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+
+from holes.base import DamageResult, HoleGenerator, as_generator
+from holes.regions import HoleRegion
+from methods.base import PerFrameMethod
+
+HERE = "tests.test_runner_helpers"
+
+
+class IdentityFill(PerFrameMethod):
+    """Returns each damaged frame plus ``shift`` on every coordinate (shift changes the scores)."""
+
+    name = "test-identity"
+
+    def __init__(self, shift: float = 0.0):
+        self.shift = shift
+
+    def inpaint_frame(self, points, regions):
+        return points + self.shift
+
+
+class RaisingFill(PerFrameMethod):
+    name = "test-raises"
+
+    def __init__(self, message: str = "deliberate failure"):
+        self.message = message
+
+    def inpaint_frame(self, points, regions):
+        raise RuntimeError(self.message)
+
+
+class CrashingFill(PerFrameMethod):
+    """Kills its own process: ``how="exit"`` -> os._exit(7); ``how="kill"`` -> SIGKILL."""
+
+    name = "test-crashes"
+
+    def __init__(self, how: str = "exit"):
+        self.how = how
+
+    def inpaint_frame(self, points, regions):
+        if self.how == "kill":
+            os.kill(os.getpid(), signal.SIGKILL)
+        os._exit(7)
+
+
+class HangOnFlagFill(PerFrameMethod):
+    """Sleeps forever while the file ``flag`` exists (to kill a sweep mid-way), else like IdentityFill."""
+
+    name = "test-hang"
+
+    def __init__(self, flag: str = "", shift: float = 0.0):
+        self.flag = flag
+        self.shift = shift
+
+    def inpaint_frame(self, points, regions):
+        while self.flag and Path(self.flag).exists():
+            time.sleep(0.2)
+        return points + self.shift
+
+
+class BallHoles(HoleGenerator):
+    """Removes the points within ``radius`` of a seeded random point of each frame."""
+
+    name = "test-ball"
+
+    def __init__(self, radius: float = 0.3):
+        self.radius = radius
+
+    def damage(self, frames, seed, colors=None):
+        rng = as_generator(seed)
+        out, removed, regions = [], [], []
+        for pts in frames:
+            center = pts[rng.integers(len(pts))]
+            region = HoleRegion.ball(center, self.radius)
+            mask = region.contains(pts)
+            out.append(pts[~mask])
+            removed.append(mask)
+            regions.append([region])
+        return DamageResult(out, removed, regions, None)
+
+
+def sphere_frames(n_frames: int = 3, n_points: int = 800, seed: int = 0) -> list[np.ndarray]:
+    """Unit spheres (Fibonacci lattice) drifting along x by 0.05 per frame."""
+    i = np.arange(n_points) + 0.5
+    phi = np.arccos(1 - 2 * i / n_points)
+    theta = np.pi * (1 + 5**0.5) * i
+    base = np.column_stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)])
+    rng = np.random.default_rng(seed)
+    return [base + [0.05 * f, 0, 0] + rng.normal(0, 1e-3, base.shape) for f in range(n_frames)]
+
+
+def write_sequence(folder: Path, n_frames: int = 3, n_points: int = 800) -> Path:
+    from bench.sequences import save_sequence
+
+    save_sequence(sphere_frames(n_frames, n_points), folder, prefix="sphere")
+    return folder
+
+
+def register(monkeypatch) -> None:
+    """Make the test methods and generator known by name in this process."""
+    import holes.registry
+    import methods.registry
+
+    for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
+        monkeypatch.setitem(methods.registry.METHODS, cls.name, f"{HERE}:{cls.__name__}")
+    monkeypatch.setitem(holes.registry.GENERATORS, BallHoles.name, f"{HERE}:BallHoles")
