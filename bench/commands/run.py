@@ -1,0 +1,81 @@
+"""`dpcbench run CONFIG`: expand an experiment config into runs and execute the missing ones."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from bench.errors import UserError
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "run", help="run an experiment config (resumable; finished runs are cached)",
+        description="Expand CONFIG (TOML: sequences x holes x method parameter grids) into runs and execute "
+                    "those not yet in the results store. Each run is a worker process with a timeout; a crash "
+                    "is recorded as a failed run and the sweep goes on. Interrupt at any time and rerun: "
+                    "finished runs are kept, unfinished ones are redone.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("config", help="experiment TOML file, or a preset name from bench/presets (e.g. paper-quick)")
+    p.add_argument("--dry-run", action="store_true", help="list the runs and whether they are cached; run nothing")
+    p.add_argument("--store", default=None,
+                   help="results store (SQLite); default $DPCBENCH_STORE or ~/.cache/dpcbench/results.sqlite")
+    p.add_argument("--runs-dir", default=None, help="where run folders (frames) go; default: runs/ beside the store")
+    p.add_argument("--executor", choices=("serial", "pool", "dask"), default="pool")
+    p.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help="Dask scheduler address (tcp://host:8786); implies --executor dask")
+    p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: all cores)")
+    p.add_argument("--timeout", type=float, default=None, help="seconds per run (overrides experiment.timeout_s)")
+    p.add_argument("--data-dir", default=None, help="folder holding the paper's sequences (longdress, ...)")
+    p.add_argument("--force", action="store_true", help="redo every run, frames included")
+    p.add_argument("--retry-failed", action="store_true", help="redo runs that failed before")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=main)
+
+
+def resolve_config_path(text: str) -> Path:
+    path = Path(text)
+    if path.is_file():
+        return path
+    preset = Path(__file__).resolve().parents[1] / "presets" / f"{text.removesuffix('.toml')}.toml"
+    if preset.is_file():
+        return preset
+    raise UserError(f"{text}: no such config file (nor a preset in {preset.parent}); give the path of a TOML config")
+
+
+def main(args) -> int:
+    from bench.config import load_config
+    from bench.runner import run_experiment
+    from bench.store import ResultsStore
+
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError("--jobs: must be at least 1")
+    if args.timeout is not None and args.timeout <= 0:
+        raise UserError("--timeout: must be a positive number of seconds")
+    overrides = {"experiment": {"data_dir": args.data_dir}} if args.data_dir else None
+    try:
+        cfg = load_config(resolve_config_path(args.config), overrides)
+        specs = cfg.expand()
+        store = ResultsStore(args.store)
+    except (ValueError, KeyError) as err:
+        raise UserError(str(err).strip("'\"")) from err
+    if args.dry_run:
+        statuses = store.statuses([s.run_id for s in specs])
+        for spec in specs:
+            print(f"{statuses.get(spec.run_id, 'todo'):7s} {spec.summary()}")
+        todo = sum(1 for s in specs if s.run_id not in statuses)
+        print(f"{len(specs)} runs in experiment {cfg.name!r}: {todo} to do, {len(specs) - todo} stored; store {store.path}")
+        return 0
+    quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
+    try:
+        summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
+                                 scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
+                                 quiet=quiet, timeout_s=args.timeout)
+    except ValueError as err:
+        raise UserError(str(err)) from err
+    print(f"experiment {cfg.name!r}: {len(summary.done)} run(s) done, {len(summary.cached)} cached, "
+          f"{len(summary.failed)} failed; store {store.path}")
+    for run_id in summary.failed:
+        print(f"  failed {run_id}: {summary.errors.get(run_id, '').splitlines()[0] if summary.errors.get(run_id) else ''}")
+    return 1 if summary.failed else 0
