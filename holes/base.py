@@ -56,3 +56,58 @@ def as_generator(seed) -> np.random.Generator:
     if seed is None:
         raise ValueError("a seed is required: pass an int so that the damage is reproducible")
     return np.random.default_rng(seed)
+
+
+def check_sequence_input(frames, colors=None, what: str = "hole generator") -> tuple[list[np.ndarray], list | None]:
+    """Validate a sequence for damage: a non-empty list of finite (N_f, 3) arrays with optional
+    matching (N_f, 3) colours. Returns float64 frames and the colours (or None). ValueError otherwise."""
+    from holes.geometry import check_frame
+
+    if isinstance(frames, np.ndarray) and frames.ndim == 2:
+        raise ValueError(f"{what}: expected a list of frames (a sequence), got one (N, 3) array; wrap it in a list")
+    frames = [check_frame(f, f"{what}: frame {i}") for i, f in enumerate(frames)]
+    if not frames:
+        raise ValueError(f"{what}: the sequence has no frames")
+    if colors is not None:
+        colors = list(colors)
+        if len(colors) != len(frames):
+            raise ValueError(f"{what}: {len(colors)} colour arrays for {len(frames)} frames")
+        for i, (pts, col) in enumerate(zip(frames, colors)):
+            if col is not None and len(col) != len(pts):
+                raise ValueError(f"{what}: frame {i} has {len(pts)} points but {len(col)} colours")
+    return frames, colors
+
+
+def make_result(
+    frames: list[np.ndarray],
+    removed: list[np.ndarray],
+    regions: list[list[HoleRegion]],
+    colors=None,
+    *,
+    what: str = "hole generator",
+    max_fraction: float = 1.0,
+) -> DamageResult:
+    """Apply the removal masks and refuse damage that removes nothing or too much.
+
+    frames[f][~removed[f]] becomes the damaged frame f (row order kept), likewise its colours.
+    ValueError when a frame loses no point, loses every point, or loses more than ``max_fraction``.
+    """
+    for i, (pts, mask) in enumerate(zip(frames, removed)):
+        lost = int(mask.sum())
+        if lost == 0:
+            raise ValueError(
+                f"{what}: frame {i} would lose no point (holes smaller than the point spacing?); "
+                "use larger holes or a higher fraction"
+            )
+        if lost == len(pts):
+            raise ValueError(f"{what}: frame {i} would lose all its {len(pts)} points; use fewer or smaller holes")
+        if lost > max_fraction * len(pts):
+            raise ValueError(
+                f"{what}: frame {i} would lose {lost / len(pts):.1%} of its points, more than "
+                f"max_fraction={max_fraction:.0%}; use fewer or smaller holes (or raise max_fraction)"
+            )
+    damaged = [pts[~mask] for pts, mask in zip(frames, removed)]
+    damaged_colors = None
+    if colors is not None:
+        damaged_colors = [None if col is None else np.asarray(col)[~mask] for col, mask in zip(colors, removed)]
+    return DamageResult(damaged, removed, regions, damaged_colors)

@@ -5,7 +5,11 @@ from __future__ import annotations
 import importlib
 
 # name -> "module:ClassName"; filled in by holes/ modules
-GENERATORS: dict[str, str] = {}
+GENERATORS: dict[str, str] = {
+    "region": "holes.synthetic:RegionHoles",
+    "dropout": "holes.synthetic:DropoutHoles",
+    "occlusion": "holes.occlusion:OcclusionHoles",
+}
 
 
 def generator_class(name: str):

@@ -1,0 +1,185 @@
+"""Acquisition (occlusion) holes: what a rig of K cameras around the subject cannot see.
+
+Visibility test: open3d's hidden point removal (Katz, Tal, Basri, "Direct visibility of point
+sets", SIGGRAPH 2007). It is the standard visibility operator for bare point sets: it needs no
+mesh and no splat size, only the camera position, and on a well-sampled surface it marks the same
+points visible that a renderer would. A point counts as *seen* by a camera when HPR keeps it and
+the camera looks at it at a non-grazing angle: ``|n . v| >= min_cos``, with n the point's PCA
+normal and v the unit vector from the point to the camera (real depth sensors lose surfaces
+viewed edge-on). Points seen by no camera are removed; the removed points are grouped into
+connected pieces (radius graph, 3 point spacings), each bounded by an oriented box (PCA axes) that
+becomes its hole region. Every removed point lies inside a region.
+
+Default rig, after a volumetric capture stage: 2 rings of 6 cameras around the vertical axis of the
+subject, at 30 % and 80 % of its height, at a horizontal distance of 1.5 bounding-box diagonals
+from its centre, all looking at the centre. Such a rig leaves realistic holes: under the arms,
+between the legs, on the top of the head and under the chin. ``rig="sphere"`` spreads ``count``
+cameras evenly over a sphere (Fibonacci lattice) around the subject; on a convex object it sees
+everything.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial import cKDTree
+
+from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
+from holes.geometry import components_to_regions, estimate_normals, point_spacing
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def stage_cameras(points: np.ndarray, rings=(0.3, 0.8), per_ring: int = 6, distance: float = 1.5,
+                  up: str = "y", azimuth: float = 0.0) -> np.ndarray:
+    """Camera positions (rings * per_ring, 3) of a capture stage around ``points``.
+
+    Ring r is at height ``min + rings[r] * height`` along the ``up`` axis, cameras evenly spaced in
+    azimuth (starting at ``azimuth`` radians, rings offset by half a step so they interleave), at a
+    horizontal distance ``distance * diagonal`` from the bounding-box centre.
+    """
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    center = (lo + hi) / 2
+    diag = float(np.linalg.norm(hi - lo))
+    u = _AXES[up]
+    a, b = [i for i in range(3) if i != u]
+    cams = []
+    for r, level in enumerate(rings):
+        for k in range(per_ring):
+            phi = azimuth + 2 * np.pi * (k + 0.5 * (r % 2)) / per_ring
+            cam = center.copy()
+            cam[a] += distance * diag * np.cos(phi)
+            cam[b] += distance * diag * np.sin(phi)
+            cam[u] = lo[u] + level * (hi[u] - lo[u])
+            cams.append(cam)
+    return np.asarray(cams)
+
+
+def sphere_cameras(points: np.ndarray, count: int = 20, distance: float = 1.5) -> np.ndarray:
+    """``count`` cameras on a Fibonacci lattice of a sphere of radius ``distance * diagonal``
+    around the bounding-box centre: the most even spread of K directions in closed form."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    center = (lo + hi) / 2
+    diag = float(np.linalg.norm(hi - lo))
+    i = np.arange(count) + 0.5
+    z = 1 - 2 * i / count
+    theta = np.pi * (1 + 5**0.5) * i
+    rho = np.sqrt(1 - z**2)
+    dirs = np.column_stack([rho * np.cos(theta), rho * np.sin(theta), z])
+    return center + distance * diag * dirs
+
+
+def visible_mask(points: np.ndarray, normals: np.ndarray, cameras: np.ndarray, min_cos: float,
+                 hpr_factor: float = 1000.0) -> np.ndarray:
+    """Mask (N,) of the points seen by at least one camera (HPR-visible and ``|n.v| >= min_cos``).
+
+    hpr_factor: HPR's spherical-flipping radius as a multiple of the camera's distance to the
+    farthest point (Katz et al.: larger is stricter; 100 is open3d's tutorial value).
+    """
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    seen = np.zeros(len(points), dtype=bool)
+    for cam in cameras:
+        far = float(np.sqrt(((points - cam) ** 2).sum(axis=1).max()))
+        _, kept = cloud.hidden_point_removal(cam, far * hpr_factor)
+        kept = np.asarray(kept, dtype=np.int64)
+        view = cam - points[kept]
+        view /= np.linalg.norm(view, axis=1, keepdims=True)
+        cos = np.abs(np.einsum("ij,ij->i", view, normals[kept]))
+        seen[kept[cos >= min_cos]] = True
+    return seen
+
+
+class OcclusionHoles(HoleGenerator):
+    """Points that no camera of a simulated capture rig sees (at a non-grazing angle) are removed.
+
+    Parameters
+    ----------
+    rig:       "stage" (rings of cameras around the up axis) or "sphere" (Fibonacci sphere).
+    cameras:   explicit camera positions, a list of [x, y, z] (overrides ``rig``).
+    rings:     stage ring heights as fractions of the subject's height.
+    per_ring:  cameras per stage ring.
+    count:     cameras of the sphere rig.
+    distance:  camera distance from the centre in bounding-box diagonals.
+    up:        "x" | "y" | "z", the vertical axis of the subject (MPEG bodies: "y").
+    min_cos:   grazing threshold: seen only if |normal . view| >= min_cos (0.2: angle <= 78 deg).
+    random_azimuth: rotate the stage by a random azimuth drawn from the seed (else fixed at 0;
+               the damage is then the same for every seed).
+    normal_k:  neighbours for the PCA normals.
+    max_fraction: refuse a rig that removes more than this fraction of a frame.
+    Regions are oriented boxes with ``point_count`` (removed points in the piece).
+    """
+
+    name = "occlusion"
+    summary = "acquisition holes: points no camera of a simulated capture rig sees (open3d HPR + grazing angle)"
+    version = "1"
+
+    def __init__(self, rig: str = "stage", cameras=None, rings=(0.3, 0.8), per_ring: int = 6, count: int = 20,
+                 distance: float = 1.5, up: str = "y", min_cos: float = 0.2, random_azimuth: bool = False,
+                 normal_k: int = 16, max_fraction: float = 0.5):
+        self.rig = rig
+        self.cameras = cameras
+        self.rings = rings
+        self.per_ring = per_ring
+        self.count = count
+        self.distance = distance
+        self.up = up
+        self.min_cos = min_cos
+        self.random_azimuth = random_azimuth
+        self.normal_k = normal_k
+        self.max_fraction = max_fraction
+
+    def _check(self):
+        if self.rig not in ("stage", "sphere"):
+            raise ValueError(f"occlusion holes: rig must be 'stage' or 'sphere', got {self.rig!r}")
+        if self.up not in _AXES:
+            raise ValueError(f"occlusion holes: up must be 'x', 'y' or 'z', got {self.up!r}")
+        if not 0 <= self.min_cos < 1:
+            raise ValueError(f"occlusion holes: min_cos must be in [0, 1), got {self.min_cos!r}")
+        if not self.distance > 0.5:
+            raise ValueError(
+                f"occlusion holes: distance {self.distance!r} (in bounding-box diagonals) would put cameras "
+                "inside the subject; use a value above 0.5"
+            )
+        if self.cameras is None:
+            if self.rig == "stage" and (int(self.per_ring) < 1 or len(self.rings) < 1):
+                raise ValueError("occlusion holes: the stage rig needs at least one ring with one camera")
+            if self.rig == "sphere" and int(self.count) < 1:
+                raise ValueError(f"occlusion holes: count must be >= 1, got {self.count!r}")
+        if not 4 <= int(self.normal_k):
+            raise ValueError(f"occlusion holes: normal_k must be >= 4, got {self.normal_k!r}")
+
+    def _cameras(self, points, azimuth):
+        if self.cameras is not None:
+            cams = np.asarray(self.cameras, dtype=np.float64)
+            if cams.ndim != 2 or cams.shape[1] != 3 or not np.isfinite(cams).all():
+                raise ValueError(f"occlusion holes: cameras must be a list of [x, y, z] positions, got shape {cams.shape}")
+            lo, hi = points.min(axis=0), points.max(axis=0)
+            inside = ((cams >= lo) & (cams <= hi)).all(axis=1)
+            if inside.any():
+                raise ValueError(
+                    f"occlusion holes: camera(s) {np.flatnonzero(inside).tolist()} lie inside the subject's "
+                    f"bounding box {lo.tolist()} - {hi.tolist()}; place cameras around the subject"
+                )
+            return cams
+        if self.rig == "sphere":
+            return sphere_cameras(points, int(self.count), self.distance)
+        return stage_cameras(points, tuple(self.rings), int(self.per_ring), self.distance, self.up, azimuth)
+
+    def damage(self, frames, seed, colors=None):
+        frames, colors = check_sequence_input(frames, colors, "occlusion holes")
+        self._check()
+        rng = as_generator(seed)
+        azimuth = float(rng.uniform(0, 2 * np.pi)) if self.random_azimuth else 0.0
+        regions, removed = [], []
+        for f, pts in enumerate(frames):
+            if len(pts) < self.normal_k:
+                raise ValueError(f"occlusion holes: frame {f} has {len(pts)} points, fewer than normal_k={self.normal_k}")
+            tree = cKDTree(pts)
+            normals, _, _ = estimate_normals(pts, tree, int(self.normal_k))
+            seen = visible_mask(pts, normals, self._cameras(pts, azimuth), self.min_cos)
+            mask = ~seen
+            spacing = point_spacing(pts, tree)
+            frame_regions, _ = components_to_regions(pts[mask], 3 * spacing, margin=spacing) if mask.any() else ([], None)
+            regions.append(frame_regions)
+            removed.append(mask)
+        return make_result(frames, removed, regions, colors, what="occlusion holes", max_fraction=self.max_fraction)
