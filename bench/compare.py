@@ -115,7 +115,7 @@ def change_kind(metric: str) -> str:
 # ---------------------------------------------------------------------------------------------
 # environment and code version
 def git_commit(repo: str | os.PathLike | None = None) -> str:
-    """The checked-out commit (with '-dirty' when tracked files are modified), or 'unknown'."""
+    """The checked-out commit (with "+dirty" when tracked files are modified, as the runner writes it), or 'unknown'."""
     cwd = Path(repo) if repo else Path(__file__).resolve().parents[1]
     try:
         commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True,
@@ -124,7 +124,7 @@ def git_commit(repo: str | os.PathLike | None = None) -> str:
                                capture_output=True, text=True, timeout=10, check=True).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
-    return commit + ("-dirty" if dirty else "")
+    return commit + ("+dirty" if dirty else "")
 
 
 def environment_info() -> dict:
@@ -159,6 +159,14 @@ def _normalize_keys(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
+def _population_std(values: pd.Series) -> float:
+    """sqrt(mean((v - mean(v))^2)) over the non-NaN values; NaN when none is left or one is infinite."""
+    finite = values.dropna().to_numpy(dtype=float)
+    if len(finite) == 0 or not np.isfinite(finite).all():
+        return math.nan
+    return float(np.std(finite))
+
+
 def summarize(results: pd.DataFrame, *, experiment: str | None = None,
               code_version: str | None = None) -> pd.DataFrame:
     """One row per KEY_COLUMNS: mean, std (population) and count of the stored values.
@@ -190,8 +198,7 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
     newest = run_times.sort_values("created").groupby(RUN_KEY, sort=False, dropna=False).tail(1).index
     df = df[df["run_id"].isin(newest)]
     grouped = df.groupby(KEY_COLUMNS, sort=True)["value"]
-    summary = grouped.agg(mean="mean", std=lambda v: float(np.std(v.dropna())) if v.notna().any() else np.nan,
-                          n_frames="count").reset_index()
+    summary = grouped.agg(mean="mean", std=_population_std, n_frames="count").reset_index()
     summary["n_frames"] = summary["n_frames"].astype(int)
     return summary[SUMMARY_COLUMNS]
 

@@ -15,7 +15,7 @@ from bench.errors import UserError
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_BASELINE = REPO_ROOT / "results" / "regression-baseline.csv"
-DEFAULT_TOLERANCES = Path(__file__).resolve().parents[1] / "presets" / "regression.toml"
+TOLERANCES_FILE = REPO_ROOT / "results" / "tolerances.toml"
 DEFAULT_EXPERIMENT = "regression"
 SUMMARY_SUFFIXES = (".csv", ".json")
 
@@ -34,7 +34,7 @@ def register(subparsers) -> None:
     parser.add_argument("--experiment", default=DEFAULT_EXPERIMENT,
                         help=f"experiment to summarize from a store (default: {DEFAULT_EXPERIMENT}; '' = all)")
     parser.add_argument("--tolerances", default=None,
-                        help="TOML file with a [tolerances] table (default: the regression preset's)")
+                        help="TOML file with a [tolerances] table (default: results/tolerances.toml)")
     parser.add_argument("--gate-time", action="store_true",
                         help="also fail when time per frame grows beyond its tolerance")
     parser.add_argument("--changes-only", action="store_true", help="print only rows that are not ✓")
@@ -134,7 +134,7 @@ def run(args) -> int:
                         "`dpcbench compare --save-current results/regression-baseline.csv` after a regression run")
     baseline, baseline_meta = load_side(baseline_path, store=None, experiment=None, role="baseline")
 
-    tolerance_file = args.tolerances or (DEFAULT_TOLERANCES if DEFAULT_TOLERANCES.is_file() else None)
+    tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
     try:
         tolerances = compare.load_tolerances(tolerance_file)
         result = compare.compare_summaries(baseline, current, tolerances, gate_time=args.gate_time)

@@ -50,7 +50,7 @@ def load_stores(paths, experiment):
 
 def run(args) -> int:
     from bench import benchsuite, compare, dashboard
-    from bench.commands.compare import DEFAULT_TOLERANCES
+    from bench.commands.compare import TOLERANCES_FILE
 
     out = Path(args.out)
     if out.suffix.lower() not in (".html", ".htm"):
@@ -65,7 +65,7 @@ def run(args) -> int:
             raise UserError(str(err)) from None
     try:
         baseline = compare.read_summary(args.baseline) if args.baseline else None
-        tolerance_file = args.tolerances or (DEFAULT_TOLERANCES if DEFAULT_TOLERANCES.is_file() else None)
+        tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
         tolerances = compare.load_tolerances(tolerance_file)
         sources = [str(p) for p in (args.store or ["default results store"])] + [str(p) for p in bench_paths]
         written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,

@@ -1,0 +1,269 @@
+"""bench.compare and `dpcbench compare`: summaries, tolerances, regression verdicts, exit codes."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench import compare
+from bench.cli import main as cli_main
+from bench.store import ResultsStore
+
+
+def results_frame(cells, code_version="c1", created_at="2026-01-01T00:00:00", experiment="regression",
+                  run_prefix="r"):
+    """A store-shaped results table. cells: {(method, metric, scope): [per-frame values]}."""
+    rows = []
+    for (method, metric, scope), values in cells.items():
+        for frame, value in enumerate(values):
+            rows.append(dict(
+                run_id=f"{run_prefix}-{method}", experiment=experiment, sequence="human", holes="region",
+                holes_params='{"preset": "small"}', seed=0, method=method, method_params="{}", method_version="1",
+                code_version=code_version, frame=frame, metric=metric, scope=scope,
+                peak="intrinsic" if metric.startswith("gpsnr") else "", value=value, created_at=created_at))
+    return pd.DataFrame(rows)
+
+
+def summary(values: dict) -> pd.DataFrame:
+    """A one-frame-per-row summary: {(method, metric, scope): mean}."""
+    return compare.summarize(results_frame({k: [v] for k, v in values.items()}))
+
+
+# ---------------------------------------------------------------------------------------------
+# summarize
+def test_summarize_mean_std_count_closed_form():
+    df = results_frame({("none", "gpsnr_d1", "frame"): [30.0, 32.0, 34.0], ("none", "nshd", "holes"): [1e-7, 3e-7]})
+    s = compare.summarize(df).set_index(["metric", "scope"])
+    assert s.loc[("gpsnr_d1", "frame"), "mean"] == pytest.approx(32.0)
+    assert s.loc[("gpsnr_d1", "frame"), "std"] == pytest.approx(math.sqrt(8 / 3))  # population std
+    assert s.loc[("gpsnr_d1", "frame"), "n_frames"] == 3
+    assert s.loc[("nshd", "holes"), "mean"] == pytest.approx(2e-7)
+    assert s.loc[("gpsnr_d1", "frame"), "peak"] == "intrinsic"
+    assert list(compare.summarize(df).columns) == compare.SUMMARY_COLUMNS
+
+
+def test_summarize_keeps_newest_run_and_filters():
+    old = results_frame({("none", "gpsnr_d1", "frame"): [10.0, 10.0]}, code_version="c1",
+                        created_at="2026-01-01T00:00:00", run_prefix="old")
+    new = results_frame({("none", "gpsnr_d1", "frame"): [20.0, 22.0]}, code_version="c2",
+                        created_at="2026-01-02T00:00:00", run_prefix="new")
+    other = results_frame({("none", "gpsnr_d1", "frame"): [99.0]}, experiment="other", run_prefix="x",
+                          created_at="2026-01-03T00:00:00", code_version="c3")
+    both = pd.concat([old, new, other], ignore_index=True)
+    assert compare.summarize(both, experiment="regression")["mean"].tolist() == [21.0]
+    assert compare.summarize(both, code_version="c1")["mean"].tolist() == [10.0]
+    # the same run listed under two experiments is counted once
+    twice = pd.concat([new, new.assign(experiment="again")], ignore_index=True)
+    assert compare.summarize(twice)["n_frames"].tolist() == [2]
+    # equal params written differently are the same cell
+    spaced = new.assign(method_params='{"b": 1, "a": 2}')
+    compact = new.assign(method_params='{"a":2,"b":1}', run_id="new2", created_at="2026-01-05T00:00:00")
+    merged = compare.summarize(pd.concat([spaced, compact]))
+    assert len(merged) == 1 and merged["method_params"].iloc[0] == '{"a":2,"b":1}'
+
+
+def test_summarize_errors():
+    with pytest.raises(ValueError, match="lacks the columns"):
+        compare.summarize(pd.DataFrame({"value": [1.0]}))
+    df = results_frame({("none", "gpsnr_d1", "frame"): [1.0]})
+    with pytest.raises(ValueError, match="experiment 'nope'"):
+        compare.summarize(df, experiment="nope")
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".json"])
+def test_summary_file_round_trip(tmp_path, suffix):
+    df = results_frame({("none", "gpsnr_d1", "frame"): [30.123456789, 31.5],
+                        ("fu-nonlocal", "nshd", "holes"): [1.234567e-7, 2e-7],
+                        ("none", "time_s", "frame"): [0.25, float("nan")]})
+    s = compare.summarize(df)
+    meta = compare.summary_meta("abc123", experiment="regression")
+    path = compare.write_summary(s, tmp_path / f"base{suffix}", meta)
+    back, back_meta = compare.read_summary(path)
+    pd.testing.assert_frame_equal(back, s, rtol=1e-10)
+    assert back_meta["code_version"] == "abc123"
+    assert back_meta["experiment"] == "regression"
+    assert {"env.python", "env.numpy", "env.scipy", "env.open3d", "env.pymeshlab", "env.machine"} <= set(back_meta)
+
+
+def test_read_summary_rejects_other_files(tmp_path):
+    bad = tmp_path / "x.csv"
+    bad.write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="not a dpcbench summary"):
+        compare.read_summary(bad)
+    broken = tmp_path / "x.json"
+    broken.write_text("{not json")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        compare.read_summary(broken)
+    with pytest.raises(ValueError, match="no such summary file"):
+        compare.read_summary(tmp_path / "missing.csv")
+    with pytest.raises(ValueError, match=r"\.csv or \.json"):
+        compare.write_summary(compare.summarize(results_frame({("none", "nshd", "frame"): [1.0]})),
+                              tmp_path / "x.txt")
+
+
+# ---------------------------------------------------------------------------------------------
+# the verdicts
+def status_of(base: float, cur: float, metric: str, tolerance: float | None = None, **kw) -> str:
+    tolerances = dict(compare.DEFAULT_TOLERANCES)
+    if tolerance is not None:
+        tolerances[metric] = tolerance
+    result = compare.compare_summaries(summary({("m", metric, "frame"): base}),
+                                       summary({("m", metric, "frame"): cur}), tolerances, **kw)
+    return result.table["status"].iloc[0]
+
+
+def test_psnr_is_compared_in_db():
+    assert status_of(40.0, 39.95, "gpsnr_d1", 0.1) == compare.STATUS_OK
+    assert status_of(40.0, 39.85, "gpsnr_d1", 0.1) == compare.STATUS_REGRESSED
+    assert status_of(40.0, 40.25, "gpsnr_d1", 0.1) == compare.STATUS_IMPROVED
+    result = compare.compare_summaries(summary({("m", "gpsnr_d2", "frame"): 40.0}),
+                                       summary({("m", "gpsnr_d2", "frame"): 38.5}))
+    assert result.table["change"].iloc[0] == pytest.approx(-1.5)
+    assert "-1.500 dB" in result.format()
+
+
+def test_distances_are_compared_as_ratios():
+    # lower is better: x1.05 within x1.10, x1.2 regressed, x0.8 improved
+    assert status_of(2e-7, 2.1e-7, "nshd", 1.10) == compare.STATUS_OK
+    assert status_of(2e-7, 2.4e-7, "nshd", 1.10) == compare.STATUS_REGRESSED
+    assert status_of(2e-7, 1.6e-7, "nshd", 1.10) == compare.STATUS_IMPROVED
+    assert status_of(5.0, 6.0, "hausdorff", 1.10) == compare.STATUS_REGRESSED
+    assert status_of(0.0, 0.0, "chamfer", 1.10) == compare.STATUS_OK  # 0/0 -> x1
+    assert status_of(0.0, 1e-9, "chamfer", 1.10) == compare.STATUS_REGRESSED  # x inf
+    result = compare.compare_summaries(summary({("m", "nshd", "frame"): 2e-7}), summary({("m", "nshd", "frame"): 3e-7}))
+    assert result.table["change"].iloc[0] == pytest.approx(1.5)
+    assert "x1.500" in result.format()
+
+
+def test_time_is_reported_but_gated_only_on_request():
+    base, cur = summary({("m", "time_s", "frame"): 1.0}), summary({("m", "time_s", "frame"): 3.0})
+    loose = compare.compare_summaries(base, cur)
+    assert loose.table["status"].iloc[0] == compare.STATUS_SLOWER and not loose.failed
+    assert "not gated" in loose.format()
+    strict = compare.compare_summaries(base, cur, gate_time=True)
+    assert strict.failed and len(strict.failures) == 1
+    # tiny per-frame times are noise: never flagged
+    assert status_of(0.001, 0.01, "time_s", gate_time=True) == compare.STATUS_OK
+
+
+def test_missing_rows_fail_new_rows_do_not():
+    base = summary({("a", "gpsnr_d1", "frame"): 30.0, ("b", "gpsnr_d1", "frame"): 30.0})
+    cur = summary({("a", "gpsnr_d1", "frame"): 30.0, ("c", "gpsnr_d1", "frame"): 30.0})
+    result = compare.compare_summaries(base, cur)
+    statuses = dict(zip(result.table["method"], result.table["status"]))
+    assert statuses == {"a": compare.STATUS_OK, "b": compare.STATUS_MISSING, "c": compare.STATUS_NEW}
+    assert result.failed and result.failures["method"].tolist() == ["b"]
+
+
+def test_nan_becoming_defined_is_flagged():
+    assert status_of(float("nan"), float("nan"), "gpsnr_d1") == compare.STATUS_OK
+    assert status_of(30.0, float("nan"), "gpsnr_d1") == compare.STATUS_REGRESSED
+    assert status_of(float("inf"), float("inf"), "gpsnr_d1") == compare.STATUS_OK
+
+
+def test_direction_comes_from_the_metric_registry_when_present():
+    registry = pytest.importorskip("metrics.registry")
+    for name, metric in registry.METRICS.items():
+        assert compare.higher_is_better(name) == bool(metric.higher_is_better)
+    with pytest.raises(KeyError, match="unknown direction"):
+        compare.higher_is_better("no_such_metric")
+
+
+def test_tolerances_file(tmp_path):
+    good = tmp_path / "tol.toml"
+    good.write_text("[tolerances]\ngpsnr_d1 = 0.5  # dB\nnshd = 1.3\n")
+    tol = compare.load_tolerances(good)
+    assert tol["gpsnr_d1"] == 0.5 and tol["nshd"] == 1.3 and tol["gpsnr_d2"] == compare.DEFAULT_TOLERANCES["gpsnr_d2"]
+    assert status_of(40.0, 39.7, "gpsnr_d1", tol["gpsnr_d1"]) == compare.STATUS_OK
+    for text, message in [("[tolerances]\nnshd = 0.9\n", "tolerances.nshd: a ratio tolerance"),
+                          ("[tolerances]\ngpsnr_d1 = 'x'\n", "tolerances.gpsnr_d1: expected a number"),
+                          ("[other]\na = 1\n", "no \\[tolerances\\] table"),
+                          ("[tolerances\n", "not valid TOML")]:
+        bad = tmp_path / "bad.toml"
+        bad.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            compare.load_tolerances(bad)
+    with pytest.raises(ValueError, match="not found"):
+        compare.load_tolerances(tmp_path / "absent.toml")
+
+
+def test_committed_tolerances_and_baseline_are_valid():
+    """results/tolerances.toml loads; the committed baseline (when present) is a readable summary."""
+    from bench.commands.compare import DEFAULT_BASELINE, TOLERANCES_FILE
+
+    tol = compare.load_tolerances(TOLERANCES_FILE)
+    assert set(compare.DEFAULT_TOLERANCES) <= set(tol)
+    if DEFAULT_BASELINE.is_file():
+        table, meta = compare.read_summary(DEFAULT_BASELINE)
+        assert len(table) > 0 and meta["code_version"] and "env.numpy" in meta
+        assert {"gpsnr_d1", "gpsnr_d2", "nshd", "time_s"} <= set(table["metric"])
+        assert set(table["scope"]) >= {"frame", "holes"}
+
+
+# ---------------------------------------------------------------------------------------------
+# the command
+def write_store(path, cells, code_version="c1"):
+    store = ResultsStore(path)
+    by_run = {}
+    for (method, metric, scope), values in cells.items():
+        by_run.setdefault(method, []).extend(
+            dict(frame=f, metric=metric, scope=scope, peak="intrinsic" if metric.startswith("gpsnr") else "", value=v)
+            for f, v in enumerate(values))
+    for method, rows in by_run.items():
+        store.record_run(f"{code_version}-{method}", dict(
+            sequence="human", holes="region", holes_params={"preset": "small"}, seed=0, method=method,
+            method_params={}, method_version="1", code_version=code_version, spec={},
+            env={"packages": {"numpy": np.__version__}, "python": "3.x"}), rows, ["regression"])
+    return path
+
+
+def test_cli_compare_store_against_baseline(tmp_path, capsys):
+    cells = {("none", "gpsnr_d1", "frame"): [30.0, 31.0], ("none", "nshd", "frame"): [2e-7, 2e-7],
+             ("none", "time_s", "frame"): [0.5, 0.5]}
+    store = write_store(tmp_path / "a.sqlite", cells)
+    baseline = tmp_path / "baseline.csv"
+    assert cli_main(["compare", str(baseline), str(store), "--save-current", str(baseline)]) == 0
+    table, meta = compare.read_summary(baseline)
+    assert meta["env.numpy"] == np.__version__ and meta["experiment"] == "regression" and len(table) == 3
+    capsys.readouterr()
+    assert cli_main(["compare", str(baseline), "--store", str(store)]) == 0
+    assert "PASSED" in capsys.readouterr().out
+
+    worse = dict(cells)
+    worse[("none", "gpsnr_d1", "frame")] = [29.0, 30.0]
+    worse[("none", "time_s", "frame")] = [5.0, 5.0]
+    store2 = write_store(tmp_path / "b.sqlite", worse, code_version="c2")
+    out_csv = tmp_path / "cmp.csv"
+    assert cli_main(["compare", str(baseline), str(store2), "--out", str(out_csv)]) == 1
+    text = capsys.readouterr().out
+    assert "REGRESSED" in text and "-1.000 dB" in text and "FAILED: 1 regression" in text
+    assert "slower (not gated)" in text
+    assert pd.read_csv(out_csv)["status"].tolist().count("REGRESSED") == 1
+    # time gated on request: now two failures
+    assert cli_main(["compare", str(baseline), str(store2), "--gate-time"]) == 1
+    assert "FAILED: 2 regression" in capsys.readouterr().out
+
+
+def test_cli_compare_errors(tmp_path, capsys):
+    store = write_store(tmp_path / "a.sqlite", {("none", "gpsnr_d1", "frame"): [30.0]})
+    assert cli_main(["compare", str(tmp_path / "nope.csv"), str(store)]) == 2
+    assert "no such summary file" in capsys.readouterr().err
+    assert cli_main(["compare", str(tmp_path / "b.txt"), str(store)]) == 2
+    assert "BASELINE must be a summary" in capsys.readouterr().err
+    base = tmp_path / "b.json"
+    compare.write_summary(compare.summarize(results_frame({("none", "gpsnr_d1", "frame"): [1.0]})), base)
+    assert cli_main(["compare", str(base), str(store), "--experiment", "other"]) == 2
+    assert "no runs of experiment 'other'" in capsys.readouterr().err
+    corrupt = tmp_path / "corrupt.sqlite"
+    corrupt.write_bytes(b"this is not sqlite" * 100)
+    assert cli_main(["compare", str(base), str(corrupt)]) == 2
+    assert "results store is unreadable" in capsys.readouterr().err
+    bad_tol = tmp_path / "t.toml"
+    bad_tol.write_text("[tolerances]\nnshd = -1\n")
+    assert cli_main(["compare", str(base), str(store), "--tolerances", str(bad_tol)]) == 2
+    assert "tolerances.nshd" in capsys.readouterr().err
+    json.loads(base.read_text())  # the JSON summary is plain JSON
