@@ -79,12 +79,19 @@ def infer_bit_depth(frames: list[PointCloud]) -> int | None:
     return max(1, int(np.ceil(np.log2(top + 1))))
 
 
-def load_sequence(source: str | os.PathLike, *, name: str | None = None, progress: bool = False) -> Sequence:
-    """Read every PLY frame of a folder (or glob, or single file) in natural order.
+def load_sequence(source: str | os.PathLike | list, *, name: str | None = None, progress: bool = False) -> Sequence:
+    """Read every PLY frame of a folder (or glob, or single file) in natural order; a list of files is
+    read in the order given.
 
     All frames must carry the same attributes (all with colours or none, all with normals or none).
     """
-    files = list_frame_files(source)
+    if isinstance(source, (list, tuple)):
+        if not source:
+            raise UserError("no frame files given")
+        files = [Path(f) for f in source]
+        source = files[0].parent  # label and provenance: the folder of the frames
+    else:
+        files = list_frame_files(source)
     iterator = files
     if progress and len(files) > 3:
         from bench.progress import progress_bar

@@ -1,0 +1,344 @@
+"""The dataset registry: embedded stand-in sequences, the paper's sequences, and user folders.
+
+``load_dataset(name_or_path, frames=None, data_dir=None, **params) -> Sequence``:
+
+- an embedded name (``EMBEDDED``: "human", "bunny") generates the frames (deterministic for the
+  same parameters; cached on disk, see `bench.standins.cache`);
+- a paper sequence name (``PAPER``: longdress, loot, redandblack, soldier, ulliwegner) reads the
+  user's local copy from ``data_dir`` or ``$DPCBENCH_DATA_DIR``, after checking that the expected
+  files are there; these data are licensed and cannot ship with dpcbench;
+- anything else is a path: a folder of PLY frames, a glob, or one PLY file.
+
+``frames``: None (embedded: ``default_frames``; files: all), a count N (the first N), or an iterable
+of frame indices (0 = the first frame of the sequence).
+
+Every user mistake (unknown name, missing data, bad parameter) raises `bench.errors.UserError` with
+a message that says what to do.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable
+
+import numpy as np
+
+from bench.errors import UserError
+from bench.plyio import PointCloud
+from bench.sequences import Sequence, list_frame_files, load_sequence
+
+DATA_DIR_ENV = "DPCBENCH_DATA_DIR"
+
+
+@dataclass(frozen=True)
+class EmbeddedDataset:
+    """A generated sequence: ``module.generate_frame(index, **params) -> (points, colours)``."""
+
+    name: str
+    description: str
+    module: str  # import path of the generator module (GENERATOR_VERSION, generate_frame)
+    default_frames: int = 10
+
+    def generator(self):
+        import importlib
+
+        return importlib.import_module(self.module)
+
+    def parameters(self) -> dict:
+        """Parameter name -> default value of the generator (besides the frame index)."""
+        sig = inspect.signature(self.generator().generate_frame)
+        return {n: p.default for n, p in sig.parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY}
+
+
+@dataclass(frozen=True)
+class PaperDataset:
+    """One of the paper's sequences: where it is published, under which terms, which files to expect.
+
+    Expected files: ``<folder>/<subfolder>/<pattern.format(first + i)>`` for i in 0..count-1, looked
+    up under the data folder (see `find_paper_folder`). ``pattern`` None: any PLY files (naming not
+    fixed by a public release we can check).
+    """
+
+    name: str
+    title: str
+    source: str
+    terms: str
+    folder: str
+    subfolder: str | None
+    pattern: str | None
+    first: int
+    count: int | None
+    bit_depth: int | None
+
+
+EMBEDDED: dict[str, EmbeddedDataset] = {
+    "human": EmbeddedDataset(
+        "human",
+        "procedural human figure in motion (walk/dance/wave), smooth-blended body parts, surface voxelized "
+        "like 8i data (integer coordinates at bit_depth, one point per surface voxel), with colours; "
+        "size=tiny ~24k, small ~97k, default ~580k points per frame",
+        "bench.standins.human",
+    ),
+    "bunny": EmbeddedDataset(
+        "bunny",
+        "the Stanford bunny scan (pymeshlab sample mesh) bent, twisted and bumped non-rigidly while turning, "
+        "resampled every frame and voxelized at bit_depth (or float samples with bit_depth=None); "
+        "size=tiny ~19k, small ~97k, default ~630k points per frame",
+        "bench.standins.bunny",
+    ),
+}
+
+_8I_SOURCE = ("8i Voxelized Full Bodies (8iVFB v2), E. d'Eon, B. Harrison, T. Myers, P. A. Chou, ISO/IEC JTC1/SC29 "
+              "WG1 m74006 / WG11 m40059, 2017; download from the JPEG Pleno database "
+              "http://plenodb.jpeg.org/pc/8ilabs (also in the MPEG content repository)")
+_8I_TERMS = ("free of charge for non-commercial research and standardization use under 8i's licence "
+             "distributed with the data; it may not be redistributed with dpcbench")
+
+PAPER: dict[str, PaperDataset] = {
+    "longdress": PaperDataset("longdress", "Longdress", _8I_SOURCE, _8I_TERMS, "longdress", "Ply",
+                              "longdress_vox10_{:04d}.ply", 1051, 300, 10),
+    "loot": PaperDataset("loot", "Loot", _8I_SOURCE, _8I_TERMS, "loot", "Ply", "loot_vox10_{:04d}.ply",
+                         1000, 300, 10),
+    "redandblack": PaperDataset("redandblack", "Redandblack", _8I_SOURCE, _8I_TERMS, "redandblack", "Ply",
+                                "redandblack_vox10_{:04d}.ply", 1450, 300, 10),
+    "soldier": PaperDataset("soldier", "Soldier", _8I_SOURCE, _8I_TERMS, "soldier", "Ply",
+                            "soldier_vox10_{:04d}.ply", 536, 300, 10),
+    "ulliwegner": PaperDataset(
+        "ulliwegner", "UlliWegner",
+        "MPEG point cloud test content 'UlliWegner' (a full-body capture; the paper cites MPEG and JPEG Pleno for "
+        "its data); distributed to MPEG participants through the MPEG content repository "
+        "http://mpegfs.int-evry.fr/ ; outside MPEG ask the content owner named in the repository's readme",
+        "MPEG test material: use restricted to research and standardization under the content owner's terms; "
+        "it may not be redistributed with dpcbench",
+        "ulliwegner", None, None, 0, None, 10),
+}
+
+#: changes whenever any generator's output changes (for run fingerprints and caches)
+DATASETS_VERSION = "human1-bunny1"
+
+
+def parse_param_value(text: str):
+    """A CLI ``k=v`` value: int, float, true/false, none, or the text itself."""
+    low = text.strip().lower()
+    if low in ("true", "yes"):
+        return True
+    if low in ("false", "no"):
+        return False
+    if low in ("none", "null"):
+        return None
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _frame_indices(frames, available: int | None, label: str) -> list[int] | None:
+    """frames (None | count | iterable of indices) -> sorted-as-given list of indices (None = all)."""
+    if frames is None:
+        return None if available is None else list(range(available))
+    if isinstance(frames, (int, np.integer)):
+        if frames < 1:
+            raise UserError(f"{label}: frames must be at least 1, got {frames}")
+        indices = list(range(int(frames)))
+    else:
+        indices = [int(i) for i in frames]
+        if not indices:
+            raise UserError(f"{label}: the frame list is empty")
+        if min(indices) < 0:
+            raise UserError(f"{label}: frame indices must be >= 0, got {min(indices)}")
+    if available is not None and max(indices) >= available:
+        raise UserError(f"{label}: frame {max(indices)} requested but the sequence has {available} frames "
+                        f"(0..{available - 1}); ask for fewer frames")
+    return indices
+
+
+def generate_embedded(name: str, frames=None, *, cache: bool = True, progress: bool = True, **params) -> Sequence:
+    """Generate (or read from the cache) frames of an embedded sequence."""
+    from bench.standins.cache import cache_key, load_cached, store_cached
+
+    info = EMBEDDED[name]
+    known = info.parameters()
+    unknown = sorted(set(params) - set(known))
+    if unknown:
+        raise UserError(f"{name}: unknown parameter(s) {', '.join(unknown)}; accepted: "
+                        + ", ".join(f"{k} (default {v!r})" for k, v in known.items()))
+    full = {**known, **params}
+    indices = _frame_indices(info.default_frames if frames is None else frames, None, name)
+    module = info.generator()
+    out: list[PointCloud] = []
+    iterator: Iterable[int] = indices
+    if progress and len(indices) > 1:
+        from bench.progress import progress_bar
+
+        iterator = progress_bar(indices, desc=f"generating {name}", unit="frame")
+    for index in iterator:
+        key = cache_key(name, module.GENERATOR_VERSION, full, index)
+        arrays = load_cached(key, name) if cache else None
+        if arrays is None:
+            try:
+                points, colours = module.generate_frame(index, **full)
+            except (ValueError, TypeError) as err:
+                raise UserError(f"{name}: {err}") from err
+            arrays = {"points": points.astype(np.float32 if full.get("bit_depth") is None else np.uint16),
+                      "colors": colours}
+            if cache:
+                store_cached(key, name, arrays)
+        out.append(PointCloud(arrays["points"].astype(np.float64), arrays["colors"]))
+    bit_depth = full.get("bit_depth")
+    meta = {"generator": name, "version": module.GENERATOR_VERSION, "params": full, "frame_indices": indices,
+            "description": info.description}
+    return Sequence(name, out, None if bit_depth is None else int(bit_depth), [], meta)
+
+
+def data_dir_from(data_dir: str | os.PathLike | None) -> Path | None:
+    """The data folder: the argument, else ``$DPCBENCH_DATA_DIR``, else None."""
+    value = data_dir if data_dir not in (None, "") else os.environ.get(DATA_DIR_ENV)
+    return Path(value).expanduser() if value else None
+
+
+def find_paper_folder(info: PaperDataset, data_dir: Path) -> Path | None:
+    """The folder holding the sequence's PLY frames: ``data_dir`` itself, ``data_dir/<folder>``, or
+    ``data_dir/<folder>/<subfolder>`` (folder names matched case-insensitively)."""
+    def child(parent: Path, name: str) -> Path | None:
+        if not parent.is_dir():
+            return None
+        for entry in sorted(parent.iterdir()):
+            if entry.is_dir() and entry.name.lower() == name.lower():
+                return entry
+        return None
+
+    candidates = [data_dir]
+    top = child(data_dir, info.folder)
+    if top is not None:
+        candidates.insert(0, top)
+        if info.subfolder:
+            sub = child(top, info.subfolder)
+            if sub is not None:
+                candidates.insert(0, sub)
+    for folder in candidates:
+        plys = [p for p in folder.iterdir() if p.suffix.lower() == ".ply"] if folder.is_dir() else []
+        if info.pattern is None and folder != data_dir and plys:
+            return folder
+        if info.pattern is not None and any(p.name.startswith(info.folder) for p in plys):
+            return folder
+    return None
+
+
+def expected_files(info: PaperDataset) -> list[str] | None:
+    """The file names of the full sequence (None when the naming is not fixed)."""
+    if info.pattern is None or info.count is None:
+        return None
+    return [info.pattern.format(info.first + i) for i in range(info.count)]
+
+
+def where_to_get(info: PaperDataset) -> str:
+    layout = f"{info.folder}/{info.subfolder + '/' if info.subfolder else ''}"
+    example = expected_files(info)
+    files = f"{example[0]} .. {example[-1]}" if example else "its PLY frames"
+    return (f"{info.title} is published as: {info.source}. Terms: {info.terms}. Put a local copy so that "
+            f"<data dir>/{layout} holds {files}, then pass --data-dir <data dir> (or set {DATA_DIR_ENV}).")
+
+
+def load_paper(name: str, frames=None, data_dir=None, progress: bool = True) -> Sequence:
+    """Read a paper sequence from the local copy, checking the expected files first."""
+    info = PAPER[name]
+    root = data_dir_from(data_dir)
+    if root is None:
+        raise UserError(f"{info.title}: no data folder given. {where_to_get(info)}")
+    if not root.is_dir():
+        raise UserError(f"{info.title}: data folder {root} does not exist. {where_to_get(info)}")
+    folder = find_paper_folder(info, root)
+    if folder is None:
+        raise UserError(f"{info.title}: no {info.folder} PLY frames found under {root}. {where_to_get(info)}")
+    expected = expected_files(info)
+    if expected is None:
+        files = list_frame_files(folder)
+        indices = _frame_indices(frames, len(files), info.title)
+        chosen = [files[i] for i in indices]
+    else:
+        indices = _frame_indices(frames, len(expected), info.title)
+        chosen = [folder / expected[i] for i in indices]
+        missing = [p.name for p in chosen if not p.is_file()]
+        if missing:
+            shown = ", ".join(missing[:3]) + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
+            raise UserError(f"{info.title}: {len(missing)} of the {len(chosen)} requested frame files are missing "
+                            f"from {folder}: {shown}. {where_to_get(info)}")
+    seq = load_sequence(chosen, name=info.name, progress=progress)
+    if info.bit_depth is not None and seq.bit_depth is not None and seq.bit_depth > info.bit_depth:
+        raise UserError(f"{info.title}: {folder} holds coordinates beyond {info.bit_depth} bits; is it the "
+                        f"{info.bit_depth}-bit release?")
+    seq.meta.update({"dataset": info.name, "source": info.source, "terms": info.terms, "folder": str(folder)})
+    return seq
+
+
+def load_path(path: str | os.PathLike, frames=None, progress: bool = True) -> Sequence:
+    """A user's folder / glob / file of PLY frames."""
+    files = list_frame_files(path)
+    indices = _frame_indices(frames, len(files), str(path))
+    p = Path(str(path))
+    label = p.name if p.is_dir() else p.stem
+    seq = load_sequence([files[i] for i in indices], name=label, progress=progress)
+    seq.meta["source"] = str(path)
+    return seq
+
+
+def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *, progress: bool = True,
+                 **params) -> Sequence:
+    """An embedded sequence, a paper sequence, or a PLY folder/glob/file, as a `Sequence` (see module doc).
+
+    ``params`` go to the embedded generator (e.g. ``size="tiny"``, ``motion="dance"``, ``bit_depth=9``,
+    ``seed=1``, ``cache=False``); they are refused for files.
+    """
+    text = str(name_or_path)
+    key = text.lower()
+    if key in EMBEDDED and not Path(text).exists():
+        cache = params.pop("cache", True)
+        return generate_embedded(key, frames, cache=cache, progress=progress, **params)
+    if params:
+        raise UserError(f"{text}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
+                        f"sequences ({', '.join(EMBEDDED)})")
+    if key in PAPER and not Path(text).exists():
+        return load_paper(key, frames, data_dir, progress=progress)
+    if not Path(text).exists() and not any(ch in text for ch in "*?["):
+        raise UserError(f"{text}: not a dataset name and no such file or folder. Known names: embedded "
+                        f"{', '.join(EMBEDDED)}; paper sequences {', '.join(PAPER)} (need --data-dir); "
+                        "or give a folder of PLY frames")
+    return load_path(text, frames, progress=progress)
+
+
+def describe_datasets(data_dir=None) -> list[dict]:
+    """One row per registered dataset: name, kind, description, available (bool), reason (str)."""
+    rows = []
+    for info in EMBEDDED.values():
+        try:
+            params = info.parameters()
+            rows.append({"name": info.name, "kind": "embedded", "description": info.description,
+                         "available": True, "reason": "", "params": params})
+        except Exception as err:  # listing never crashes
+            rows.append({"name": info.name, "kind": "embedded", "description": info.description,
+                         "available": False, "reason": f"{type(err).__name__}: {err}", "params": {}})
+    root = data_dir_from(data_dir)
+    for info in PAPER.values():
+        reason = ""
+        if root is None:
+            reason = f"no data folder (--data-dir or {DATA_DIR_ENV})"
+        elif not root.is_dir():
+            reason = f"data folder {root} does not exist"
+        else:
+            folder = find_paper_folder(info, root)
+            if folder is None:
+                reason = f"no {info.folder} PLY frames under {root}"
+            else:
+                expected = expected_files(info)
+                if expected is not None:
+                    missing = sum(not (folder / f).is_file() for f in expected)
+                    if missing:
+                        reason = f"{missing} of {len(expected)} frame files missing in {folder}"
+        rows.append({"name": info.name, "kind": "paper", "description": f"{info.title}: {info.source}",
+                     "terms": info.terms, "available": not reason, "reason": reason})
+    return rows
