@@ -107,10 +107,11 @@ class History:
 
 
 def short_version(version: str) -> str:
-    """'0123456789abcdef...-dirty' -> '01234567+' (a trailing + marks uncommitted changes)."""
+    """'0123456789abcdef...+dirty' -> '01234567+' (a trailing + marks uncommitted changes)."""
     version = str(version)
-    dirty = version.endswith("-dirty")
-    core = version[: -len("-dirty")] if dirty else version
+    match = re.fullmatch(r"(.*?)[+-]dirty", version)
+    dirty = match is not None
+    core = match.group(1) if dirty else version
     short = core[:8] if re.fullmatch(r"[0-9a-f]{9,}", core) else core[:12]
     return short + ("+" if dirty else "")
 

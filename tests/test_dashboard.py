@@ -1,0 +1,163 @@
+"""`dpcbench dashboard`: a static page built from a store with two code versions, checked in a real
+browser (Debian's chromium, headless) when it is installed."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench import benchsuite, dashboard
+from bench.cli import main as cli_main
+from bench.store import ResultsStore
+
+METHODS = {"temporal-graph": (40.0, 1e-7, 2.0), "fu-nonlocal": (36.0, 3e-7, 1.5), "none": (12.0, 5e-6, 0.01)}
+VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"), ("2222222222bbbbbbbbbb", "2026-01-02T10:00:00+00:00")]
+
+
+def make_store(path, *, versions=(0, 1)):
+    """Runs of 3 methods on 1 sequence at two code versions; at the second, fu-nonlocal loses 2 dB
+    GPSNR D1 and doubles its NSHD (both scopes), everything else is identical."""
+    store = ResultsStore(path)
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0, 0.01, size=3)
+    for v in versions:
+        version, when = VERSIONS[v]
+        for method, (psnr, nshd, seconds) in METHODS.items():
+            worse = v == 1 and method == "fu-nonlocal"
+            rows = []
+            for frame in range(3):
+                for scope, offset in (("frame", 10.0), ("holes", 0.0)):
+                    rows.append(dict(frame=frame, metric="gpsnr_d1", scope=scope, peak="intrinsic",
+                                     value=psnr + offset + noise[frame] - (2.0 if worse else 0.0)))
+                    rows.append(dict(frame=frame, metric="gpsnr_d2", scope=scope, peak="intrinsic",
+                                     value=psnr + offset + 4 + noise[frame]))
+                    rows.append(dict(frame=frame, metric="nshd", scope=scope, peak="", value=nshd * (2 if worse else 1)))
+                rows.append(dict(frame=frame, metric="time_s", scope="frame", peak="", value=seconds))
+            store.record_run(f"{version[:4]}-{method}", dict(
+                sequence="human", holes="region", holes_params={"preset": "small"}, seed=0, method=method,
+                method_params={}, method_version="1", code_version=version, spec={}, created_at=when,
+                finished_at=when, env={"packages": {"numpy": np.__version__}}), rows, ["regression"])
+    if 1 not in versions:
+        return store
+    store.record_failure("broken", dict(sequence="human", holes="region", holes_params={}, seed=0, method="meshlab",
+                                        method_params={}, code_version=VERSIONS[1][0], created_at=VERSIONS[1][1]),
+                         "RuntimeError: pymeshlab said no", ["regression"])
+    return store
+
+
+def write_benchmark_sessions(folder):
+    """Two pytest-benchmark JSON documents (the format pytest-benchmark 5 writes)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, (commit, when) in enumerate([("1111111111aaaaaaaaaa", "2026-01-01T10:30:00.000000+00:00"),
+                                        ("2222222222bbbbbbbbbb", "2026-01-02T10:30:00.000000+00:00")]):
+        benchmarks = []
+        for name, seconds in (("test_gpsnr_100k", 0.2), ("test_gpsnr_1m", 2.5)):
+            stats = {"min": seconds * 0.9, "max": seconds * 1.2, "mean": seconds * (1 + i), "stddev": 0.01,
+                     "rounds": 5, "median": seconds * (1 + i), "iqr": 0.01, "q1": seconds, "q3": seconds,
+                     "iqr_outliers": 0, "stddev_outliers": 0, "outliers": "0;0", "ld15iqr": seconds,
+                     "hd15iqr": seconds, "ops": 1 / seconds, "total": 5 * seconds, "iterations": 1}
+            benchmarks.append({"group": "metrics", "name": name, "fullname": f"tests/benchmarks/test_bench_metrics.py::{name}",
+                               "params": None, "param": None, "extra_info": {"points": 100000}, "options": {},
+                               "stats": stats})
+        doc = {"machine_info": {"node": "ci", "machine": "x86_64", "cpu": {"brand_raw": "Test CPU", "count": 2}},
+               "commit_info": {"id": commit, "time": when, "dirty": False, "project": "dpcbench", "branch": "main"},
+               "benchmarks": benchmarks, "datetime": when, "version": "5.3.1"}
+        (folder / f"000{i + 1}_{commit}.json").write_text(json.dumps(doc))
+    (folder / "unrelated.json").write_text('{"not": "a benchmark"}')
+    return folder
+
+
+def test_benchmark_loader(tmp_path):
+    folder = write_benchmark_sessions(tmp_path / ".benchmarks")
+    runs = benchsuite.load_benchmark_runs(folder)
+    assert len(runs) == 4 and runs["commit"].nunique() == 2
+    assert runs["median"].tolist() == [0.2, 2.5, 0.4, 5.0]  # ordered by session time, then name
+    latest = benchsuite.latest_per_benchmark(runs)
+    assert latest["median"].tolist() == [0.4, 5.0]
+    assert "test_gpsnr_1m" in benchsuite.format_benchmarks(runs)
+    with pytest.raises(ValueError, match="not a pytest-benchmark JSON"):
+        benchsuite.load_benchmark_runs(folder / "unrelated.json", skip_invalid=False)
+    with pytest.raises(ValueError, match="no such benchmark file"):
+        benchsuite.load_benchmark_runs(tmp_path / "absent")
+
+
+def test_page_is_self_contained_and_flags_the_regression(tmp_path):
+    store = make_store(tmp_path / "s.sqlite")
+    page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame(),
+                                      benchmarks=benchsuite.load_benchmark_runs(write_benchmark_sessions(tmp_path / "b")))
+    assert dashboard.external_references(page) == []
+    assert "<script" not in page.lower()
+    # fu-nonlocal regressed in gpsnr_d1 and nshd, both scopes: 4 flagged rows in the "changes" table
+    changes = page.split('<section id="comparison">')[1].split("<details>")[0]
+    assert changes.count('class="regressed"') == 4
+    assert set(re.findall(r'class="regressed" data-status="REGRESSED"><td>human</td><td>region</td><td>'
+                          r'<span[^>]*></span>([^<]+)</td>', changes)) == {"fu-nonlocal"}
+    assert 'data-commits="2"' in page
+    assert "pymeshlab said no" in page  # failed run listed
+    # the detector of external requests works
+    assert dashboard.external_references('<img src="https://example.org/x.png">')
+    assert dashboard.external_references("<style>@import url(//cdn.example/x.css)</style>")
+
+
+def test_history_and_colours_are_stable(tmp_path):
+    store = make_store(tmp_path / "s.sqlite")
+    history = dashboard.build_history(store.results_frame())
+    assert history.versions == [v for v, _ in VERSIONS]
+    first = history.table[history.table["code_version"] == VERSIONS[0][0]].set_index(["method", "metric", "scope"])
+    assert first.loc[("none", "nshd", "frame"), "mean"] == pytest.approx(5e-6)
+    colours = dashboard.method_colours(["none", "temporal-graph", "zzz", "fu-nonlocal"])
+    assert colours["temporal-graph"] == dashboard.PALETTE[0] and colours["fu-nonlocal"] == dashboard.PALETTE[1]
+    assert dashboard.short_version("0123456789abcdef0123+dirty") == "01234567+"
+    paper = dashboard.paper_reference()
+    row = paper[(paper["sequence"] == "loot") & (paper["method"] == "temporal-graph") & (paper["metric"] == "gpsnr_d1")]
+    assert row["value"].tolist() == [pytest.approx(47.5648)]
+
+
+def test_cli_dashboard_errors(tmp_path, capsys):
+    assert cli_main(["dashboard", "--out", str(tmp_path / "x.png"), "--store", str(tmp_path / "s")]) == 2
+    assert ".html" in capsys.readouterr().err
+    assert cli_main(["dashboard", "--out", str(tmp_path / "x.html"), "--store", str(tmp_path / "absent.sqlite")]) == 2
+    assert "no results store there" in capsys.readouterr().err
+
+
+def run_chromium(args: list[str], profile) -> subprocess.CompletedProcess:
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser is None:
+        pytest.skip("chromium is not installed (Debian: apt-get install chromium; ./install.sh --dev installs it)")
+    command = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+               "--disable-background-networking", "--disable-component-update", "--disable-sync",
+               f"--user-data-dir={profile}", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=120)
+
+
+def test_dashboard_in_headless_chromium(tmp_path, capsys):
+    """Two stores (one per code version, as two regression runs at two commits give) merged by
+    --store twice; chromium loads the page and its DOM shows the flagged rows, the methods, both
+    commits and the benchmark history."""
+    make_store(tmp_path / "first.sqlite", versions=(0,))
+    make_store(tmp_path / "second.sqlite", versions=(1,))
+    out = tmp_path / "dash.html"
+    bench_dir = write_benchmark_sessions(tmp_path / "bench")
+    assert cli_main(["dashboard", "--out", str(out), "--store", str(tmp_path / "first.sqlite"),
+                     "--store", str(tmp_path / "second.sqlite"), "--benchmarks", str(bench_dir)]) == 0
+    assert "2 code version(s)" in capsys.readouterr().out
+    result = run_chromium(["--dump-dom", out.resolve().as_uri()], tmp_path / "profile")
+    assert result.returncode == 0, result.stderr[-2000:]
+    dom = result.stdout
+    assert "<svg" in dom and "Latest comparison" in dom
+    assert len(re.findall(r'<tr class="regressed" data-status="REGRESSED"', dom)) >= 4
+    assert 'data-card="regressions"' in dom and re.search(r'data-card="regressions">.*?<div class="v">4</div>', dom)
+    for method in METHODS:
+        assert method in dom
+    # every quality chart has both commits on its x axis (matplotlib keeps text as <text> in the SVG)
+    quality = re.findall(r'data-chart="quality"[^>]*data-commits="(\d+)"', dom)
+    assert quality == ["2"]
+    assert dom.count("11111111") >= 6 and dom.count("22222222") >= 6
+    assert 'data-chart="benchmarks" data-sessions="2"' in dom
+    assert "test_gpsnr_1m" in dom
