@@ -164,3 +164,98 @@ def test_temporal_copy_rejects_bad_parameters_and_inputs():
     bad[3, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         TemporalCopy().inpaint([frames[0], bad], [[], []])
+
+
+# -- lozes-pde -------------------------------------------------------------------------------------
+
+from methods.lozes_pde import LozesPDE, sampling_step  # noqa: E402
+
+
+def tilted_plane(n: int = 12000, seed: int = 0) -> tuple[np.ndarray, np.ndarray, float]:
+    """Random samples of the plane n.x = d over a 60 x 60 patch: (points (n, 3), unit normal, d)."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0.0, 60.0, (n, 2))
+    points = np.column_stack([xy, 0.3 * xy[:, 0] - 0.2 * xy[:, 1] + 5.0])
+    normal = np.array([0.3, -0.2, -1.0])
+    return points, normal / np.linalg.norm(normal), 5.0 / -np.linalg.norm(normal)
+
+
+def fibonacci_sphere(n: int, radius: float) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    polar, azimuth = np.arccos(1.0 - 2.0 * i / n), np.pi * (1.0 + 5.0 ** 0.5) * i
+    return radius * np.column_stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
+
+
+def test_sampling_step_matches_the_density_of_a_grid_and_of_random_samples():
+    u = np.arange(120.0)
+    grid = np.stack(np.meshgrid(u, u, [0.0], indexing="ij"), axis=-1).reshape(-1, 3)
+    assert sampling_step(grid) == pytest.approx(1.0, rel=0.05)
+    points, _, _ = tilted_plane()
+    area = 60.0 * 60.0 * np.sqrt(1 + 0.3 ** 2 + 0.2 ** 2)  # true area of the sampled patch
+    assert sampling_step(points) == pytest.approx(np.sqrt(area / len(points)), rel=0.1)
+
+
+@pytest.mark.parametrize("p", [2, 1])
+@pytest.mark.parametrize("solver", ["direct", "jacobi"])
+def test_lozes_fills_a_planar_hole_onto_the_plane(p, solver):
+    points, normal, offset = tilted_plane()
+    region = HoleRegion.ball(points[np.argmin(np.linalg.norm(points[:, :2] - 30.0, axis=1))], 8.0)
+    hole = region.contains(points)
+    damaged = points[~hole]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a "did not converge" warning fails the test
+        out = LozesPDE(p=p, solver=solver, max_iterations=3000).inpaint([damaged], [[region]])[0]
+    np.testing.assert_array_equal(out[: len(damaged)], damaged)  # known points stay as they were
+    new = out[len(damaged):]
+    step = sampling_step(damaged)
+    assert np.abs(new @ normal - offset).max() < 1e-6 * step
+    assert region.contains(new, margin=2 * step).all()  # seeds reach half the 3-step ring into it
+    # the new points cover the hole at about the data's density
+    truth = points[hole]
+    assert cKDTree(new).query(truth)[0].max() < 2.0 * step  # seeds keep 0.8 step off the rim
+    assert 0.7 * len(truth) < len(new) < 1.3 * len(truth)
+
+
+@pytest.mark.parametrize("p", [2, 1])
+def test_lozes_fills_a_sphere_cap_near_the_sphere(p):
+    radius = 100.0
+    sphere = fibonacci_sphere(30000, radius)
+    region = HoleRegion.ball(sphere[np.argmax(sphere[:, 2])], 20.0)
+    hole = region.contains(sphere)
+    out = LozesPDE(p=p).inpaint([sphere[~hole]], [[region]])[0]
+    new = out[(~hole).sum():]
+    radial = np.linalg.norm(new, axis=1) - radius
+    # the p-Laplacian with the rim fixed makes a nearly flat patch: it stays between the rim's
+    # plane and the cap, so no point is farther from the sphere than the cap's sagitta
+    sagitta = radius - np.sqrt(radius ** 2 - region.radius ** 2 * (1 - region.radius ** 2 / (4 * radius ** 2)))
+    assert radial.max() <= 0.05 * sagitta and radial.min() >= -1.1 * sagitta
+    assert cKDTree(new).query(sphere[hole])[0].max() < sagitta + 1.5 * sampling_step(sphere)
+
+
+def test_lozes_jacobi_reaches_the_direct_solution():
+    sphere = fibonacci_sphere(20000, 100.0)
+    region = HoleRegion.ball(sphere[np.argmax(sphere[:, 0])], 15.0)
+    damaged = [sphere[~region.contains(sphere)]]
+    direct = LozesPDE(solver="direct").inpaint(damaged, [[region]])[0]
+    jacobi = LozesPDE(solver="jacobi", tolerance=1e-6, max_iterations=20000).inpaint(damaged, [[region]])[0]
+    assert direct.shape == jacobi.shape
+    assert np.abs(direct - jacobi).max() < 0.05 * sampling_step(damaged[0])
+
+
+def test_lozes_warns_when_not_converged_and_rejects_bad_parameters():
+    sphere = fibonacci_sphere(8000, 100.0)
+    region = HoleRegion.ball(sphere[0], 20.0)
+    damaged = [sphere[~region.contains(sphere)]]
+    with pytest.warns(RuntimeWarning, match="did not converge"):
+        LozesPDE(solver="jacobi", max_iterations=2).inpaint(damaged, [[region]])
+    for bad in ({"p": 3}, {"solver": "cg"}, {"k_neighbours": 1}, {"tolerance": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            LozesPDE(**bad).inpaint(damaged, [[region]])
+    with pytest.raises(ValueError, match="max_new_points"):
+        LozesPDE(max_new_points=10).inpaint(damaged, [[region]])
+
+
+def test_lozes_leaves_a_region_without_surface_alone():
+    sphere = fibonacci_sphere(8000, 100.0)
+    far = HoleRegion.ball([500.0, 0.0, 0.0], 10.0)
+    np.testing.assert_array_equal(LozesPDE().inpaint([sphere], [[far]])[0], sphere)
