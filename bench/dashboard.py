@@ -73,24 +73,22 @@ def paper_reference() -> pd.DataFrame:
     """
     rows = []
     source = "bench.dashboard (copy of SPEC.md section 1)"
-    gpsnr, nshd = _PAPER_GPSNR, _PAPER_NSHD
+    gpsnr, nshd, methods = _PAPER_GPSNR, _PAPER_NSHD, list(_PAPER_METHODS.values())
     try:
-        from bench import paper  # the runner helper's module, when present
-        tables = getattr(paper, "PAPER_TABLES", None) or {}
-        if "gpsnr" in tables and "nshd" in tables:
-            gpsnr, nshd = tables["gpsnr"], tables["nshd"]
-            source = "bench.paper"
-    except ImportError:
+        from bench import paper  # the runner helper's module: the single source when present
+
+        labels = {label: name for name, label in paper.PAPER_SEQUENCES.items()}
+        gpsnr = {labels[row]: values for row, values in paper.TABLE1_GPSNR.items()}
+        nshd = {labels[row]: values for row, values in paper.TABLE2_NSHD_E7.items()}
+        methods = [name for name, _, _ in paper.PAPER_METHODS]
+        source = "bench.paper"
+    except (ImportError, AttributeError, KeyError):
         pass
     for metric, table, scale in (("gpsnr_d1", gpsnr, 1.0), ("nshd", nshd, 1e-7)):
         for sequence, values in table.items():
-            if isinstance(values, dict):
-                items = values.items()
-            else:
-                items = zip(_PAPER_METHODS.values(), values)
-            for method, value in items:
-                rows.append({"sequence": str(sequence).lower(), "method": _PAPER_METHODS.get(method, method),
-                             "metric": metric, "value": float(value) * scale, "source": source})
+            for method, value in zip(methods, values):
+                rows.append({"sequence": str(sequence).lower(), "method": method, "metric": metric,
+                             "value": float(value) * scale, "source": source})
     return pd.DataFrame(rows, columns=["sequence", "method", "metric", "value", "source"])
 
 
