@@ -1,0 +1,195 @@
+"""Scoring a frame or a sequence with several metrics at once, sharing one set of neighbour queries.
+
+Aggregation over a sequence follows MPEG practice: every metric is computed per frame, and the
+sequence value is the plain mean of the per-frame values (for PSNRs: the mean of per-frame PSNRs, not
+the PSNR of the mean MSE). Frames where a metric is undefined (NaN: e.g. the hole-region variant of a
+frame whose regions hold no point on either side) are left out of that mean.
+
+Infinite PSNR: identical clouds have MSE 0 and PSNR +inf (pc_error prints ``inf``). To keep means
+and JSON finite, `score_frame` caps every PSNR at ``max_psnr`` (default `DEFAULT_MAX_PSNR` = 200 dB,
+far above any real error: with p = 1023 it is an MSE of 3e-14, with the intrinsic peak of 10-bit data
+about 1e-19) and `score_sequence` lists the capped (frame, metric) pairs under ``"capped"``.
+``max_psnr=None`` keeps +inf.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from metrics import geometry
+from metrics.geometry import Selection, Settings, psnr, resolve_peak
+from metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
+from metrics.registry import DEFAULT_METRICS, METRICS, get_metric
+
+DEFAULT_MAX_PSNR = 200.0
+_OPTIONS = ("bit_depth", "fscore_threshold", "normal_neighbours", "drop_duplicates", "max_psnr")
+
+
+def _frame_metric_names(metrics) -> list[str]:
+    names = list(DEFAULT_METRICS if metrics is None else ([metrics] if isinstance(metrics, str) else metrics))
+    for name in names:
+        if get_metric(name).level != "frame":
+            raise ValueError(f"{name!r} is a sequence-level metric; use score_sequence or metrics.{name}")
+    return names
+
+
+def _split_options(options: dict, peak="intrinsic") -> tuple[Settings, dict, float | None]:
+    """(metric settings, CloudPair keyword arguments, max_psnr) from score_frame's options; the peak's
+    syntax is checked here so that a bad peak fails even when no PSNR is asked for."""
+    unknown = sorted(set(options) - set(_OPTIONS))
+    if unknown:
+        raise ValueError(f"unknown scoring option(s) {unknown}; valid options: peak, {', '.join(_OPTIONS)}")
+    if not (isinstance(peak, str) and peak.strip().lower() == "intrinsic"):
+        resolve_peak(peak, None, options.get("bit_depth"))
+    settings = Settings(
+        peak=peak,
+        bit_depth=options.get("bit_depth"),
+        fscore_threshold=options.get("fscore_threshold"),
+    )
+    pair_kw = {
+        "drop_duplicates": bool(options.get("drop_duplicates", True)),
+        "normal_neighbours": int(options.get("normal_neighbours", DEFAULT_NORMAL_NEIGHBOURS)),
+    }
+    return settings, pair_kw, options.get("max_psnr", DEFAULT_MAX_PSNR)
+
+
+def _evaluate(pair: CloudPair, names, selection: Selection, settings: Settings, max_psnr) -> tuple[dict, list[str]]:
+    """(values by name, names whose PSNR was capped)."""
+    values, capped = {}, []
+    for name in names:
+        metric = METRICS[name]
+        value = float(metric.fn(pair, selection, settings))
+        if metric.is_psnr and max_psnr is not None and value > max_psnr:
+            value = float(max_psnr)
+            capped.append(name)
+        values[name] = value
+    return values, capped
+
+
+def make_pair(reference, result, reference_normals=None, **options) -> CloudPair:
+    """A `CloudPair` built with the pair-related scoring options (drop_duplicates, normal_neighbours)."""
+    _, pair_kw, _ = _split_options(options)
+    return CloudPair(reference, result, reference_normals, **pair_kw)
+
+
+def score_pair(pair: CloudPair, metrics=None, *, peak="intrinsic", regions=None, region_margin: float = 0.0,
+               **options) -> tuple[dict, list[str]]:
+    """Like `score_frame` on an existing `CloudPair` (reuse it for several scopes or peaks); returns
+    (values by name, names of the PSNRs capped at ``max_psnr``)."""
+    names = _frame_metric_names(metrics)
+    settings, _, max_psnr = _split_options(options, peak)
+    selection = Selection.of(pair, regions, region_margin)
+    return _evaluate(pair, names, selection, settings, max_psnr)
+
+
+def score_frame(reference, result, metrics=None, *, peak="intrinsic", reference_normals=None, regions=None,
+                region_margin: float = 0.0, **options) -> dict[str, float]:
+    """Score one result frame against its reference frame.
+
+    reference: (N, 3) ground truth; result: (M, 3); metrics: names from `METRICS` (default
+    `DEFAULT_METRICS`); peak: "intrinsic" | "bitdepth:B" | number (see `resolve_peak`);
+    reference_normals: (N, 3) or None (estimated for D2); regions: None for the whole frame, or the
+    frame's hole regions for the hole-region variant (see `metrics.geometry`), grown by
+    ``region_margin``. options: ``bit_depth``, ``fscore_threshold``, ``normal_neighbours`` (default
+    12), ``drop_duplicates`` (default True, as pc_error), ``max_psnr`` (default 200 dB, None = keep inf).
+
+    Returns {metric name: value}. The KD-trees and neighbour queries are built once and shared by all
+    metrics.
+    """
+    pair = make_pair(reference, result, reference_normals, **options)
+    values, _ = score_pair(pair, metrics, peak=peak, regions=regions, region_margin=region_margin, **options)
+    return values
+
+
+def score_frame_scopes(reference, result, metrics=None, *, regions, peak="intrinsic", reference_normals=None,
+                       region_margin: float = 0.0, **options) -> dict[str, dict[str, float]]:
+    """Both scopes of one frame from one set of neighbour queries: {"frame": whole-frame values,
+    "holes": hole-region values}."""
+    pair = make_pair(reference, result, reference_normals, **options)
+    whole, _ = score_pair(pair, metrics, peak=peak, **options)
+    holes, _ = score_pair(pair, metrics, peak=peak, regions=regions, region_margin=region_margin, **options)
+    return {"frame": whole, "holes": holes}
+
+
+def _nanmean(values: list[float]) -> float:
+    finite = [v for v in values if not math.isnan(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
+def score_sequence(references, results, metrics=None, *, peak="intrinsic", reference_normals=None, regions=None,
+                   region_margin: float = 0.0, **options) -> dict:
+    """Score a result sequence frame by frame, then average.
+
+    references, results: lists of (N_f, 3) arrays of the same length; reference_normals: None or a
+    list of per-frame (N_f, 3) arrays (None entries allowed); regions: None or a list of per-frame
+    region lists. ``metrics`` may include the sequence-level "temporal_consistency".
+
+    Returns {"frames": [{"frame": i, name: value, ...}], "mean": {name: mean over frames},
+    "capped": [{"frame": i, "metric": name}] (PSNRs capped at max_psnr), and, when a sequence-level
+    metric is asked for, "sequence": {name: value}}.
+    """
+    references, results = list(references), list(results)
+    if len(references) != len(results):
+        raise ValueError(
+            f"mismatched frame counts: {len(references)} reference frames and {len(results)} result frames; "
+            "score sequences of the same length"
+        )
+    if not references:
+        raise ValueError("no frames to score")
+    names = list(DEFAULT_METRICS if metrics is None else ([metrics] if isinstance(metrics, str) else metrics))
+    for name in names:
+        get_metric(name)
+    frame_names = [n for n in names if METRICS[n].level == "frame"]
+    sequence_names = [n for n in names if METRICS[n].level == "sequence"]
+    for label, per_frame in (("reference_normals", reference_normals), ("regions", regions)):
+        if per_frame is not None and len(per_frame) != len(references):
+            raise ValueError(f"{label} given for {len(per_frame)} frames but the sequence has {len(references)}")
+
+    _split_options(options, peak)  # a bad option or peak fails before any frame is scored
+    frames, capped = [], []
+    for i, (ref, res) in enumerate(zip(references, results)):
+        try:
+            pair = make_pair(ref, res, None if reference_normals is None else reference_normals[i], **options)
+            values, capped_names = score_pair(
+                pair, frame_names, peak=peak, regions=None if regions is None else regions[i],
+                region_margin=region_margin, **options,
+            ) if frame_names else ({}, [])
+        except ValueError as err:
+            raise ValueError(f"frame {i}: {err}") from err
+        frames.append({"frame": i, **values})
+        capped += [{"frame": i, "metric": n} for n in capped_names]
+    out = {
+        "frames": frames,
+        "mean": {n: _nanmean([f[n] for f in frames]) for n in frame_names},
+        "capped": capped,
+    }
+    if sequence_names:
+        out["sequence"] = {
+            n: METRICS[n].fn(references, results, regions, region_margin=region_margin) for n in sequence_names
+        }
+    return out
+
+
+def pc_error(reference, result, reference_normals=None, *, peak="intrinsic", **options) -> dict[str, float]:
+    """The geometry figures pc_error 0.14 prints for a pair, under the names of golden/pc_error.json:
+    d1_mse, d1_psnr, d2_mse, d2_psnr, d1_hausdorff_sq, d1_hausdorff_psnr, peak. PSNRs are not capped
+    (+inf for identical clouds, as pc_error). D2 is computed with estimated normals when
+    ``reference_normals`` is None (pc_error would skip D2 then)."""
+    pair = make_pair(reference, result, reference_normals, **options)
+    settings, _, _ = _split_options(options, peak)
+    p = resolve_peak(peak, pair, settings.bit_depth)
+    whole = Selection()
+    d1 = geometry.d1_mse(pair, whole)
+    d2 = geometry.d2_mse(pair, whole)
+    h2 = geometry.hausdorff_sq(pair, whole)
+    return {
+        "d1_mse": d1,
+        "d1_psnr": psnr(d1, p),
+        "d2_mse": d2,
+        "d2_psnr": psnr(d2, p),
+        "d1_hausdorff_sq": h2,
+        "d1_hausdorff_psnr": psnr(h2, p),
+        "peak": p,
+    }

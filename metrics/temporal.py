@@ -1,0 +1,131 @@
+"""Temporal consistency of a filled sequence: how steadily the fill follows the ground truth's motion.
+
+Definition (lower is better, in coordinate units; 0 for a perfect fill, and for any fill whose error
+does not change over time):
+
+For frame f let G_f be the ground truth, R_f the result, and for a ground-truth point x of frame f
+the *error vector* e_f(x) = r - x, r the nearest point of R_f to x (where the result surface lies,
+seen from the true surface). Let S_f be the ground-truth points of frame f inside that frame's hole
+regions (all points when no regions are given). For each consecutive pair (f, g = f + 1):
+
+- every x in S_g is linked to its nearest ground-truth point y in G_f, and every y in S_f to its
+  nearest ground-truth point x in G_g;
+- each link contributes  | (e_g(x) - e_f(y)) . n |,  n the unit normal of the ground truth at the
+  hole point of the link (PCA of its `NORMAL_NEIGHBOURS` nearest ground-truth points, its own frame);
+- the pair's value is the mean over its links.
+
+TC = the mean of the pair values (NaN pairs, with no hole points, left out).
+
+Why: the ground truth's own motion is factored out because errors are measured against the ground
+truth of each frame, and linked across frames by ground-truth proximity (real captures have no point
+correspondence across frames, so the link is spatial). A fill that is wrong but steadily wrong keeps
+the same error field and scores ~0 (that is the job of GPSNR); a fill that jitters, i.e. is placed
+differently each frame, changes its error field and scores its jitter amplitude; a fill frozen while
+the body moves scores the body's normal motion. Only the normal component counts, because the
+tangential part of a nearest-point vector depends on how each frame happens to be sampled and is
+noise, while the normal part is the displacement of the surface.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from metrics.pairs import check_points
+
+#: Neighbours for the PCA normal of a ground-truth hole point.
+NORMAL_NEIGHBOURS = 12
+
+
+def _region_mask(regions, points: np.ndarray, margin: float) -> np.ndarray:
+    if regions is None:
+        return np.ones(len(points), dtype=bool)
+    mask = np.zeros(len(points), dtype=bool)
+    for region in regions:
+        mask |= np.asarray(region.contains(points, margin), dtype=bool)
+    return mask
+
+
+def pca_normals(points: np.ndarray, tree: cKDTree, queries: np.ndarray, k: int = NORMAL_NEIGHBOURS) -> np.ndarray:
+    """Unit normals (Q, 3) at ``queries``: eigenvector of the smallest eigenvalue of the covariance of
+    their k nearest ``points`` (indexed by ``tree``). Sign arbitrary (callers use |projection|)."""
+    k = int(min(k, len(points)))
+    if k < 3 or len(queries) == 0:
+        return np.zeros((len(queries), 3))
+    _, idx = tree.query(queries, k=k, workers=-1)
+    nb = points[idx.reshape(len(queries), k)]
+    centred = nb - nb.mean(axis=1, keepdims=True)
+    cov = np.einsum("qki,qkj->qij", centred, centred)
+    _, vecs = np.linalg.eigh(cov)
+    return vecs[:, :, 0]
+
+
+class _Frame:
+    """One frame's ground truth and result with their trees (built once, used by two pairs)."""
+
+    def __init__(self, reference, result, regions, margin, index):
+        self.gt = check_points(reference, f"reference frame {index}")
+        self.res = check_points(result, f"result frame {index}")
+        self.gt_tree = cKDTree(self.gt)
+        self.res_tree = cKDTree(self.res)
+        self.hole = np.flatnonzero(_region_mask(regions, self.gt, margin))
+
+    def errors(self, gt_index: np.ndarray) -> np.ndarray:
+        """(K, 3) error vectors e(x) = nearest result point - x for ground-truth points ``gt_index``."""
+        x = self.gt[gt_index]
+        _, nearest = self.res_tree.query(x, k=1, workers=-1)
+        return self.res[nearest] - x
+
+
+def _links(src: _Frame, dst: _Frame) -> np.ndarray:
+    """|(e_src(x) - e_dst(y)) . n_x| for every hole point x of ``src`` linked to its nearest
+    ground-truth point y of ``dst``."""
+    if src.hole.size == 0:
+        return np.empty(0)
+    x = src.gt[src.hole]
+    _, y_index = dst.gt_tree.query(x, k=1, workers=-1)
+    normals = pca_normals(src.gt, src.gt_tree, x)
+    change = src.errors(src.hole) - dst.errors(y_index)
+    return np.abs(np.einsum("ij,ij->i", change, normals))
+
+
+def temporal_consistency_per_pair(references, results, regions=None, *, region_margin: float = 0.0) -> np.ndarray:
+    """The value of each consecutive frame pair (F - 1,), NaN where no frame of the pair has hole points.
+
+    references, results: lists of (N_f, 3) arrays, same length F >= 2. regions: None (whole frames)
+    or a list of F lists of hole regions (objects with ``contains(points, margin)``).
+    """
+    references, results = list(references), list(results)
+    if len(references) != len(results):
+        raise ValueError(
+            f"temporal consistency needs as many result frames as reference frames; got {len(references)} "
+            f"reference and {len(results)} result frames"
+        )
+    if len(references) < 2:
+        raise ValueError(
+            f"temporal consistency needs at least two frames, got {len(references)}; it measures change between frames"
+        )
+    if regions is not None and len(regions) != len(references):
+        raise ValueError(f"regions are given for {len(regions)} frames but the sequence has {len(references)}")
+    frames = [
+        _Frame(ref, res, None if regions is None else regions[i], region_margin, i)
+        for i, (ref, res) in enumerate(zip(references, results))
+    ]
+    values = np.full(len(frames) - 1, np.nan)
+    for f in range(len(frames) - 1):
+        links = np.concatenate([_links(frames[f + 1], frames[f]), _links(frames[f], frames[f + 1])])
+        if links.size:
+            values[f] = float(links.mean())
+    return values
+
+
+def temporal_consistency(references, results, regions=None, *, region_margin: float = 0.0) -> float:
+    """Sequence-level temporal consistency (lower = steadier); see the module docstring for the formula.
+
+    Returns NaN when no frame has ground-truth points inside its regions.
+    """
+    values = temporal_consistency_per_pair(references, results, regions, region_margin=region_margin)
+    finite = values[~np.isnan(values)]
+    return float(finite.mean()) if finite.size else math.nan
