@@ -7,7 +7,9 @@ grids), and the metrics with their options::
     name = "my-sweep"               # required; results are grouped under it in the store
     description = "..."
     timeout_s = 1800                # per run; a run past it is killed and recorded as failed
-    give_regions = true             # hand the hole regions to the methods (synthetic-hole protocol)
+    regions = "given"               # what methods get: "given" (the generator's hole regions, the
+                                    # synthetic-hole protocol), "detected" (holes.detection.detect_holes
+                                    # on each damaged frame: the real-hole protocol) or "none" (blind)
     data_dir = "/data/8i"           # where named paper sequences (longdress, ...) are found
 
     [[sequences]]
@@ -67,7 +69,8 @@ DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
-_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "give_regions", "data_dir"}
+_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir"}
+REGION_MODES = ("given", "detected", "none")
 _SEQUENCE_KEYS = {"name", "path", "params", "frames", "label"}
 _HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
 _METHOD_KEYS = {"name", "params", "label"}
@@ -114,7 +117,7 @@ class RunSpec:
     holes:    {"generator", "params", "seed", "label", "entry"}  (entry = "module:Class")
     method:   {"name", "params", "label", "entry"}
     metrics:  {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
-    protocol: {"give_regions"}
+    protocol: {"regions": "given" | "detected" | "none"}
     versions: {"method", "generator", "metrics", "data"} (data = fingerprint)
     """
 
@@ -249,16 +252,16 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         return _folder_fingerprint(path if path.is_dir() else path.parent)
     name = sequence["name"]
     if name.lower() in PAPER_SEQUENCES:
-        data_dir = sequence.get("data_dir")
-        if not data_dir:
+        from bench.datasets import PAPER, data_dir_from, find_paper_folder
+
+        root = data_dir_from(sequence.get("data_dir"))
+        if root is None:
             raise ConfigError(f"{where}.name: {name!r} is a paper sequence whose data cannot ship with dpcbench; "
                               "set experiment.data_dir (or --data-dir) to the folder holding it, or use `path`")
-        root = Path(data_dir).expanduser()
-        candidates = [p for p in root.rglob("*") if p.is_dir() and name.lower() in p.name.lower()
-                      and any(q.suffix.lower() == ".ply" for q in p.iterdir())] if root.is_dir() else []
-        if not candidates:
+        folder = find_paper_folder(PAPER[name.lower()], root) if root.is_dir() else None
+        if folder is None:
             raise ConfigError(f"{where}.name: no folder of {name} PLY frames under {root}")
-        return _folder_fingerprint(sorted(candidates, key=lambda p: len(str(p)))[0])
+        return _folder_fingerprint(folder)
     try:
         import bench.datasets as datasets
     except ImportError as err:
@@ -273,7 +276,7 @@ class ExperimentConfig:
     name: str
     description: str = ""
     timeout_s: float = DEFAULT_TIMEOUT_S
-    give_regions: bool = True
+    regions: str = "given"
     data_dir: str | None = None
     sequences: list[dict] = field(default_factory=list)
     holes: list[dict] = field(default_factory=list)
@@ -347,11 +350,11 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
     timeout = exp.get("timeout_s", DEFAULT_TIMEOUT_S)
     if not _is_number(timeout) or timeout <= 0:
         raise ConfigError(f"experiment.timeout_s: expected a positive number of seconds, got {timeout!r}")
-    give_regions = exp.get("give_regions", True)
-    if not isinstance(give_regions, bool):
-        raise ConfigError("experiment.give_regions: expected true or false")
+    regions = exp.get("regions", "given")
+    if regions not in REGION_MODES:
+        raise ConfigError(f"experiment.regions: expected one of {', '.join(REGION_MODES)}, got {regions!r}")
     cfg = ExperimentConfig(name=exp["name"], description=str(exp.get("description", "")), timeout_s=float(timeout),
-                           give_regions=give_regions, data_dir=exp.get("data_dir"), source=source)
+                           regions=regions, data_dir=exp.get("data_dir"), source=source)
 
     for i, seq in enumerate(_table_list(data, "sequences")):
         where = f"sequences[{i}]"
@@ -379,6 +382,10 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         where = f"holes[{i}]"
         _unknown_keys(hole, _HOLES_KEYS, where)
         gen = hole.get("generator")
+        if gen == "none":  # the data's own (real) holes: nothing removed, no ground truth to score against
+            cfg.holes.append({"generator": "none", "params": {}, "seed": 0, "label": hole.get("label"),
+                              "entry": None, "version": "1"})
+            continue
         if gen not in GENERATORS:
             raise ConfigError(f"{where}.generator: unknown hole generator {gen!r}; known: {', '.join(sorted(GENERATORS)) or 'none registered'}")
         if "seeds" in hole and "seed" in hole:
@@ -463,7 +470,7 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
                     holes={k: copy.deepcopy(v) for k, v in hole.items() if k != "version"},
                     method={k: copy.deepcopy(v) for k, v in meth.items() if k != "version"},
                     metrics=copy.deepcopy(cfg.metrics),
-                    protocol={"give_regions": cfg.give_regions},
+                    protocol={"regions": cfg.regions},
                     versions={"method": meth["version"], "generator": hole["version"], "data": fingerprint,
                               "metrics": metric_versions},
                     timeout_s=cfg.timeout_s,

@@ -143,7 +143,7 @@ def load_ground_truth(sequence: dict):
         from bench.datasets import load_dataset
 
         seq = load_dataset(sequence["name"], frames=None if wanted is None else list(wanted),
-                           data_dir=sequence.get("data_dir"), **sequence.get("params", {}))
+                           data_dir=sequence.get("data_dir"), progress=False, **sequence.get("params", {}))
         return seq
     if wanted is not None:
         if wanted.stop > len(seq.frames):
@@ -187,6 +187,15 @@ def _check_output(out: list, frames: list, name: str) -> list[np.ndarray]:
     return checked
 
 
+def _json_default(value):
+    """numpy values inside region extras (e.g. rim points) as plain JSON."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
 def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
     """Damage, inpaint, and write the run folder atomically (temp folder + rename)."""
     from bench.plyio import PointCloud, write_ply
@@ -194,10 +203,28 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
 
     frames = truth.points
     colors = truth.colors if all(c is not None for c in truth.colors) else None
-    generator = import_entry(spec.holes["entry"])(**spec.holes["params"])
-    damage = generator.damage(frames, spec.holes["seed"], colors=colors)
+    if spec.holes["generator"] == "none":  # the data's own holes: nothing removed
+        from holes.base import DamageResult
+
+        damage = DamageResult([f.copy() for f in frames], [np.zeros(len(f), bool) for f in frames],
+                              [[] for _ in frames], colors)
+    else:
+        generator = import_entry(spec.holes["entry"])(**spec.holes["params"])
+        damage = generator.damage(frames, spec.holes["seed"], colors=colors)
+    mode = spec.protocol.get("regions", "given")
+    detected, detect_time = None, 0.0
+    if mode == "given":
+        regions = damage.regions
+    elif mode == "detected":
+        from holes.detection import detect_holes
+
+        t0 = time.perf_counter()
+        detected = [detect_holes(f) for f in damage.frames]
+        detect_time = time.perf_counter() - t0
+        regions = detected
+    else:
+        regions = None
     method = import_entry(spec.method["entry"])(**spec.method["params"])
-    regions = damage.regions if spec.protocol.get("give_regions", True) else None
     inpainted, per_frame, total = _inpaint_timed(method, damage.frames, regions)
     inpainted = _check_output(inpainted, damage.frames, spec.method["name"])
 
@@ -212,10 +239,14 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
         holes = regions_to_json(damage.regions, generator=spec.holes["generator"], params=spec.holes["params"],
                                 seed=spec.holes["seed"],
                                 per_frame=[{"removed_fraction": float(m.mean())} for m in damage.removed])
-        (tmp / "holes.json").write_text(json.dumps(holes, indent=1))
+        (tmp / "holes.json").write_text(json.dumps(holes, indent=1, default=_json_default))
+        if detected is not None:
+            (tmp / "detected.json").write_text(json.dumps(regions_to_json(detected, detector="holes.detection"), indent=1,
+                                                               default=_json_default))
         manifest = {"inpaint_key": spec.inpaint_key, "spec": spec.identity(), "frames": len(frames),
                     "points": [len(f) for f in frames], "per_frame": per_frame, "total": total,
-                    "removed_fraction": [float(m.mean()) for m in damage.removed], "created_by_pid": os.getpid()}
+                    "removed_fraction": [float(m.mean()) for m in damage.removed], "regions_mode": mode,
+                    "detect_time_s": detect_time, "created_by_pid": os.getpid()}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1, default=str))
         if run_dir.exists():  # --force, or another worker finished the same frames first: replace
             trash = run_dir.parent / f".tmp-old-{run_dir.name}-{uuid.uuid4().hex[:8]}"
@@ -239,8 +270,10 @@ def read_run_folder(run_dir: Path) -> dict:
         files = sorted((run_dir / sub).glob("*.ply"), key=lambda p: natural_key(p.name))
         return [read_ply(f).points for f in files]
 
+    detected = run_dir / "detected.json"
     return {"damaged": frames("damaged"), "inpainted": frames("inpainted"),
             "regions": regions_from_json(run_dir / "holes.json"),
+            "detected": regions_from_json(detected) if detected.is_file() else None,
             "manifest": json.loads((run_dir / "manifest.json").read_text())}
 
 
@@ -287,7 +320,7 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) 
                     rows.append({"frame": f, "metric": name, "scope": scope,
                                  "peak": _peak_label(peak) if name in peak_names else "", "value": value})
     if cfg.get("temporal_consistency") and len(inpainted) > 1:
-        value = metrics_pkg.temporal_consistency(truth.points, inpainted, regions)
+        value = metrics_pkg.temporal_consistency(truth.points, inpainted, regions, region_margin=cfg["region_margin"])
         items = value.items() if isinstance(value, dict) else [("temporal_consistency", value)]
         for name, val in items:
             if isinstance(val, (int, float, np.floating)):
@@ -315,7 +348,8 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     if len(folder["inpainted"]) != len(truth.frames):
         raise ValueError(f"{run_dir}: holds {len(folder['inpainted'])} frames, the sequence has {len(truth.frames)}; "
                          "rerun with --force")
-    results = score_run(spec, truth, folder["inpainted"], folder["regions"])
+    # without a hole generator there is no ground truth apart from the input itself: no quality scores
+    results = [] if spec.holes["generator"] == "none" else score_run(spec, truth, folder["inpainted"], folder["regions"])
     manifest = folder["manifest"]
     for entry in manifest["per_frame"]:
         results.append({"frame": entry["frame"], "metric": "time_s", "scope": "frame", "peak": "", "value": entry["time_s"]})

@@ -119,3 +119,22 @@ def register(monkeypatch) -> None:
     for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
         monkeypatch.setitem(methods.registry.METHODS, cls.name, f"{HERE}:{cls.__name__}")
     monkeypatch.setitem(holes.registry.GENERATORS, BallHoles.name, f"{HERE}:BallHoles")
+
+
+def register_global() -> None:
+    """`register` for a separate driver process (no monkeypatch there: the process ends with the test)."""
+    import holes.registry
+    import methods.registry
+
+    for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
+        methods.registry.METHODS[cls.name] = f"{HERE}:{cls.__name__}"
+    holes.registry.GENERATORS[BallHoles.name] = f"{HERE}:BallHoles"
+
+
+if __name__ == "__main__":  # a driver with the test entries registered: python -m tests.test_runner_helpers run ...
+    import sys
+
+    from bench.cli import main
+
+    register_global()
+    sys.exit(main(sys.argv[1:]))

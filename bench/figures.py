@@ -1,0 +1,126 @@
+"""Figures for reports (matplotlib, Agg backend, PNG): bar charts of comparison tables, per-frame
+curves, and the paper-style subjective figures (Fig. 3: real/detected holes; Fig. 4: synthetic holes),
+which draw point clouds through `bench.render.render_clouds`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from bench.tables import ComparisonTable, frame_values  # noqa: E402
+
+
+def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = "") -> Path:
+    """Grouped bars (one group per sequence, one bar per method) with ±std error bars; the paper's
+    values, when the table has them, as hatched bars in a second panel."""
+    panels = [("ours", table.rows, lambda r, c: (table.mean.get((r, c)), table.std.get((r, c))))]
+    if table.paper:
+        panels.append(("paper", list(table.paper), lambda r, c: (table.paper[r].get(c), None)))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels) + 1, 4.2), squeeze=False)
+    width = 0.8 / max(1, len(table.columns))
+    colors = plt.cm.tab10(np.arange(len(table.columns)))
+    for ax, (source, rows, get) in zip(axes[0], panels):
+        x = np.arange(len(rows))
+        for k, col in enumerate(table.columns):
+            means, errs = [], []
+            for r in rows:
+                m, s = get(r, col)
+                scale = table.scale if source == "ours" else 1.0
+                means.append(np.nan if m is None else m * scale)
+                errs.append(0.0 if s is None else s * scale)
+            ax.bar(x + (k - (len(table.columns) - 1) / 2) * width, means, width, yerr=errs if source == "ours" else None,
+                   label=col, color=colors[k], hatch="//" if source == "paper" else None, capsize=2,
+                   edgecolor="black", linewidth=0.4)
+        ax.set_xticks(x)
+        ax.set_xticklabels(rows, rotation=15, ha="right", fontsize=8)
+        unit = f" (x{1 / table.scale:g})" if table.scale != 1 else ""
+        ax.set_ylabel(f"{table.metric}{unit}")
+        ax.set_title(f"{'ours' if source == 'ours' else 'paper (published)'}", fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(table.title + (f"\n{subtitle}" if subtitle else ""), fontsize=10)
+    fig.tight_layout()
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_png: str | Path, *,
+                     column_of=None, columns: list[str] | None = None, title: str = "") -> Path:
+    """One panel per sequence: the metric against frame index, one line per method (mean over seeds)."""
+    from bench.tables import method_labels
+
+    sel = frame_values(df, metric, scope, peak).copy()
+    sel["column"] = column_of(sel) if column_of else method_labels(sel)
+    sequences = list(dict.fromkeys(sel["sequence"]))
+    columns = columns or list(dict.fromkeys(sel["column"]))
+    fig, axes = plt.subplots(1, max(1, len(sequences)), figsize=(4.5 * max(1, len(sequences)), 3.4), squeeze=False)
+    for ax, seq in zip(axes[0], sequences):
+        for col in columns:
+            curve = sel[(sel["sequence"] == seq) & (sel["column"] == col)].groupby("frame")["value"].mean()
+            if not curve.empty:
+                ax.plot(curve.index, curve.values, marker="o", ms=3, label=col)
+        ax.set_title(seq, fontsize=9)
+        ax.set_xlabel("frame")
+        ax.set_ylabel(metric + (f" (peak {peak})" if peak else ""))
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title or f"{metric} per frame, scope {scope}", fontsize=10)
+    fig.tight_layout()
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def facing_view(points: np.ndarray, center: np.ndarray) -> tuple[float, float]:
+    """(azimuth, elevation) of a `bench.render` view that faces ``center`` from outside the cloud:
+    the horizontal direction from the cloud's centroid to ``center`` (y is up)."""
+    d = np.asarray(center, float) - points.mean(axis=0)
+    return (-float(np.degrees(np.arctan2(d[0], d[2]))), 0.0)
+
+
+def zoom_box(regions: list, pad: float = 1.3) -> tuple:
+    """An axis-aligned box (x0, y0, z0, x1, y1, z1) around hole regions (their bounding balls grown by ``pad``)."""
+    lo = np.min([r.center - pad * r.bounding_radius for r in regions], axis=0)
+    hi = np.max([r.center + pad * r.bounding_radius for r in regions], axis=0)
+    return tuple(lo) + tuple(hi)
+
+
+def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list[str], out_png: str | Path, *,
+                    zoom_regions: list | None = None, highlight_regions: list[list] | None = None,
+                    view=None, title: str = "") -> Path:
+    """A paper-style subjective figure (Fig. 3/4): one row per (label, frames) entry (ground truth,
+    with holes, each method), one column per frame, drawn by `bench.render.render_clouds` with the
+    same scale in every panel, shaded by normals. ``zoom_regions``: hole regions whose box is outlined
+    and magnified under each row. ``highlight_regions``: per column, regions whose points are painted
+    red (the filled area) in every row except the first two."""
+    from bench.render import render_clouds
+    from holes.regions import union_mask
+
+    grid, titles, highlight = [], [], []
+    for r, (label, frames) in enumerate(rows):
+        grid.append([np.asarray(f, float) for f in frames])
+        titles.append([f"{label}, {frame_labels[c]}" for c in range(len(frames))])
+        marks = []
+        for c, pts in enumerate(frames):
+            regs = highlight_regions[c] if highlight_regions is not None and r >= 2 else None
+            marks.append(union_mask(regs, pts) if regs else None)
+        highlight.append(marks)
+    box = zoom_box(zoom_regions) if zoom_regions else None
+    if view is None and zoom_regions:
+        view = facing_view(grid[0][0], zoom_regions[0].center)
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return render_clouds(grid, out, titles=titles, zoom=box, highlight=highlight, view=view or "front",
+                         shading="normal", panel_height=300, suptitle=title or None)

@@ -1,0 +1,199 @@
+"""Method comparison tables in the paper's layout (rows = sequences, columns = methods), shared by
+`reproduce-paper` and `report`.
+
+A cell is the mean ± standard deviation over frames (every frame of every run of that sequence and
+method: several seeds pool their frames) of one metric in one scope with one PSNR peak, read from the
+results store's tidy table (`bench.store.ResultsStore.results_frame`). Standard deviation is the
+sample one (ddof=1; 0 for a single frame). The best mean of each row is bold (highest for
+higher-is-better metrics, lowest otherwise). The paper's published values, when given, are printed
+as extra rows "<sequence> (paper)" with their own best in bold. The conventions (metric, peak,
+scope, scale, frames) are printed under every table.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+LOWER_IS_BETTER = {"nshd", "hausdorff", "chamfer", "time_s", "peak_mem_mb", "temporal_consistency"}
+
+
+def higher_is_better(metric: str) -> bool:
+    """From the metrics registry when it knows the metric, else by name (PSNRs and F-score up)."""
+    try:
+        from metrics.registry import METRICS
+
+        if metric in METRICS and hasattr(METRICS[metric], "higher_is_better"):
+            return bool(METRICS[metric].higher_is_better)
+    except ImportError:
+        pass
+    return metric not in LOWER_IS_BETTER and not metric.startswith("temporal")
+
+
+def method_labels(df: pd.DataFrame, names: dict[str, str] | None = None) -> pd.Series:
+    """A label per row: the method's display name, plus the parameters that differ between the
+    configurations of the same method in ``df`` (e.g. ``temporal-graph (beta=0.25)``)."""
+    names = names or {}
+    labels = {}
+    for method, group in df.groupby("method"):
+        configs = sorted(group["method_params"].unique())
+        base = names.get(method, method)
+        if len(configs) == 1:
+            labels.update({(method, configs[0]): base})
+            continue
+        parsed = {c: json.loads(c) for c in configs}
+        keys = sorted({k for p in parsed.values() for k in p})
+        varying = [k for k in keys if len({json.dumps(p.get(k)) for p in parsed.values()}) > 1]
+        for c, p in parsed.items():
+            labels[(method, c)] = f"{base} ({', '.join(f'{k}={p.get(k)}' for k in varying)})"
+    return pd.Series([labels[(m, p)] for m, p in zip(df["method"], df["method_params"])], index=df.index)
+
+
+@dataclass
+class ComparisonTable:
+    """rows x columns of mean/std/n; ``paper``: row -> column -> value (already in display scale)."""
+
+    title: str
+    metric: str
+    scope: str
+    peak: str
+    higher_is_better: bool
+    rows: list[str]
+    columns: list[str]
+    mean: dict
+    std: dict
+    n: dict
+    scale: float = 1.0
+    unit: str = ""
+    decimals: int = 2
+    paper: dict | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def best(self, row: str, values: dict) -> str | None:
+        present = {c: values[(row, c)] for c in self.columns if (row, c) in values and not math.isnan(values[(row, c)])}
+        if not present:
+            return None
+        pick = max if self.higher_is_better else min
+        return pick(present, key=present.get)
+
+    def _cell(self, row, col, bold: bool, fmt_bold) -> str:
+        if (row, col) not in self.mean:
+            return "–"
+        m, s = self.mean[(row, col)] * self.scale, self.std[(row, col)] * self.scale
+        text = f"{m:.{self.decimals}f} ± {s:.{self.decimals}f}"
+        return fmt_bold(text) if bold else text
+
+    def _paper_rows(self):
+        for row in self.paper or {}:
+            values = self.paper[row]
+            pick = max if self.higher_is_better else min
+            best = pick(values, key=values.get) if values else None
+            yield row, values, best
+
+    def conventions(self) -> str:
+        peak = f", PSNR peak {self.peak}" if self.peak else ""
+        scale = f", values x{1 / self.scale:g}" if self.scale != 1 else ""
+        direction = "higher is better" if self.higher_is_better else "lower is better"
+        return (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
+                f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}; "
+                "mean ± std over frames (all frames of all seeds); best of each row in bold.")
+
+    def markdown(self) -> str:
+        out = [f"**{self.title}**", "", "| Sequence | " + " | ".join(self.columns) + " |",
+               "|---|" + "---|" * len(self.columns)]
+        for row in self.rows:
+            best = self.best(row, self.mean)
+            out.append(f"| {row} | " + " | ".join(self._cell(row, c, c == best, lambda t: f"**{t}**")
+                                               for c in self.columns) + " |")
+        for row, values, best in self._paper_rows():
+            cells = [("–" if c not in values else (f"**{values[c]:.4f}**" if c == best else f"{values[c]:.4f}"))
+                     for c in self.columns]
+            out.append(f"| *{row} (paper)* | " + " | ".join(cells) + " |")
+        out += ["", f"_{self.conventions()}_"] + [f"_{note}_" for note in self.notes]
+        return "\n".join(out) + "\n"
+
+    def latex(self) -> str:
+        def esc(t: str) -> str:
+            return t.replace("_", r"\_").replace("±", r"$\pm$").replace("&", r"\&")
+
+        out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{esc(self.title)}}}",
+               r"\begin{tabular}{l" + "c" * len(self.columns) + "}", r"\hline",
+               "Sequence & " + " & ".join(esc(c) for c in self.columns) + r" \\", r"\hline"]
+        for row in self.rows:
+            best = self.best(row, self.mean)
+            cells = []
+            for c in self.columns:
+                text = esc(self._cell(row, c, False, str))
+                cells.append(r"\textbf{" + text + "}" if c == best else text)
+            out.append(esc(row) + " & " + " & ".join(cells) + r" \\")
+        for row, values, best in self._paper_rows():
+            cells = [("--" if c not in values else (rf"\textbf{{{values[c]:.4f}}}" if c == best else f"{values[c]:.4f}"))
+                     for c in self.columns]
+            out.append(rf"\textit{{{esc(row)} (paper)}} & " + " & ".join(cells) + r" \\")
+        out += [r"\hline", r"\end{tabular}", "", r"\smallskip", r"{\footnotesize " + esc(self.conventions())
+                + "".join(" " + esc(n) for n in self.notes) + "}", r"\end{table}"]
+        return "\n".join(out) + "\n"
+
+    def csv(self) -> str:
+        buf = io.StringIO()
+        writer = csv.writer(buf)
+        writer.writerow(["sequence", "source", "method", "mean", "std", "n_frames", "metric", "scope", "peak", "scale"])
+        for row in self.rows:
+            for c in self.columns:
+                if (row, c) in self.mean:
+                    writer.writerow([row, "ours", c, self.mean[(row, c)] * self.scale, self.std[(row, c)] * self.scale,
+                                     self.n[(row, c)], self.metric, self.scope, self.peak, self.scale])
+        for row, values, _ in self._paper_rows():
+            for c, v in values.items():
+                writer.writerow([row, "paper", c, v, "", "", self.metric, self.scope, self.peak, self.scale])
+        return buf.getvalue()
+
+
+def frame_values(df: pd.DataFrame, metric: str, scope: str, peak: str = "") -> pd.DataFrame:
+    """The per-frame rows (frame >= 0) of one metric/scope/peak."""
+    sel = df[(df["metric"] == metric) & (df["scope"] == scope) & (df["frame"] >= 0)]
+    if peak:
+        sel = sel[sel["peak"] == peak]
+    return sel
+
+
+def comparison_table(df: pd.DataFrame, metric: str, scope: str = "frame", peak: str = "", *,
+                     title: str | None = None, column_of=None, columns: list[str] | None = None,
+                     rows: list[str] | None = None, scale: float = 1.0, decimals: int = 2,
+                     paper: dict | None = None, notes: list[str] | None = None) -> ComparisonTable:
+    """Build the table from the tidy results ``df``.
+
+    column_of: function(df) -> Series of column labels (default: `method_labels`).
+    columns/rows: order (default: as first seen). Missing cells print as "–".
+    """
+    sel = frame_values(df, metric, scope, peak).copy()
+    sel["column"] = column_of(sel) if column_of else method_labels(sel)
+    grouped = sel.groupby(["sequence", "column"])["value"]
+    stats = grouped.agg(["mean", "std", "count"]).reset_index()
+    mean = {(r.sequence, r.column): float(r["mean"]) for _, r in stats.iterrows()}
+    std = {(r.sequence, r.column): (0.0 if r["count"] < 2 else float(r["std"])) for _, r in stats.iterrows()}
+    n = {(r.sequence, r.column): int(r["count"]) for _, r in stats.iterrows()}
+    rows = rows or list(dict.fromkeys(sel["sequence"]))
+    columns = columns or list(dict.fromkeys(sel["column"]))
+    return ComparisonTable(title or f"{metric} ({scope})", metric, scope, peak, higher_is_better(metric),
+                           [r for r in rows if any((r, c) in mean for c in columns)], columns, mean, std, n,
+                           scale=scale, decimals=decimals, paper=paper, notes=list(notes or []))
+
+
+def runtime_table(df: pd.DataFrame, column_of=None) -> pd.DataFrame:
+    """Seconds per frame (sequence-level time_s / frames) and peak memory per method and sequence."""
+    seq = df[(df["metric"] == "time_s") & (df["frame"] == -1)].copy()
+    if seq.empty:
+        return pd.DataFrame(columns=["sequence", "method", "s_per_frame", "peak_mem_mb"])
+    frames = df[df["frame"] >= 0].groupby("run_id")["frame"].nunique()
+    seq["frames"] = seq["run_id"].map(frames).fillna(1)
+    seq["s_per_frame"] = seq["value"] / seq["frames"]
+    mem = df[(df["metric"] == "peak_mem_mb") & (df["frame"] == -1)].set_index("run_id")["value"]
+    seq["peak_mem_mb"] = seq["run_id"].map(mem)
+    seq["method"] = column_of(seq) if column_of else method_labels(seq)
+    return (seq.groupby(["sequence", "method"])[["s_per_frame", "peak_mem_mb"]].mean().reset_index())

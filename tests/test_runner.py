@@ -1,0 +1,220 @@
+"""The runner: worker processes, failures recorded while others finish, caching and resume after a
+kill, timeouts, frame reuse for new metrics, and the Dask executor against serial."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bench.config import parse_config
+from bench.runner import read_run_folder, run_experiment
+from bench.store import ResultsStore
+from tests import test_runner_helpers as helpers
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def env(tmp_path, monkeypatch):
+    helpers.register(monkeypatch)
+    monkeypatch.chdir(REPO)  # workers import tests.test_runner_helpers from the repo root
+    seq = helpers.write_sequence(tmp_path / "seq", n_frames=3, n_points=600)
+    return {"seq": seq, "store": ResultsStore(tmp_path / "store.sqlite"), "tmp": tmp_path}
+
+
+def _cfg(seq, methods, *, timeout=120, metrics=("gpsnr_d1", "nshd")):
+    return {
+        "experiment": {"name": "t", "timeout_s": timeout},
+        "sequences": [{"path": str(seq), "label": "sphere"}],
+        "holes": [{"generator": "test-ball", "params": {"radius": 0.3}, "seed": 1}],
+        "methods": methods,
+        "metrics": {"names": list(metrics), "peaks": ["intrinsic"], "scopes": ["frame", "holes"]},
+    }
+
+
+def test_failures_are_recorded_while_others_finish(env):
+    specs = parse_config(_cfg(env["seq"], [
+        {"name": "test-identity", "params": {"shift": [0.0, 0.01]}},
+        {"name": "test-raises"},
+        {"name": "test-crashes", "params": {"how": ["exit", "kill"]}},
+    ])).expand()
+    store = env["store"]
+    summary = run_experiment(specs, store, executor="pool", jobs=2, quiet=True)
+    assert len(summary.done) == 2 and len(summary.failed) == 3
+    runs = store.runs_frame().set_index("method")
+    errors = store.runs_frame().set_index("run_id")["error"]
+    assert "RuntimeError: deliberate failure" in runs.loc["test-raises", "error"]
+    crash_errors = sorted(errors[r] for r in summary.failed if "deliberate" not in errors[r])
+    assert any("exited with code 7" in e for e in crash_errors)
+    assert any("killed by signal SIGKILL" in e for e in crash_errors)
+
+    df = store.results_frame()
+    identity = df[(df.metric == "gpsnr_d1") & (df.scope == "frame") & (df.frame >= 0)]
+    assert len(identity) == 2 * 3  # 2 runs x 3 frames
+    # shifting the result must lower the score of every frame
+    by_shift = identity.assign(shift=identity.method_params.map(lambda p: json.loads(p)["shift"]))
+    pivot = by_shift.pivot_table(index="frame", columns="shift", values="value")
+    assert (pivot[0.0] > pivot[0.01]).all()
+    assert set(df.metric) >= {"gpsnr_d1", "nshd", "time_s", "peak_mem_mb", "removed_fraction"}
+    times = df[(df.metric == "time_s") & (df.frame >= 0)]
+    assert len(times) == 2 * 3 and (times.value >= 0).all()
+    holes = df[(df.metric == "nshd") & (df.scope == "holes")]
+    assert len(holes) == 2 * 3
+
+    # frames are on disk: damaged frames lack the removed points, results as written
+    done = store.runs_frame()
+    folder = Path(done[done.status == "done"].iloc[0].output_dir)
+    content = read_run_folder(folder)
+    assert len(content["inpainted"]) == 3 and len(content["regions"]) == 3
+    assert all(len(d) < 600 for d in content["damaged"])
+
+    # rerun: everything cached (failures too), no new rows; --retry-failed redoes only the failures
+    before = len(store.results_frame())
+    again = run_experiment(specs, store, executor="serial", quiet=True)
+    assert len(again.cached) == 2 and len(again.failed) == 3 and not again.done
+    assert len(store.results_frame()) == before
+    retried = run_experiment(specs, store, executor="serial", quiet=True, retry_failed=True)
+    assert len(retried.cached) == 2 and len(retried.failed) == 3
+    assert len(store.results_frame()) == before
+
+
+def test_timeout_kills_a_hanging_run(env):
+    flag = env["tmp"] / "hang.flag"
+    flag.write_text("hang")
+    specs = parse_config(_cfg(env["seq"], [{"name": "test-hang", "params": {"flag": str(flag)}},
+                                           {"name": "test-identity"}], timeout=4)).expand()
+    summary = run_experiment(specs, env["store"], executor="pool", jobs=2, quiet=True)
+    assert len(summary.done) == 1 and len(summary.failed) == 1
+    assert "timed out after 4 s" in summary.errors[summary.failed[0]]
+
+
+def test_new_metric_reuses_frames_and_force_redoes(env):
+    store = env["store"]
+    specs = parse_config(_cfg(env["seq"], [{"name": "test-identity"}], metrics=("gpsnr_d1",))).expand()
+    run_experiment(specs, store, executor="serial", quiet=True)
+    more = parse_config(_cfg(env["seq"], [{"name": "test-identity"}], metrics=("gpsnr_d1", "chamfer"))).expand()
+    assert more[0].run_id != specs[0].run_id and more[0].inpaint_key == specs[0].inpaint_key
+    folder = Path(store.runs_frame().iloc[0].output_dir)
+    stamp = (folder / "manifest.json").stat().st_mtime_ns
+    run_experiment(more, store, executor="serial", quiet=True)
+    runs = store.runs_frame().set_index("run_id")
+    assert json.loads(runs.loc[more[0].run_id, "env"])["frames_reused"] is True
+    assert (folder / "manifest.json").stat().st_mtime_ns == stamp
+    df = store.results_frame()
+    first = df[(df.run_id == specs[0].run_id) & (df.metric == "gpsnr_d1")].value.tolist()
+    second = df[(df.run_id == more[0].run_id) & (df.metric == "gpsnr_d1")].value.tolist()
+    assert first == second and "chamfer" in set(df[df.run_id == more[0].run_id].metric)
+    forced = run_experiment(more, store, executor="serial", quiet=True, force=True)
+    assert forced.done == [more[0].run_id]
+    assert json.loads(store.runs_frame().set_index("run_id").loc[more[0].run_id, "env"])["frames_reused"] is False
+    assert len(store.results_frame(status="done")[lambda d: d.run_id == more[0].run_id]) == len(
+        df[df.run_id == more[0].run_id])
+
+
+def _write_toml(path: Path, cfg: dict) -> Path:
+    def value(v):
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, list):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+        return repr(v)
+
+    lines = ["[experiment]"] + [f"{k} = {value(v)}" for k, v in cfg["experiment"].items()]
+    for table in ("sequences", "holes", "methods"):
+        for entry in cfg[table]:
+            lines += ["", f"[[{table}]]"] + [f"{k} = {value(v)}" for k, v in entry.items()]
+    lines += ["", "[metrics]"] + [f"{k} = {value(v)}" for k, v in cfg["metrics"].items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_kill_9_mid_sweep_then_rerun_loses_and_duplicates_nothing(env):
+    """The driver is killed (SIGKILL) while one run hangs and another has finished; the rerun keeps
+    the finished run untouched, redoes the rest, and stores each run exactly once."""
+    tmp, store = env["tmp"], env["store"]
+    flag = tmp / "hang.flag"
+    flag.write_text("hang")
+    cfg = _cfg(env["seq"], [{"name": "test-identity"}, {"name": "test-hang", "params": {"flag": str(flag)}},
+                            {"name": "test-identity", "params": {"shift": 0.02}}])
+    config = _write_toml(tmp / "exp.toml", cfg)
+    cmd = [sys.executable, "-m", "tests.test_runner_helpers", "run", str(config), "--store", str(store.path),
+           "--executor", "serial", "--quiet"]
+    driver = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    deadline = time.time() + 60
+    logs = store.path.parent / "runs" / "logs"
+    # wait until the first run is stored and the hanging run's worker has started
+    while time.time() < deadline and not (len(store.statuses()) == 1 and len(list(logs.glob("*.log"))) == 2):
+        time.sleep(0.2)
+    assert len(store.statuses()) == 1, driver.communicate(timeout=5)[0] if driver.poll() is not None else "timeout"
+    first = store.runs_frame().iloc[0]
+    os.kill(driver.pid, signal.SIGKILL)
+    driver.wait()
+    flag.unlink()
+    rerun = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert rerun.returncode == 0, rerun.stdout + rerun.stderr
+    assert "2 run(s) done, 1 cached, 0 failed" in rerun.stdout
+    runs = store.runs_frame()
+    assert len(runs) == 3 and set(runs.status) == {"done"}
+    again = runs.set_index("run_id").loc[first.run_id]
+    assert again.finished_at == first.finished_at  # the finished run was not redone
+    df = store.results_frame()
+    assert not df.duplicated(["run_id", "frame", "metric", "scope", "peak"]).any()
+    assert len(df[(df.metric == "gpsnr_d1") & (df.scope == "frame") & (df.frame >= 0)]) == 3 * 3
+    runs_dir = store.path.parent / "runs"
+    assert not list(runs_dir.glob(".tmp-*"))  # the killed run's temporary folder was cleaned
+
+
+def test_dask_local_cluster_matches_serial(env, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    cfg = _cfg(env["seq"], [{"name": "test-identity", "params": {"shift": [0.0, 0.01]}}, {"name": "test-raises"}])
+    specs = parse_config(cfg).expand()
+    serial_store = env["store"]
+    run_experiment(specs, serial_store, executor="serial", quiet=True, runs_dir=tmp_path / "serial-runs")
+    dask_store = ResultsStore(tmp_path / "dask.sqlite")
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=2,
+                                  dashboard_address=None) as cluster:
+        summary = run_experiment(specs, dask_store, executor="dask", scheduler=cluster.scheduler_address,
+                                 quiet=True, runs_dir=tmp_path / "dask-runs")
+    assert len(summary.done) == 2 and len(summary.failed) == 1
+    cols = ["run_id", "frame", "metric", "scope", "peak", "value"]
+    a = serial_store.results_frame()
+    b = dask_store.results_frame()
+    a = a[~a.metric.isin(["time_s", "peak_mem_mb"])][cols].sort_values(cols[:5]).reset_index(drop=True)
+    b = b[~b.metric.isin(["time_s", "peak_mem_mb"])][cols].sort_values(cols[:5]).reset_index(drop=True)
+    assert len(a) > 0
+    assert a.equals(b)
+    assert dask_store.statuses() == serial_store.statuses()
+
+
+def test_cli_dry_run_and_bad_config(env, tmp_path):
+    config = _write_toml(tmp_path / "exp.toml", _cfg(env["seq"], [{"name": "test-identity"}]))
+    # the CLI process does not see the monkeypatched registry: use a real method there
+    text = config.read_text().replace('"test-identity"', '"none"').replace('"test-ball"', '"region"').replace(
+        "radius = 0.3", 'preset = "small"')
+    config.write_text(text)
+    out = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(env["store"].path),
+                          "--dry-run"], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert "1 runs in experiment 't': 1 to do" in out.stdout
+    config.write_text(text.replace('name = "none"', 'name = "no-such-method"'))
+    bad = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(env["store"].path)],
+                         cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "methods[0].name: unknown method 'no-such-method'" in bad.stderr
+    assert "Traceback" not in bad.stderr
+    junk = tmp_path / "junk.sqlite"
+    junk.write_bytes(b"\0garbage" * 200)
+    config.write_text(text)
+    corrupt = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(junk)],
+                             cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert corrupt.returncode == 2 and "move it aside" in corrupt.stderr
