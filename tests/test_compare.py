@@ -267,3 +267,75 @@ def test_cli_compare_errors(tmp_path, capsys):
     assert cli_main(["compare", str(base), str(store), "--tolerances", str(bad_tol)]) == 2
     assert "tolerances.nshd" in capsys.readouterr().err
     json.loads(base.read_text())  # the JSON summary is plain JSON
+
+
+# ---------------------------------------------------------------------------------------------
+# must show: a degraded method setting fails `dpcbench compare`, the normal setting passes
+def score_into_store(store_path, code_version, frames, damage, method, seconds):
+    """Score a method's output like the runner does (both scopes, intrinsic peak) into a store,
+    under the regression preset's cell: temporal-graph with its default parameters."""
+    import metrics
+
+    names = ["gpsnr_d1", "gpsnr_d2", "nshd"]
+    rows = []
+    for f, (reference, result) in enumerate(zip(frames, method)):
+        for scope, regions in (("frame", None), ("holes", damage.regions[f])):
+            scores = metrics.score_frame(reference, result, names, peak="intrinsic", regions=regions)
+            rows += [dict(frame=f, metric=m, scope=scope, peak="intrinsic" if m.startswith("gpsnr") else "",
+                          value=scores[m]) for m in names]
+        rows.append(dict(frame=f, metric="time_s", scope="frame", peak="", value=seconds))
+    store = ResultsStore(store_path)
+    store.record_run(f"run-{code_version}", dict(
+        sequence="human", holes="region", holes_params={"preset": "medium", "count": 2, "coherent": True}, seed=0,
+        method="temporal-graph", method_params={}, method_version="1", code_version=code_version, spec={}),
+        rows, ["regression"])
+    return store_path
+
+
+def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
+    """Baseline: temporal-graph with its defaults on 2 tiny frames with 2 coherent medium holes.
+    The normal setting run again passes; the same cell run with gamma = 1e4 (the graph smoothness
+    term 2e4 times its default 0.5: it flattens every filled cube), standing for a code change that
+    degrades the method, fails with a readable table."""
+    pytest.importorskip("methods.temporal_graph")
+    pytest.importorskip("metrics.registry")
+    import time
+
+    from bench.datasets import load_dataset
+    from holes.registry import get_generator
+    from methods.registry import get_method
+
+    frames = load_dataset("human", frames=2, size="tiny").points
+    damage = get_generator("region", preset="medium", count=2, coherent=True).damage(frames, seed=0)
+
+    def inpaint(**params):
+        method = get_method("temporal-graph").set_params(**params)
+        start = time.perf_counter()
+        out = method.inpaint(damage.frames, damage.regions)
+        return out, (time.perf_counter() - start) / len(frames)
+
+    normal, seconds = inpaint()
+    base_store = score_into_store(tmp_path / "base.sqlite", "base", frames, damage, normal, seconds)
+    again, seconds_again = inpaint()
+    normal_store = score_into_store(tmp_path / "normal.sqlite", "normal", frames, damage, again, seconds_again)
+    degraded, seconds_degraded = inpaint(gamma=1e4)
+    degraded_store = score_into_store(tmp_path / "degraded.sqlite", "degraded", frames, damage, degraded,
+                                      seconds_degraded)
+
+    baseline = tmp_path / "regression-baseline.csv"
+    assert cli_main(["compare", str(baseline), str(base_store), "--save-current", str(baseline)]) == 0
+    capsys.readouterr()
+    assert cli_main(["compare", str(baseline), str(normal_store)]) == 0
+    passed = capsys.readouterr().out
+    assert "PASSED" in passed and "REGRESSED" not in passed
+
+    assert cli_main(["compare", str(baseline), str(degraded_store)]) == 1
+    failed = capsys.readouterr().out
+    print(failed)  # the readable table, shown with pytest -s
+    assert "FAILED" in failed
+    regressed = [line for line in failed.splitlines() if line.rstrip().endswith("REGRESSED")]
+    assert any("gpsnr_d1@intrinsic frame" in line for line in regressed)
+    assert all("temporal-graph" in line for line in regressed)
+    header = failed.splitlines()[4]
+    for column in ("sequence", "method", "metric", "scope", "baseline", "current", "change", "tolerance", "status"):
+        assert column in header
