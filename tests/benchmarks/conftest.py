@@ -2,12 +2,12 @@
 
 Every fixture is session-scoped and lazy: a benchmark file pays only for the sizes it asks for, and
 the embedded human figure is cached on disk by bench.datasets after its first generation (about
-10 s per 600k-point frame on a 2-core machine), so later sessions start at once.
+2 s / 14 s / 24 s per 100k / 800k / 1M-point frame on a 2-core machine), so later sessions start at once.
 
 Sizes (embedded "human", walk motion, seed 0; point counts measured on frame 0):
   "100k": size="small", 10-bit grid                        ~96k points a frame
-  "800k": bit_depth=11, height=1037 voxels                 ~800k points a frame
-  "1m":   bit_depth=11, height=1165 voxels                 ~1M points a frame
+  "800k": bit_depth=11, height=1037 voxels                 ~800k points a frame (799,626)
+  "1m":   bit_depth=11, height=1165 voxels                 ~1M points a frame (1,009,042)
 The 800k and 1M figures are about 1000 voxels tall with unit voxel spacing, like the paper's 8i
 sequences (10-bit, ~800k-1M points), so methods' default cube size (M = 20) fits them as it fits
 8i data; their coordinates run up to 2047 because the figure is taller than a 10-bit grid allows
