@@ -1,0 +1,67 @@
+"""`dpcbench detect-holes INPUT --out holes.json`: find the holes of captured frames (no ground truth).
+
+Runs `holes.detection.detect_holes` on every frame of INPUT (embedded name, paper sequence or PLY
+folder/glob/file) and writes a holes.json (format in `holes.regions`) with the detected ball regions
+per frame, the detector parameters (``params``), and per frame ``points`` and ``regions`` counts.
+The file can be handed to methods like the regions of a damaged sequence ("blind" protocol).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from bench.commands.damage import add_input_options, load_input, parse_params
+from bench.errors import UserError
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "detect-holes",
+        help="detect holes in captured frames (boundary rims -> ball regions) and write holes.json",
+        description=__doc__.split("\n", 2)[2],
+    )
+    parser.add_argument("input", help="embedded name, paper sequence, or PLY folder/glob/file")
+    parser.add_argument("--out", required=True, metavar="FILE", help="holes.json to write")
+    parser.add_argument("--param", action="append", metavar="KEY=VALUE",
+                        help="detector parameter (repeatable): k, gap, link, min_points, min_inward, max_radius")
+    add_input_options(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import inspect
+
+    from bench.progress import progress_bar
+    from holes.detection import detect_holes
+    from holes.regions import regions_to_json
+
+    params = parse_params(args.param)
+    known = [p for p in inspect.signature(detect_holes).parameters if p != "points"]
+    unknown = sorted(set(params) - set(known))
+    if unknown:
+        raise UserError(f"--param: unknown detector parameter(s) {', '.join(unknown)}; known: {', '.join(known)}")
+    out = Path(args.out)
+    if out.is_dir():
+        raise UserError(f"--out {out} is a folder; give the path of the holes.json file to write")
+    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param))
+    regions = []
+    for i, points in enumerate(progress_bar(seq.points, desc="detecting holes", unit="frame")):
+        try:
+            regions.append(detect_holes(points, **params))
+        except ValueError as err:
+            raise UserError(f"frame {i}: {err}") from None
+    record = regions_to_json(
+        regions,
+        detector="holes.detection.detect_holes",
+        params=params,
+        source=str(args.input),
+        per_frame=[{"points": int(len(p)), "regions": len(r)} for p, r in zip(seq.points, regions)],
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(json.dumps(record, indent=1))
+    tmp.replace(out)
+    print(f"{len(regions)} frames: {sum(len(r) for r in regions)} hole regions "
+          f"({', '.join(str(len(r)) for r in regions[:10])}{' ...' if len(regions) > 10 else ''} per frame) -> {out}")
+    return 0

@@ -1,0 +1,135 @@
+"""Hole detection in a captured frame without ground truth: boundary points grouped into hole regions.
+
+Algorithm (``detect_holes``), for one (N, 3) frame:
+
+1. Boundary points (angle criterion, as in PCL's BoundaryEstimation): for each point p, take its
+   ``k`` nearest neighbours, fit the tangent plane by PCA, project the neighbour offsets onto it and
+   sort their angles. Interior points are surrounded by neighbours; on the rim of a hole or of an
+   open scan one side is empty, so the largest angular gap between consecutive neighbours exceeds
+   ``gap`` (radians). The unit tangent vector in the middle of that gap, g(p), points into the
+   empty side.
+2. Rings: boundary points closer than ``link`` point spacings are linked; each connected component
+   with at least ``min_points`` points is one candidate rim.
+3. Holes vs outer silhouette: a hole is empty *inside* its rim, so the gap directions of its rim
+   points point towards the rim's centroid c; the outer silhouette of an open scan (e.g. the cut
+   at the waist, the back of a front-only capture) is empty *outside*, its gap directions point
+   away from c. A rim is kept as a hole when the mean of ``g(p) . (c - p) / |c - p|`` over its
+   points is at least ``min_inward`` (default 0.2). Rims larger than ``max_radius`` (fraction of
+   the bounding-box diagonal) are dropped as well: they are the open ends of the scan, not holes.
+4. Each kept rim becomes a ball at its centroid, radius = largest distance of a rim point to the
+   centroid + one point spacing, so the ball covers the whole missing patch the rim surrounds.
+
+Regions carry ``rim_points`` (boundary points in the rim) and ``inward`` (the score of step 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from holes.geometry import check_frame, estimate_normals, point_spacing, radius_components
+from holes.regions import HoleRegion
+
+
+def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, tree: cKDTree | None = None):
+    """Per point: is it on a boundary, and the unit tangent direction into the empty side.
+
+    points: (N, 3). k: neighbours (including the point itself). gap: angular gap threshold (radians).
+    Returns (mask (N,) bool, largest gap (N,) radians, empty-side direction (N, 3)).
+    """
+    tree = tree or cKDTree(points)
+    _, nbr, tangent = estimate_normals(points, tree, k)
+    offsets = points[nbr[:, 1:]] - points[:, None, :]  # (N, k-1, 3), self excluded
+    u = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 0])
+    v = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 1])
+    angles = np.sort(np.arctan2(v, u), axis=1)
+    gaps = np.diff(angles, axis=1, append=angles[:, :1] + 2 * np.pi)  # wrap-around gap last
+    widest = gaps.argmax(axis=1)
+    rows = np.arange(len(points))
+    largest = gaps[rows, widest]
+    middle = angles[rows, widest] + largest / 2
+    direction = np.cos(middle)[:, None] * tangent[:, :, 0] + np.sin(middle)[:, None] * tangent[:, :, 1]
+    return largest > gap, largest, direction
+
+
+def detect_holes(
+    points,
+    *,
+    k: int = 32,
+    gap: float = 0.6 * np.pi,
+    link: float = 3.0,
+    min_points: int = 10,
+    min_inward: float = 0.2,
+    max_radius: float = 0.25,
+) -> list[HoleRegion]:
+    """Hole regions (balls) of one captured frame; see the module docstring for the algorithm.
+
+    points:     (N, 3) frame.
+    k:          neighbours for the tangent plane and the angular gap.
+    gap:        a point is on a boundary when its neighbours leave an angular gap above this (rad).
+    link:       boundary points closer than ``link * spacing`` form one rim.
+    min_points: smaller rims are noise (isolated boundary points of a rough surface) and dropped.
+    min_inward: least mean inward score of a hole rim (1: all gaps point at the centroid).
+    max_radius: largest hole radius, as a fraction of the bounding-box diagonal.
+    Returns the regions, largest rim first.
+    """
+    points = check_frame(points, "detect_holes")
+    if int(k) != k or k < 5:
+        raise ValueError(f"detect_holes: k must be an integer >= 5, got {k!r}")
+    if len(points) <= k:
+        raise ValueError(f"detect_holes: the frame has {len(points)} points; need more than k={k}")
+    if not 0 < gap < 2 * np.pi:
+        raise ValueError(f"detect_holes: gap must be an angle in (0, 2 pi) radians, got {gap!r}")
+    if not link > 0 or not max_radius > 0 or min_points < 1:
+        raise ValueError("detect_holes: link, max_radius and min_points must be positive")
+    tree = cKDTree(points)
+    spacing = point_spacing(points, tree)
+    on_rim, _, direction = boundary_points(points, int(k), gap, tree)
+    rim_idx = np.flatnonzero(on_rim)
+    count, labels = radius_components(points[rim_idx], link * spacing)
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
+    regions = []
+    for c in np.flatnonzero(np.bincount(labels, minlength=count) >= min_points):
+        idx = rim_idx[labels == c]
+        rim = points[idx]
+        centroid = rim.mean(axis=0)
+        to_centre = centroid - rim
+        dist = np.linalg.norm(to_centre, axis=1)
+        radius = float(dist.max()) + spacing
+        ok = dist > 0
+        inward = float(np.mean(np.einsum("ij,ij->i", direction[idx][ok], to_centre[ok]) / dist[ok])) if ok.any() else 0.0
+        if inward < min_inward or radius > max_radius * diag:
+            continue
+        regions.append(HoleRegion.ball(centroid, radius, rim_points=int(len(idx)), inward=round(inward, 4)))
+    regions.sort(key=lambda r: -r.extra["rim_points"])
+    return regions
+
+
+def detection_scores(detected: list[HoleRegion], truth: list[HoleRegion], removed_points: np.ndarray) -> dict:
+    """Recall and precision of detected holes against known (synthetic) ones.
+
+    A detected region *matches* a true hole h when it contains at least half of h's removed
+    points (``removed_points`` (M, 3), the ground truth, tested with ``h.contains``) or when its
+    centre lies inside h. recall = matched true holes / true holes; precision = detected regions
+    matching some true hole / detected regions (1.0 when nothing was detected and nothing was
+    missing, 0.0 when nothing was detected but holes exist is reported through recall).
+    Returns {"recall", "precision", "true_holes", "detected", "found", "correct"}.
+    """
+    removed_points = np.asarray(removed_points, dtype=np.float64).reshape(-1, 3)
+    match = np.zeros((len(detected), len(truth)), dtype=bool)
+    for j, hole in enumerate(truth):
+        hole_pts = removed_points[hole.contains(removed_points)]
+        for i, det in enumerate(detected):
+            centre_inside = bool(hole.contains(det.center[None, :])[0])
+            covered = len(hole_pts) > 0 and det.contains(hole_pts).mean() >= 0.5
+            match[i, j] = centre_inside or covered
+    found = int(match.any(axis=0).sum())
+    correct = int(match.any(axis=1).sum())
+    return {
+        "recall": found / len(truth) if truth else 1.0,
+        "precision": correct / len(detected) if detected else 1.0,
+        "true_holes": len(truth),
+        "detected": len(detected),
+        "found": found,
+        "correct": correct,
+    }
