@@ -64,6 +64,7 @@ class PaperDataset:
 
     name: str
     title: str
+    summary: str
     source: str
     terms: str
     folder: str
@@ -91,6 +92,7 @@ EMBEDDED: dict[str, EmbeddedDataset] = {
     ),
 }
 
+_8I_SUMMARY = "8i Voxelized Full Bodies (JPEG Pleno / MPEG), 10-bit, 300 frames; non-commercial research use"
 _8I_SOURCE = ("8i Voxelized Full Bodies (8iVFB v2), E. d'Eon, B. Harrison, T. Myers, P. A. Chou, ISO/IEC JTC1/SC29 "
               "WG1 m74006 / WG11 m40059, 2017; download from the JPEG Pleno database "
               "http://plenodb.jpeg.org/pc/8ilabs (also in the MPEG content repository)")
@@ -98,16 +100,16 @@ _8I_TERMS = ("free of charge for non-commercial research and standardization use
              "distributed with the data; it may not be redistributed with dpcbench")
 
 PAPER: dict[str, PaperDataset] = {
-    "longdress": PaperDataset("longdress", "Longdress", _8I_SOURCE, _8I_TERMS, "longdress", "Ply",
+    "longdress": PaperDataset("longdress", "Longdress", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "longdress", "Ply",
                               "longdress_vox10_{:04d}.ply", 1051, 300, 10),
-    "loot": PaperDataset("loot", "Loot", _8I_SOURCE, _8I_TERMS, "loot", "Ply", "loot_vox10_{:04d}.ply",
+    "loot": PaperDataset("loot", "Loot", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "loot", "Ply", "loot_vox10_{:04d}.ply",
                          1000, 300, 10),
-    "redandblack": PaperDataset("redandblack", "Redandblack", _8I_SOURCE, _8I_TERMS, "redandblack", "Ply",
+    "redandblack": PaperDataset("redandblack", "Redandblack", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "redandblack", "Ply",
                                 "redandblack_vox10_{:04d}.ply", 1450, 300, 10),
-    "soldier": PaperDataset("soldier", "Soldier", _8I_SOURCE, _8I_TERMS, "soldier", "Ply",
+    "soldier": PaperDataset("soldier", "Soldier", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "soldier", "Ply",
                             "soldier_vox10_{:04d}.ply", 536, 300, 10),
     "ulliwegner": PaperDataset(
-        "ulliwegner", "UlliWegner",
+        "ulliwegner", "UlliWegner", "MPEG content repository, 10-bit; MPEG test-material terms",
         "MPEG point cloud test content 'UlliWegner' (a full-body capture; the paper cites MPEG and JPEG Pleno for "
         "its data); distributed to MPEG participants through the MPEG content repository "
         "http://mpegfs.int-evry.fr/ ; outside MPEG ask the content owner named in the repository's readme",
@@ -116,8 +118,14 @@ PAPER: dict[str, PaperDataset] = {
         "ulliwegner", None, None, 0, None, 10),
 }
 
-#: changes whenever any generator's output changes (for run fingerprints and caches)
-DATASETS_VERSION = "human1-bunny1"
+def _datasets_version() -> str:
+    from bench.standins import bunny, human
+
+    return f"human{human.GENERATOR_VERSION}-bunny{bunny.GENERATOR_VERSION}"
+
+
+#: changes whenever a generator's output changes (run fingerprints use it)
+DATASETS_VERSION = _datasets_version()
 
 
 def parse_param_value(text: str):
@@ -135,6 +143,38 @@ def parse_param_value(text: str):
         except ValueError:
             pass
     return text
+
+
+def parse_params(pairs: list[str] | None) -> dict:
+    """CLI ``--param k=v`` strings -> {k: parsed v}."""
+    params = {}
+    for pair in pairs or []:
+        key, sep, value = pair.partition("=")
+        if not sep or not key.strip():
+            raise UserError(f"--param {pair!r}: write parameters as NAME=VALUE, e.g. --param size=tiny")
+        params[key.strip()] = parse_param_value(value)
+    return params
+
+
+def parse_frames(text: str | None):
+    """CLI frame selection: None, "N" (the first N frames), or a list "0,1,2" / ranges "0-9" -> count or
+    list of indices."""
+    if text is None or text == "":
+        return None
+    try:
+        if "," not in text and "-" not in text:
+            return int(text)
+        indices: list[int] = []
+        for part in text.split(","):
+            part = part.strip()
+            if "-" in part:
+                a, b = part.split("-", 1)
+                indices.extend(range(int(a), int(b) + 1))
+            elif part:
+                indices.append(int(part))
+        return indices
+    except ValueError:
+        raise UserError(f"--frames {text!r}: give a count (10), a list (0,5,9) or a range (0-9)") from None
 
 
 def _frame_indices(frames, available: int | None, label: str) -> list[int] | None:
@@ -339,6 +379,6 @@ def describe_datasets(data_dir=None) -> list[dict]:
                     missing = sum(not (folder / f).is_file() for f in expected)
                     if missing:
                         reason = f"{missing} of {len(expected)} frame files missing in {folder}"
-        rows.append({"name": info.name, "kind": "paper", "description": f"{info.title}: {info.source}",
+        rows.append({"name": info.name, "kind": "paper", "description": f"{info.title}: {info.summary}",
                      "terms": info.terms, "available": not reason, "reason": reason})
     return rows

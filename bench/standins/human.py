@@ -25,7 +25,7 @@ import numpy as np
 from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, surface_voxels
 
 #: bump when the output for the same parameters changes (part of the cache key)
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 
 MOTIONS = ("walk", "dance", "wave")
 #: figure height (rest pose, voxels) per size preset; None -> a fraction of the grid, see frame_params
@@ -73,7 +73,7 @@ PARTS: list[tuple] = [
     ("ellipsoid", "chest", (0.0, 0.03, 0.0), (0.175, 0.16, 0.105), SHIRT),
     ("cone", "neck", "head", 0.052, 0.048, SKIN),
     ("ellipsoid", "head", (0.0, 0.11, 0.012), (0.082, 0.112, 0.098), SKIN),
-    ("ellipsoid", "head", (0.0, 0.125, -0.008), (0.087, 0.108, 0.1), HAIR),
+    ("ellipsoid", "head", (0.0, 0.135, -0.005), (0.088, 0.1, 0.1), HAIR),
     ("ellipsoid", "head", (0.0, 0.095, 0.105), (0.014, 0.022, 0.016), SKIN),  # nose
 ]
 for _side in ("l", "r"):
@@ -261,6 +261,8 @@ def generate_frame(index: int, *, motion: str = "walk", bit_depth: int = 10, siz
     origin = np.array([grid / 2.0, FLOOR * grid, grid / 2.0])
     phase = float(np.random.default_rng(seed).uniform(0.0, 2 * np.pi))
     body, materials, joint_frames = build_body(motion, index / fps, phase, scale, origin)
+    if body.lo.min() < 0 or body.hi.max() > grid:  # never cut the figure at the grid's edge silently
+        raise ValueError(f"frame {index}: the posed figure leaves the {bit_depth}-bit grid; lower height")
     voxels = surface_voxels(body, grid)
     if len(voxels) == 0:
         raise ValueError("the figure has no surface voxel in the grid; increase height or bit_depth")

@@ -1,0 +1,274 @@
+"""Figures of point clouds: frames side by side (rows x columns), orthographic views rasterized with
+numpy (a z-buffer over splatted points, so 1M points take about a second; matplotlib's scatter would
+take minutes), shaded by colour or by normals, with an optional magnified zoom box and highlighted
+points.
+
+Projection: the cloud is rotated by ``view_rotation(view)`` (camera looks along -z after rotation;
+screen x = rotated x, screen y = rotated y, nearer = larger rotated z). Every panel of a figure uses
+the same scale and the same bounds, so motion and sizes compare across panels.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "left": (-90.0, 0.0), "right": (90.0, 0.0),
+         "top": (0.0, 90.0)}
+HIGHLIGHT_COLOR = (230, 20, 20)
+
+
+def view_rotation(view) -> np.ndarray:
+    """3x3 rotation for a view name in VIEWS or an (azimuth, elevation) pair in degrees:
+    R = R_x(elevation) @ R_y(azimuth). "front" looks at the +z face, "left" at the +x face, "top" at +y."""
+    if isinstance(view, str):
+        if view not in VIEWS:
+            raise ValueError(f"unknown view {view!r}; use one of {', '.join(VIEWS)} or (azimuth, elevation)")
+        azimuth, elevation = VIEWS[view]
+    else:
+        azimuth, elevation = (float(v) for v in view)
+    a, e = np.radians(azimuth), np.radians(elevation)
+    ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    rx = np.array([[1, 0, 0], [0, np.cos(e), -np.sin(e)], [0, np.sin(e), np.cos(e)]])
+    return rx @ ry
+
+
+def estimate_normals(points: np.ndarray, k: int = 16) -> np.ndarray:
+    """Unoriented unit normals (N, 3) from the k nearest neighbours (open3d's PCA estimate)."""
+    import open3d as o3d
+
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
+    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=k))
+    return np.asarray(pcd.normals)
+
+
+def shade_normals(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Grey-blue Lambert shading (N, 3) uint8 of unoriented normals: intensity = 0.2 + 0.8 |n' . l|,
+    n' = R n (view space), l = unit (-0.3, 0.4, 1) (light from the viewer, a little up-left)."""
+    light = np.array([-0.3, 0.4, 1.0])
+    light /= np.linalg.norm(light)
+    intensity = 0.2 + 0.8 * np.abs((normals @ rotation.T) @ light)
+    base = np.array([200.0, 205.0, 215.0])
+    return np.clip(intensity[:, None] * base, 0, 255).astype(np.uint8)
+
+
+def _disk_offsets(radius: int) -> np.ndarray:
+    r = int(radius)
+    dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
+    keep = dx ** 2 + dy ** 2 <= r * r + r  # a round splat (the +r keeps radius-1 splats a plus sign)
+    return np.stack([dy[keep], dx[keep]], 1)
+
+
+def rasterize(points: np.ndarray, colors: np.ndarray, rotation: np.ndarray, bounds: tuple[np.ndarray, np.ndarray],
+              width: int, height: int, radius: int = 1, background=(255, 255, 255)) -> np.ndarray:
+    """(height, width, 3) uint8 image of ``points`` (N, 3) with ``colors`` (N, 3) uint8.
+
+    ``bounds`` = (lo, hi) screen-space (2,) corners of the area shown (view-rotated x, y). Each point
+    covers a disk of ``radius`` pixels; at every pixel the nearest point (largest view z) wins: a
+    z-buffer written with ``np.minimum.at`` on depth ranks, so the result does not depend on the order
+    of the points.
+    """
+    image = np.empty((height, width, 3), dtype=np.uint8)
+    image[:] = background
+    if len(points) == 0:
+        return image
+    view = points @ rotation.T
+    lo, hi = bounds
+    scale = min((width - 1) / max(hi[0] - lo[0], 1e-12), (height - 1) / max(hi[1] - lo[1], 1e-12))
+    col = np.rint((view[:, 0] - lo[0]) * scale).astype(np.int64)
+    row = np.rint((hi[1] - view[:, 1]) * scale).astype(np.int64)
+    rank = np.empty(len(view), dtype=np.int64)
+    order = np.lexsort((np.arange(len(view)), -view[:, 2]))  # nearest first, ties by index: deterministic
+    rank[order] = np.arange(len(view))
+    zbuf = np.full(height * width, len(view), dtype=np.int64)
+    for dy, dx in _disk_offsets(radius):
+        r, c = row + dy, col + dx
+        ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+        np.minimum.at(zbuf, r[ok] * width + c[ok], rank[ok])
+    hit = zbuf < len(view)
+    image.reshape(-1, 3)[hit] = np.asarray(colors)[order[zbuf[hit]]]
+    return image
+
+
+def _as_grid(items, nested: bool, n_rows: int, n_cols: int, what: str) -> list[list]:
+    """Per-panel options (None, or one entry per panel nested like the clouds) as rows x cols."""
+    if items is None:
+        return [[None] * n_cols for _ in range(n_rows)]
+    rows = [list(row) for row in items] if nested else [list(items)]
+    if len(rows) != n_rows or any(len(row) != n_cols for row in rows):
+        raise ValueError(f"{what}: give one entry per panel ({n_rows} row(s) x {n_cols} column(s)), "
+                         "nested like the clouds")
+    return rows
+
+
+def _unpack(cloud):
+    """(points, colours or None, normals or None) of an (N, 3) array or a PointCloud-like object."""
+    if hasattr(cloud, "points"):
+        return np.asarray(cloud.points, dtype=np.float64), getattr(cloud, "colors", None), getattr(cloud, "normals", None)
+    return np.asarray(cloud, dtype=np.float64), None, None
+
+
+def zoom_box(zoom) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) 3D axis-aligned box from 6 numbers (x0, y0, z0, x1, y1, z1), a (2, 3) array, or a
+    HoleRegion-like object: centre +- radius (ball) or centre +- |R| half_extents (rotated box)."""
+    if hasattr(zoom, "center"):
+        centre = np.asarray(zoom.center, dtype=np.float64)
+        if getattr(zoom, "radius", None) is not None:
+            half = np.full(3, float(zoom.radius))
+        else:
+            rot = np.asarray(getattr(zoom, "rotation", None) if getattr(zoom, "rotation", None) is not None
+                             else np.eye(3), dtype=np.float64)
+            half = np.abs(rot) @ np.asarray(zoom.half_extents, dtype=np.float64)
+        return centre - half, centre + half
+    box = np.asarray(zoom, dtype=np.float64).reshape(-1)
+    if box.shape != (6,) or not np.isfinite(box).all():
+        raise ValueError(f"zoom box must be 6 numbers x0,y0,z0,x1,y1,z1, got {zoom!r}")
+    lo, hi = np.minimum(box[:3], box[3:]), np.maximum(box[:3], box[3:])
+    if np.any(hi - lo <= 0):
+        raise ValueError(f"zoom box {box.tolist()} has zero size along an axis")
+    return lo, hi
+
+
+def _auto_radius(points: np.ndarray, scale: float) -> int:
+    """Splat radius (pixels) that closes the gaps between neighbouring points: half the median
+    nearest-neighbour spacing (on up to 20k points) in pixels, rounded up, within 0..6."""
+    from scipy.spatial import cKDTree
+
+    if len(points) < 2:
+        return 2
+    step = max(1, len(points) // 20000)
+    sample = points[::step]
+    d, _ = cKDTree(points).query(sample, k=2, workers=-1)
+    spacing = float(np.median(d[:, 1])) * scale
+    return int(min(6, max(0, np.ceil(0.5 * spacing))))
+
+
+def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highlight=None, view="front",
+                  point_size: int | None = None, panel_height: int = 480, shading: str = "auto",
+                  zoom_height: int | None = None, dpi: int = 100, suptitle: str | None = None) -> Path:
+    """Draw point clouds side by side and save a PNG; returns its path.
+
+    clouds:     a list of clouds (one row) or a list of rows (rows x columns, e.g. rows = methods,
+                columns = frames). A cloud is an (N, 3) array or a PointCloud (its colours/normals used).
+    titles:     one string per panel (same nesting), or None.
+    colors:     per-panel (N, 3) uint8 colours overriding the cloud's own, or None.
+    zoom:       a 3D box (x0, y0, z0, x1, y1, z1) or a HoleRegion-like object (center + radius or
+                half_extents): its outline is drawn on every panel and the magnified crop (the points
+                inside the box) in a row under each row of panels.
+    highlight:  per-panel boolean masks (N,) of points to paint red (e.g. the filled points), or None.
+    view:       a name in VIEWS or (azimuth, elevation) degrees.
+    point_size: splat radius in pixels; None = from the point spacing.
+    shading:    "auto" (colours when present, else normals), "color", or "normal" (normals estimated
+                with open3d when the cloud has none).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    if shading not in ("auto", "color", "normal"):
+        raise ValueError(f"shading must be auto, color or normal, got {shading!r}")
+    clouds = list(clouds)
+    if not clouds:
+        raise ValueError("nothing to render: the list of clouds is empty")
+    nested = isinstance(clouds[0], (list, tuple))
+    grid = [list(row) for row in clouds] if nested else [clouds]
+    n_rows, n_cols = len(grid), max(len(r) for r in grid)
+    if any(len(r) != n_cols for r in grid):
+        raise ValueError("every row of clouds must have the same number of panels")
+    titles_g = _as_grid(titles, nested, n_rows, n_cols, "titles")
+    colors_g = _as_grid(colors, nested, n_rows, n_cols, "colors")
+    highlight_g = _as_grid(highlight, nested, n_rows, n_cols, "highlight")
+    rotation = view_rotation(view)
+
+    panels = []
+    for r in range(n_rows):
+        row = []
+        for c in range(n_cols):
+            pts, own_colors, normals = _unpack(grid[r][c])
+            if pts.ndim != 2 or pts.shape[1] != 3:
+                raise ValueError(f"panel ({r}, {c}): points must be an (N, 3) array, got shape {pts.shape}")
+            if not np.isfinite(pts).all():
+                raise ValueError(f"panel ({r}, {c}): the cloud has NaN or infinite coordinates")
+            col = colors_g[r][c] if colors_g[r][c] is not None else own_colors
+            if shading == "normal" or (shading == "auto" and col is None):
+                if normals is None and len(pts) >= 3:
+                    normals = estimate_normals(pts)
+                col = shade_normals(normals, rotation) if normals is not None else np.full((len(pts), 3), 128, np.uint8)
+            col = np.array(col, dtype=np.uint8, copy=True)
+            if col.shape != pts.shape:
+                raise ValueError(f"panel ({r}, {c}): colours have shape {col.shape}, points {pts.shape}")
+            mask = highlight_g[r][c]
+            if mask is not None:
+                mask = np.asarray(mask, dtype=bool)
+                if mask.shape != (len(pts),):
+                    raise ValueError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
+                col[mask] = HIGHLIGHT_COLOR
+            row.append((pts, col))
+        panels.append(row)
+
+    # common screen bounds over all panels, with a 3% margin
+    screen = [p @ rotation.T for row in panels for p, _ in row if len(p)]
+    if not screen:
+        raise ValueError("nothing to render: every cloud is empty")
+    lo = np.min([s[:, :2].min(0) for s in screen], axis=0)
+    hi = np.max([s[:, :2].max(0) for s in screen], axis=0)
+    pad = 0.03 * max(hi - lo) + 1e-9
+    lo, hi = lo - pad, hi + pad
+    height = int(panel_height)
+    width = max(16, int(round(height * (hi[0] - lo[0]) / (hi[1] - lo[1]))))
+    scale = min((width - 1) / (hi[0] - lo[0]), (height - 1) / (hi[1] - lo[1]))
+
+    box = zoom_box(zoom) if zoom is not None else None
+    zh = int(zoom_height or height // 2)
+    rows_out = n_rows * (2 if box is not None else 1)
+    row_heights = []
+    for r in range(n_rows):
+        row_heights.append(height)
+        if box is not None:
+            row_heights.append(zh)
+    fig_w = n_cols * width / dpi
+    fig_h = sum(row_heights) / dpi + 0.35 * rows_out + (0.4 if suptitle else 0.0)
+    fig, axes = plt.subplots(rows_out, n_cols, figsize=(fig_w + 0.2 * n_cols, fig_h), squeeze=False,
+                             gridspec_kw={"height_ratios": row_heights})
+    for r in range(n_rows):
+        for c in range(n_cols):
+            pts, col = panels[r][c]
+            radius = point_size if point_size is not None else _auto_radius(pts, scale)
+            ax = axes[r * (2 if box is not None else 1)][c]
+            ax.imshow(rasterize(pts, col, rotation, (lo, hi), width, height, radius), interpolation="nearest")
+            ax.set_axis_off()
+            if titles_g[r][c]:
+                ax.set_title(str(titles_g[r][c]), fontsize=9)
+            if box is None:
+                continue
+            # the zoom box's screen rectangle (its 8 corners projected) on the full view
+            corners = np.array([[x, y, z] for x in (box[0][0], box[1][0]) for y in (box[0][1], box[1][1])
+                                for z in (box[0][2], box[1][2])]) @ rotation.T
+            blo, bhi = corners[:, :2].min(0), corners[:, :2].max(0)
+            ax.add_patch(Rectangle(((blo[0] - lo[0]) * scale, (hi[1] - bhi[1]) * scale), (bhi[0] - blo[0]) * scale,
+                                   (bhi[1] - blo[1]) * scale, fill=False, edgecolor="orange", linewidth=1.2))
+            inside = np.all((pts >= box[0]) & (pts <= box[1]), axis=1)
+            zoom_ax = axes[r * 2 + 1][c]
+            zw = max(16, int(round(zh * (bhi[0] - blo[0]) / max(bhi[1] - blo[1], 1e-12))))
+            zscale = min((zw - 1) / max(bhi[0] - blo[0], 1e-12), (zh - 1) / max(bhi[1] - blo[1], 1e-12))
+            zradius = point_size if point_size is not None else _auto_radius(pts[inside], zscale) if inside.sum() > 1 else 2
+            zoom_ax.imshow(rasterize(pts[inside], col[inside], rotation, (blo, bhi), zw, zh, zradius),
+                           interpolation="nearest")
+            zoom_ax.set_axis_off()
+            for spine in zoom_ax.spines.values():
+                spine.set_edgecolor("orange")
+            zoom_ax.set_title("zoom", fontsize=8, color="darkorange")
+    if suptitle:
+        fig.suptitle(suptitle)
+    fig.tight_layout()
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.stem}.tmp{os.getpid()}.png")
+    fig.savefig(tmp, dpi=dpi, facecolor="white")
+    plt.close(fig)
+    os.replace(tmp, out)
+    return out
