@@ -1,0 +1,66 @@
+"""Rigid "structure matching" of a complete source patch onto a partial target patch.
+
+Closed-form Kabsch alignment on nearest-neighbour pairs, iterated (point-to-point ICP; Besl & McKay
+1992, trimmed as in Chetverikov et al. 2002). Written with cKDTree rather than open3d's
+``registration_icp`` because the pairs must go from the *partial* target (a cube with a hole) to
+the *complete* source: every target point has a true counterpart in the source, but the source's
+points that fill the hole have none in the target, so pairing source -> target (open3d's
+direction) drags the source towards the hole's rim. Cubes hold a few hundred points, so the
+per-call overhead of a small tree is what matters, not raw speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R (3, 3) and translation t (3,) minimising sum_i ||R source_i + t - target_i||^2.
+
+    source, target: (N, 3) paired rows. Closed form (Kabsch 1976): with centred rows X, Y and
+    H = X^T Y = U S V^T, R = V diag(1, 1, det(V U^T)) U^T, t = mean(target) - R mean(source).
+    With fewer than 3 pairs only the translation is estimated (R = I).
+    """
+    source = np.asarray(source, dtype=np.float64)
+    target = np.asarray(target, dtype=np.float64)
+    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    if len(source) < 3:
+        return np.eye(3), mu_t - mu_s
+    h = (source - mu_s).T @ (target - mu_t)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rotation, mu_t - rotation @ mu_s
+
+
+def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int = 10, trim: float = 0.9,
+                     source_tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid (R, t) that moves the complete ``source`` (S, 3) onto the ``partial`` target (T, 3).
+
+    Each iteration pairs every target point q_j with its nearest source point under the current
+    inverse transform, keeps the ``trim`` fraction of closest pairs (robust to the target's rim and
+    to the source's extra surface), and solves `kabsch` for the pairs. Starts from the identity
+    (callers translate the source into place first). Stops early when the update is below 1e-6.
+    Returns (R, t) such that ``source @ R.T + t`` lies on the partial target.
+    """
+    rotation, translation = np.eye(3), np.zeros(3)
+    if len(source) < 3 or len(partial) < 3 or iterations <= 0:
+        return rotation, translation
+    tree = source_tree if source_tree is not None else cKDTree(source)
+    partial = np.asarray(partial, dtype=np.float64)
+    keep_count = max(3, int(np.ceil(trim * len(partial))))
+    for _ in range(iterations):
+        # target points expressed in the source's own frame: R^T (q - t)
+        local = (partial - translation) @ rotation
+        dist, idx = tree.query(local)
+        if keep_count < len(partial):
+            keep = np.argpartition(dist, keep_count - 1)[:keep_count]
+        else:
+            keep = slice(None)
+        new_rotation, new_translation = kabsch(source[idx[keep]], partial[keep])
+        change = np.abs(new_rotation - rotation).max() + np.abs(new_translation - translation).max()
+        rotation, translation = new_rotation, new_translation
+        if change < 1e-6:
+            break
+    return rotation, translation

@@ -1,0 +1,529 @@
+"""The paper's temporal graph inpainting (`temporal-graph`) and its per-frame parent (`fu-nonlocal`).
+
+Fu, Hu, Guo, "3D Dynamic Point Cloud Inpainting via Temporal Consistency on Graphs" (ICME 2020),
+Sec. 3, built on Hu, Fu, Guo [Fu18TIP] (non-local self-similarity on graphs). One implementation:
+`FuNonlocal` is `TemporalGraph` with the temporal terms switched off (beta = 0, no inter-source
+cubes), so the two differ only by the temporal terms.
+
+Units. Every length parameter is given in *units* of the data's point spacing ``u`` (``spacing``;
+by default estimated as median 8th-NN distance / sqrt(2), exactly 1 on a voxelized surface). So the
+paper's 10-bit values (M = 20 voxels, sigma = 1 voxel) carry over to any bit depth or to unvoxelized
+captures with the same number of points across a cube.
+
+Pipeline for frame f (frames are processed in order; frame f-1 is the already inpainted output,
+frame f+1 the damaged input, as the paper's commented text says results feed later frames):
+
+1. Cells of side s = M/4 on a grid; a cube is a 4x4x4 block of cells (side M, step M/4).
+2. Missing data: cells that touch a hole region (the given regions, or in blind mode the regions of
+   `holes.detection.detect_holes`) are *pending*. Target cubes are cubes holding a pending cell and
+   at least ``min_known_points`` known points.
+3. Holes larger than a cube are filled from the boundary inward: per group of overlapping holes,
+   repeatedly take the target cube with the most known points (filled points count as known), fill
+   it, and mark its pending cells done, until no target cube is left.
+4. Intra-source cube: among the cubes of the frame that touch no hole and hold at least as many points
+   as the target cube's known part, the one minimising
+       d = ||DC_t - DC_c||_2 + agtv_weight * |AGTV_t - AGTV_c|
+   with DC = mean unit normal of the cube's points (normals from open3d, K = 10 neighbours, oriented
+   away from the frame centroid) and AGTV = mean over the cube's points of the per-point anisotropic
+   graph total variation a_i = sum_{j in 8-NN(i)} exp(-||p_i - p_j||^2 / 2 sigma^2) ||n_i - s_ij n_j||_1,
+   s_ij = sign(n_i . n_j) (so that a flipped normal is not a variation). Candidate DC/AGTV come from
+   per-cell sums combined by summed-volume tables (one pass over the frame); the target's from its own
+   known points.
+5. Structure matching: the source cube (grown by one cell so that it still covers the target after a
+   rotation) is translated to the target cube's position and aligned by trimmed point-to-point ICP
+   (closed-form Kabsch, pairs from the target's known points to the source; `methods._registration`).
+6. Inter-source cubes (temporal only): in frame g = f-1 and f+1, the box of side H = 2.5 M centred on
+   the co-located cube; every known point of the target cube gets its nearest neighbour in the box;
+   a window of side M slides with stride one unit over the box and the one holding most of those
+   neighbours wins (summed-volume table over a unit-voxel histogram). The window's points (grown by
+   one cell) are aligned to the target's known points like the intra-source cube.
+7. Rows of c_r: the target's known points, plus the *new points*: the aligned intra-source points
+   that fall in the target cube, inside a hole region and in a pending cell. Spatial graph: K-NN
+   (K = round(sqrt(m)), m = known points of the cube) on the initial estimate
+   Omega_bar c_t + Omega c_s_hat, weights exp(-d^2 / 2 sigma^2). Temporal links: every row to its
+   nearest neighbour in each aligned inter-source cube, weight 1, dropped when farther than
+   ``link_radius`` or when the row maps into a hole region of the (not yet inpainted) frame g.
+8. Solve Eq. (6) (with the per-row link count in place of 2I, so a first/last frame or an
+   unlinked row uses beta once or not at all) as one sparse SPD system (`methods._graph.solve_cube`).
+9. Voxelized input (integer coordinates): new points are rounded to the grid and those that coincide
+   with existing points or with each other are dropped.
+
+A one-frame sequence has no inter-source cubes: the spatial terms alone are used and a warning says
+so.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from methods._cubes import CellGrid, best_window, block_sums, in_box, point_spacing
+from methods._graph import knn_laplacian, solve_cube
+from methods._registration import align_to_partial
+from methods.base import InpaintingMethod
+
+_KNOWN_MODES = ("fixed", "free")
+
+
+class _CubeGraphInpainting(InpaintingMethod):
+    """Shared machinery; subclasses fix whether the temporal terms are used (``_temporal``)."""
+
+    _temporal: bool = True
+    detects_holes = True
+    needs_regions = False
+
+    # -- parameters -------------------------------------------------------------------------
+    def _beta(self) -> float:
+        return float(self.beta) if self._temporal else 0.0
+
+    def _validate(self) -> None:
+        def positive(name):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0:
+                raise ValueError(f"{self.name}: {name} must be a positive number, got {value!r}")
+
+        for name in ("cube_size", "sigma", "link_radius", "search_box"):
+            if hasattr(self, name):
+                positive(name)
+        for name in ("alpha", "gamma", "beta", "agtv_weight"):
+            value = getattr(self, name, 0.0)
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not value >= 0:
+                raise ValueError(f"{self.name}: {name} must be a number >= 0, got {value!r}")
+        if not self.alpha > 0:
+            raise ValueError(f"{self.name}: alpha must be > 0 (it anchors the new points to the source cube)")
+        if not isinstance(self.cells_per_cube, int) or self.cells_per_cube < 1:
+            raise ValueError(f"{self.name}: cells_per_cube must be an integer >= 1, got {self.cells_per_cube!r}")
+        if not isinstance(self.min_known_points, int) or self.min_known_points < 3:
+            raise ValueError(f"{self.name}: min_known_points must be an integer >= 3, got {self.min_known_points!r}")
+        if self.k_neighbors is not None:
+            if not isinstance(self.k_neighbors, int) or self.k_neighbors < 1:
+                raise ValueError(f"{self.name}: k_neighbors must be None (sqrt(m)) or an integer >= 1, "
+                                 f"got {self.k_neighbors!r}")
+            if self.k_neighbors > self.min_known_points:
+                raise ValueError(
+                    f"{self.name}: k_neighbors={self.k_neighbors} exceeds min_known_points="
+                    f"{self.min_known_points}, so a cube could have fewer points m than K; "
+                    "lower k_neighbors or raise min_known_points (K must be <= m)")
+        if self.spacing is not None:
+            positive("spacing")
+        if self.known_points not in _KNOWN_MODES:
+            raise ValueError(f"{self.name}: known_points must be one of {_KNOWN_MODES}, got {self.known_points!r}")
+        if self.snap not in ("auto", True, False):
+            raise ValueError(f"{self.name}: snap must be 'auto', true or false, got {self.snap!r}")
+        if not isinstance(self.intra_candidates, int) or self.intra_candidates < 1:
+            raise ValueError(f"{self.name}: intra_candidates must be an integer >= 1, got {self.intra_candidates!r}")
+        if not isinstance(self.icp_iterations, int) or self.icp_iterations < 0:
+            raise ValueError(f"{self.name}: icp_iterations must be an integer >= 0, got {self.icp_iterations!r}")
+
+    # -- sequence ---------------------------------------------------------------------------
+    def inpaint(self, frames, regions=None):
+        frames, regions = self._check_inputs(frames, regions)
+        self._validate()
+        unit = float(self.spacing) if self.spacing is not None else point_spacing(max(frames, key=len))
+        voxelized = self.snap is True or (
+            self.snap == "auto" and all(np.array_equal(f, np.round(f)) for f in frames))
+        if regions is None:
+            from holes.detection import detect_holes  # lazily: blind protocol only
+
+            regions = [list(detect_holes(frame)) for frame in frames]
+        self._check_regions(frames, regions, unit)
+        beta = self._beta()
+        if beta > 0 and len(frames) == 1:
+            warnings.warn(f"{self.name}: a one-frame sequence has no neighbouring frames; "
+                          "using the spatial terms only (as fu-nonlocal)", stacklevel=2)
+        outputs: list[np.ndarray] = []
+        for f, frame in enumerate(frames):
+            if not regions[f]:
+                outputs.append(frame.copy())
+                continue
+            neighbours = []
+            if beta > 0:
+                if f > 0:
+                    neighbours.append((outputs[f - 1], []))  # already inpainted: no holes left
+                if f + 1 < len(frames):
+                    neighbours.append((frames[f + 1], regions[f + 1]))
+            outputs.append(self._inpaint_frame(frame, regions[f], neighbours, unit, voxelized))
+        return outputs
+
+    def _check_regions(self, frames, regions, unit):
+        reach = self.cube_size * unit
+        for f, (frame, frame_regions) in enumerate(zip(frames, regions)):
+            if not frame_regions:
+                continue
+            tree = cKDTree(frame)
+            inside = np.zeros(len(frame), dtype=bool)
+            for region in frame_regions:
+                dist, _ = tree.query(region.center)
+                if dist > region.bounding_radius + reach:
+                    raise ValueError(
+                        f"{self.name}: frame {f}: hole region centred at {np.round(region.center, 3).tolist()} "
+                        f"is {dist:.3g} away from the nearest point, farther than its size plus one cube "
+                        f"({region.bounding_radius + reach:.3g}); the regions do not belong to this cloud "
+                        "(wrong holes.json or wrong frame order?)")
+                inside |= region.contains(frame)
+            if inside.all():
+                raise ValueError(f"{self.name}: frame {f}: the hole regions cover every point of the frame; "
+                                 "nothing is left to fill from")
+
+    # -- one frame --------------------------------------------------------------------------
+    def _normal_features(self, points: np.ndarray, tree: cKDTree, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+        """Unit normals (N, 3), oriented away from the centroid, and per-point AGTV a_i (N,)."""
+        import open3d as o3d  # lazily: heavy import
+
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+        cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=10))
+        normals = np.asarray(cloud.normals)
+        flip = np.einsum("ij,ij->i", normals, points - points.mean(axis=0)) < 0
+        normals[flip] *= -1.0
+        dist, idx = tree.query(points, k=9, workers=-1)
+        dist, idx = dist[:, 1:], idx[:, 1:]
+        neighbour_normals = normals[idx]  # (N, 8, 3)
+        sign = np.sign(np.einsum("ij,ikj->ik", normals, neighbour_normals))
+        sign[sign == 0] = 1.0
+        diff = np.abs(normals[:, None, :] - sign[..., None] * neighbour_normals).sum(axis=2)
+        agtv = (np.exp(-dist ** 2 / (2.0 * sigma ** 2)) * diff).sum(axis=1)
+        return normals, agtv
+
+    def _inpaint_frame(self, points, regions, neighbours, unit, voxelized):
+        cube = self.cube_size * unit
+        per = self.cells_per_cube
+        cell = cube / per
+        sigma = self.sigma * unit
+        tree = cKDTree(points)
+        normals, agtv = self._normal_features(points, tree, sigma)
+        grid = CellGrid(points.min(axis=0), points.max(axis=0), cell, per, pad=per)
+
+        # candidate (intra-source) cubes: per-cube sums from per-cell sums (summed-volume tables)
+        counts = grid.bin(points)
+        hole_cells = self._hole_cells(grid, regions)
+        cube_counts = grid.cube_sums(counts)
+        cube_holes = grid.cube_sums(hole_cells.astype(np.int64))
+        ok = (cube_holes == 0) & (cube_counts >= self.min_known_points)
+        anchors = np.argwhere(ok)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cand_count = cube_counts[ok].astype(np.float64)
+            cand_dc = grid.cube_sums(grid.bin(points, normals))[ok] / cand_count[:, None]
+            cand_agtv = grid.cube_sums(grid.bin(points, agtv))[ok] / cand_count
+        candidates = dict(lower=grid.cube_lower(anchors), count=cand_count, dc=cand_dc, agtv=cand_agtv,
+                          tree=cKDTree(np.column_stack([cand_dc, self.agtv_weight * cand_agtv])) if len(anchors) else None)
+
+        context = dict(points=points, tree=tree, grid=grid, cube=cube, cell=cell, unit=unit, sigma=sigma,
+                       candidates=candidates, neighbours=[self._neighbour(n, r) for n, r in neighbours])
+        out = points.copy()
+        new_points = []
+        for group in self._region_groups(regions, cube + cell):
+            moved, added = self._fill_group(group, normals, agtv, context)
+            for index, position in moved:
+                out[index] = position
+            new_points.append(added)
+        added = np.vstack(new_points) if new_points else np.empty((0, 3))
+        if voxelized and len(added):
+            added = np.unique(np.round(added), axis=0)
+            if self.known_points == "free":
+                out = np.round(out)
+            dist, _ = cKDTree(out).query(added, distance_upper_bound=0.5)
+            added = added[~np.isfinite(dist)]
+        return np.vstack([out, added])
+
+    @staticmethod
+    def _neighbour(points, regions):
+        return dict(points=points, tree=cKDTree(points), regions=regions)
+
+    @staticmethod
+    def _hole_cells(grid: CellGrid, regions) -> np.ndarray:
+        """Bool (X, Y, Z): cells that touch a hole region (cell centre within region + half diagonal)."""
+        mask = np.zeros(tuple(grid.shape), dtype=bool)
+        half_diag = grid.cell * np.sqrt(3.0) / 2.0
+        for region in regions:
+            r = region.bounding_radius + half_diag
+            lo = np.clip(grid.cell_of((region.center - r)[None])[0], 0, grid.shape)
+            hi = np.clip(grid.cell_of((region.center + r)[None])[0] + 1, 0, grid.shape)
+            if (hi <= lo).any():
+                continue
+            idx = np.stack(np.meshgrid(*[np.arange(a, b) for a, b in zip(lo, hi)], indexing="ij"), -1).reshape(-1, 3)
+            centres = grid.origin + (idx + 0.5) * grid.cell
+            hit = idx[region.contains(centres, margin=half_diag)]
+            mask[tuple(hit.T)] = True
+        return mask
+
+    @staticmethod
+    def _region_groups(regions, reach: float) -> list[list]:
+        """Regions grouped so that groups are farther apart than ``reach`` (single linkage)."""
+        n = len(regions)
+        label = list(range(n))
+
+        def root(i):
+            while label[i] != i:
+                label[i] = label[label[i]]
+                i = label[i]
+            return i
+
+        for i in range(n):
+            for j in range(i + 1, n):
+                gap = np.linalg.norm(regions[i].center - regions[j].center)
+                if gap <= regions[i].bounding_radius + regions[j].bounding_radius + 2 * reach:
+                    label[root(i)] = root(j)
+        groups: dict[int, list] = {}
+        for i in range(n):
+            groups.setdefault(root(i), []).append(regions[i])
+        return list(groups.values())
+
+    def _fill_group(self, regions, normals, agtv, ctx):
+        """Fill one group of holes from the boundary inward. Returns (moved known points
+        [(frame index, position)], new points (P, 3))."""
+        grid, cube, cell = ctx["grid"], ctx["cube"], ctx["cell"]
+        points = ctx["points"]
+        per = self.cells_per_cube
+        reach = np.array([max(r.bounding_radius for r in regions)] * 3)
+        lower = np.min([r.center for r in regions], axis=0) - reach - cube - cell
+        upper = np.max([r.center for r in regions], axis=0) + reach + cube + cell
+        a0 = np.clip(grid.cell_of(lower[None])[0], 0, grid.shape)
+        a1 = np.clip(grid.cell_of(upper[None])[0] + 1, 0, grid.shape)
+        if ((a1 - a0) < per).any():
+            return [], np.empty((0, 3))
+        window = tuple(slice(a, b) for a, b in zip(a0, a1))
+        pending = self._hole_cells(grid, regions)[window].copy()
+        box_lower, box_upper = grid.cube_lower(a0), grid.cube_lower(a1)
+        local_index = np.flatnonzero(((points >= box_lower) & (points < box_upper)).all(axis=1))
+        local = dict(points=points[local_index].copy(), normals=normals[local_index], agtv=agtv[local_index],
+                     index=local_index.copy())
+        local_counts = grid.bin(points[local_index])[window].copy()
+        fix_known = self.known_points == "fixed"
+        added: list[np.ndarray] = []
+        # Per-cube sums over the local window, kept up to date around each filled cube only.
+        # central: pending cells in the cube's central (per/2)^3 block; a target cube is centred on
+        # the hole's rim, so about half of it is known (for the matching) and half missing.
+        c0 = per // 4
+        cw = per - 2 * c0
+        n_anchor = np.array(pending.shape) - per + 1
+        sums = {}
+
+        def refresh(lo, hi):
+            lo = np.maximum(lo, 0)
+            hi = np.minimum(hi, n_anchor)
+            if (hi <= lo).any():
+                return
+            cells = tuple(slice(a, b + per - 1) for a, b in zip(lo, hi))
+            anchors = tuple(slice(a, b) for a, b in zip(lo, hi))
+            centre = tuple(slice(a + c0, b + c0 + cw - 1) for a, b in zip(lo, hi))
+            sums["pending"][anchors] = block_sums(pending[cells].astype(np.int64), per)
+            sums["known"][anchors] = block_sums(local_counts[cells], per)
+            sums["central"][anchors] = block_sums(pending[centre].astype(np.int64), cw)
+
+        for key in ("pending", "known", "central"):
+            sums[key] = np.zeros(tuple(n_anchor), dtype=np.int64)
+        refresh(np.zeros(3, dtype=np.int64), n_anchor)
+        while True:
+            enough = sums["known"] >= self.min_known_points
+            eligible = (sums["central"] > 0) & enough
+            if not eligible.any():
+                # no known-rich cube is centred on the hole any more: any cube touching it
+                eligible = (sums["pending"] > 0) & enough
+                if not eligible.any():
+                    break
+            # the target cube with the most known data first: holes fill from the rim inward
+            pick = np.array(np.unravel_index(np.argmax(np.where(eligible, sums["known"], -1)), eligible.shape))
+            new = self._fill_cube(grid.cube_lower(a0 + pick), regions, pending, a0, local, ctx, fix_known)
+            pending[tuple(slice(p, p + per) for p in pick)] = False
+            if len(new):
+                added.append(new)
+                cells = grid.cell_of(new) - a0
+                keep = ((cells >= 0) & (cells < local_counts.shape)).all(axis=1)
+                np.add.at(local_counts, tuple(cells[keep].T), 1)
+                local["points"] = np.vstack([local["points"], new])
+                nan = np.full((len(new), 3), np.nan)
+                local["normals"] = np.vstack([local["normals"], nan])
+                local["agtv"] = np.concatenate([local["agtv"], nan[:, 0]])
+                local["index"] = np.concatenate([local["index"], np.full(len(new), -1)])
+            refresh(pick - per + 1, pick + per)
+        moved = []
+        if not fix_known:
+            original = local["index"] >= 0
+            moved = list(zip(local["index"][original], local["points"][original]))
+        return moved, (np.vstack(added) if added else np.empty((0, 3)))
+
+    def _fill_cube(self, lower, regions, pending, a0, local, ctx, fix_known) -> np.ndarray:
+        """Inpaint the target cube at ``lower``; returns its new points (P, 3) (known points moved
+        in place in ``local`` when known_points='free')."""
+        cube, cell, unit, grid = ctx["cube"], ctx["cell"], ctx["unit"], ctx["grid"]
+        in_cube = np.flatnonzero(in_box(local["points"], lower, cube))
+        target = local["points"][in_cube]
+        m = len(target)
+        has_normal = ~np.isnan(local["agtv"][in_cube])
+        if m < self.min_known_points or not has_normal.any():
+            return np.empty((0, 3))
+        dc_t = local["normals"][in_cube][has_normal].mean(axis=0)
+        agtv_t = local["agtv"][in_cube][has_normal].mean()
+
+        # intra-source cube: most similar DC/AGTV among hole-free cubes holding >= m points
+        source = self._intra_source(lower, target, dc_t, agtv_t, ctx)
+        if source is None:
+            return np.empty((0, 3))
+
+        # new points: aligned source points in the missing part of the target cube
+        cells = grid.cell_of(source) - a0
+        in_window = ((cells >= 0) & (cells < pending.shape)).all(axis=1)
+        in_pending = np.zeros(len(source), dtype=bool)
+        in_pending[in_window] = pending[tuple(cells[in_window].T)]
+        inside = np.zeros(len(source), dtype=bool)
+        for region in regions:
+            inside |= region.contains(source)
+        new = source[in_pending & inside & in_box(source, lower, cube)]
+        if not len(new):
+            return new
+
+        rows = np.vstack([target, new])
+        known = np.zeros(len(rows), dtype=bool)
+        known[:m] = True
+        temporal = []
+        beta = self._beta()
+        if beta > 0:
+            for neighbour in ctx["neighbours"]:
+                link = self._temporal_link(rows, target, lower, neighbour, ctx)
+                if link is not None:
+                    temporal.append(link)
+        k = self.k_neighbors if self.k_neighbors is not None else max(1, int(round(np.sqrt(m))))
+        laplacian = knn_laplacian(rows, k, ctx["sigma"])
+        result = solve_cube(rows, rows, known, laplacian, alpha=self.alpha, gamma=self.gamma, beta=beta,
+                            temporal=temporal, fix_known=fix_known)
+        if not fix_known:
+            local["points"][in_cube] = result[:m]
+        return result[m:]
+
+    def _intra_source(self, lower, target, dc_t, agtv_t, ctx):
+        """The aligned intra-source points (S, 3) for the target cube at ``lower``, or None.
+
+        Candidates: hole-free cubes with at least as many points as the target's known part,
+        ranked by the Euclidean distance of (DC, agtv_weight * AGTV) (a 4D k-d tree over all
+        candidates of the frame). The best ``intra_candidates`` are aligned (the paper: 1); with
+        more, the one with the smallest trimmed mean alignment residual wins.
+        """
+        cand, cube, cell = ctx["candidates"], ctx["cube"], ctx["cell"]
+        m = len(target)
+        if not len(cand["count"]):
+            return None
+        query = np.concatenate([dc_t, [self.agtv_weight * agtv_t]])
+        k = min(len(cand["count"]), 64)
+        _, order = cand["tree"].query(query, k=k)
+        order = np.atleast_1d(order)
+        order = order[cand["count"][order] >= m]
+        if len(order) < self.intra_candidates:
+            # rare: few big-enough cubes among the nearest features; rank all of them
+            big = np.flatnonzero(cand["count"] >= m)
+            if not len(big):
+                return None
+            feats = np.column_stack([cand["dc"][big], self.agtv_weight * cand["agtv"][big]])
+            order = big[np.argsort(np.linalg.norm(feats - query, axis=1), kind="stable")]
+        half = cube / 2.0
+        best, best_residual = None, np.inf
+        for index in order[: self.intra_candidates]:
+            source_lower = cand["lower"][index]
+            source_idx = ctx["tree"].query_ball_point(source_lower + half, half + cell, p=np.inf)
+            source = ctx["points"][source_idx] + (lower - source_lower)
+            rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations)
+            source = source @ rotation.T + translation
+            if self.intra_candidates == 1:
+                return source
+            dist, _ = cKDTree(source).query(target)
+            keep = max(3, int(np.ceil(0.9 * len(dist))))
+            residual = np.sort(dist)[:keep].mean()
+            if residual < best_residual:
+                best, best_residual = source, residual
+        return best
+
+    def _temporal_link(self, rows, target, lower, neighbour, ctx):
+        """(counterpart (n, 3), linked (n,)) of the rows in the aligned inter-source cube of one
+        neighbouring frame, or None when the frame has no points near the target cube."""
+        cube, cell, unit = ctx["cube"], ctx["cell"], ctx["unit"]
+        box = self.search_box * cube
+        centre = lower + cube / 2.0
+        box_idx = neighbour["tree"].query_ball_point(centre, box / 2.0, p=np.inf)
+        if len(box_idx) < 3:
+            return None
+        box_points = neighbour["points"][box_idx]
+        _, nearest = cKDTree(box_points).query(target)
+        window_lower, _ = best_window(box_points[nearest], centre - box / 2.0, box, cube, unit)
+        source = box_points[in_box(box_points, window_lower - cell, cube + 2 * cell)]
+        if len(source) < 3:
+            return None
+        rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations)
+        aligned = source @ rotation.T + translation
+        dist, idx = cKDTree(aligned).query(rows)
+        linked = dist <= self.link_radius * unit
+        if neighbour["regions"]:
+            # rows that land in a hole of the (not yet inpainted) neighbour have no true counterpart
+            back = (rows - translation) @ rotation
+            for region in neighbour["regions"]:
+                linked &= ~region.contains(back)
+        return aligned[idx], linked
+
+
+class TemporalGraph(_CubeGraphInpainting):
+    """The proposed method (Fu, Hu, Guo, ICME 2020): see the module docstring for every step.
+
+    Parameters (lengths in units of the point spacing ``u``; paper's values as defaults):
+      cube_size M=20, cells_per_cube=4 (step M/4), search_box H/M=2.5, alpha=1, beta=0.5, gamma=0.5,
+      sigma=1, k_neighbors=None (K = round(sqrt(m))), spacing=None (u estimated from the data; give
+      it to fix the unit), known_points "fixed" (known points stay; only new points are solved) or
+      "free" (the paper's literal replacement of the whole cube by c_r), min_known_points=16
+      (fewer known points: the cube is not a target), icp_iterations=10, link_radius=5 (temporal
+      links longer than this are dropped), snap "auto" (round new points to the grid when the input
+      is voxelized), agtv_weight=1 (lambda of the DC/AGTV distance).
+    """
+
+    name = "temporal-graph"
+    summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
+    version = "1"
+    uses_neighbour_frames = True
+    _temporal = True
+
+    def __init__(self, cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5, gamma=0.5,
+                 sigma=1.0, k_neighbors=None, spacing=None, known_points="fixed", min_known_points=16,
+                 icp_iterations=10, link_radius=5.0, snap="auto", agtv_weight=1.0, intra_candidates=1):
+        self.cube_size = cube_size
+        self.cells_per_cube = cells_per_cube
+        self.search_box = search_box
+        self.alpha = alpha
+        self.beta = beta
+        self.gamma = gamma
+        self.sigma = sigma
+        self.k_neighbors = k_neighbors
+        self.spacing = spacing
+        self.known_points = known_points
+        self.min_known_points = min_known_points
+        self.icp_iterations = icp_iterations
+        self.link_radius = link_radius
+        self.snap = snap
+        self.agtv_weight = agtv_weight
+        self.intra_candidates = intra_candidates
+
+
+class FuNonlocal(_CubeGraphInpainting):
+    """Hu, Fu, Guo [Fu18TIP] frame by frame: `TemporalGraph` without the temporal terms (beta = 0,
+    no inter-source cubes). Same parameters otherwise, same defaults."""
+
+    name = "fu-nonlocal"
+    summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
+    version = "1"
+    uses_neighbour_frames = False
+    _temporal = False
+
+    def __init__(self, cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0, k_neighbors=None,
+                 spacing=None, known_points="fixed", min_known_points=16, icp_iterations=10, snap="auto",
+                 agtv_weight=1.0, intra_candidates=1):
+        self.cube_size = cube_size
+        self.cells_per_cube = cells_per_cube
+        self.alpha = alpha
+        self.gamma = gamma
+        self.sigma = sigma
+        self.k_neighbors = k_neighbors
+        self.spacing = spacing
+        self.known_points = known_points
+        self.min_known_points = min_known_points
+        self.icp_iterations = icp_iterations
+        self.snap = snap
+        self.agtv_weight = agtv_weight
+        self.intra_candidates = intra_candidates
+        self.beta = 0.0  # not a parameter: the temporal terms are off by definition
