@@ -1,0 +1,214 @@
+"""The embedded stand-in sequences: distance primitives, the narrow-band voxelizer against brute force,
+determinism, 8i-like voxelization, articulated (human) and non-rigid (bunny) motion, the frame cache."""
+
+from __future__ import annotations
+
+import numpy as np
+import open3d as o3d
+import pytest
+from scipy.spatial import cKDTree
+
+from bench.standins import bunny, cache, human
+from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, smooth_min, surface_voxels
+
+
+@pytest.fixture(autouse=True)
+def private_cache(tmp_path, monkeypatch):
+    """Every test gets its own empty frame cache."""
+    monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
+
+
+def random_rotation(rng) -> np.ndarray:
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    return q * np.sign(np.diag(r))
+
+
+# -- distance primitives ---------------------------------------------------------------------------
+def test_round_cone_matches_brute_force_outside():
+    """Outside, the round cone's distance is min over t of |p - c(t)| - r(t) (it is the union of
+    the balls interpolated between its end balls)."""
+    rng = np.random.default_rng(0)
+    cone = RoundCone(np.array([0.0, 0.0, 0.0]), np.array([10.0, 3.0, -2.0]), 3.0, 1.2)
+    p = rng.uniform(-8, 18, size=(2000, 3))
+    t = np.linspace(0, 1, 2001)
+    centres = cone.a + t[:, None] * (cone.b - cone.a)
+    radii = cone.ra + t * (cone.rb - cone.ra)
+    brute = (np.linalg.norm(p[:, None, :] - centres[None], axis=2) - radii[None]).min(axis=1)
+    d = cone.distance(p)
+    outside = brute > 0.05
+    assert outside.sum() > 1500
+    np.testing.assert_allclose(d[outside], brute[outside], atol=2e-3)
+    assert np.all(d[brute < -0.05] < 0)
+
+
+def test_capsule_closed_form():
+    """Equal radii: distance to the segment minus the radius, inside and out."""
+    rng = np.random.default_rng(1)
+    a, b, r = np.array([1.0, 2.0, 3.0]), np.array([-4.0, 0.0, 5.0]), 1.5
+    p = rng.uniform(-8, 8, size=(2000, 3))
+    t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+    expected = np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1) - r
+    np.testing.assert_allclose(RoundCone(a, b, r, r).distance(p), expected, atol=1e-9)
+
+
+def test_ellipsoid_zero_set_and_lower_bound():
+    rng = np.random.default_rng(2)
+    R = random_rotation(rng)
+    ell = Ellipsoid(np.array([3.0, -1.0, 2.0]), np.array([4.0, 2.0, 1.5]), R)
+    u = rng.normal(size=(20000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    surface = ell.c + (u * ell.radii) @ R.T
+    np.testing.assert_allclose(ell.distance(surface), 0.0, atol=1e-9)
+    p = rng.uniform(-6, 10, size=(3000, 3))
+    d = ell.distance(p)
+    true = cKDTree(surface).query(p)[0]
+    outside = d > 0
+    # a lower bound of the true distance outside (up to the surface sampling's resolution)
+    assert np.all(d[outside] <= true[outside] + 0.05)
+    lo, hi = ell.aabb()
+    assert np.all(surface >= lo - 1e-9) and np.all(surface <= hi + 1e-9)
+    assert np.allclose(surface.min(0), lo, atol=0.05) and np.allclose(surface.max(0), hi, atol=0.05)
+
+
+def test_smooth_min_properties():
+    a = np.linspace(-3, 3, 101)
+    b = np.zeros_like(a)
+    s = smooth_min(a, b, 1.0)
+    assert np.all(s <= np.minimum(a, b) + 1e-12)
+    far = np.abs(a - b) >= 1.0
+    np.testing.assert_allclose(s[far], np.minimum(a, b)[far])
+    np.testing.assert_allclose(smooth_min(np.array([0.0]), np.array([0.0]), 1.0), [-0.25])
+
+
+def posed_body(size=180.0, motion="walk", t=0.3):
+    scale = size / human.rest_height_m()
+    origin = np.array([128.0, 6.0, 128.0])
+    return human.build_body(motion, t, 0.0, scale, origin)[0]
+
+
+def test_human_field_is_1_lipschitz():
+    """The narrow band relies on |f(p) - f(q)| <= |p - q|."""
+    rng = np.random.default_rng(3)
+    body = posed_body()
+    p = rng.uniform([60, 0, 60], [200, 200, 200], size=(20000, 3))
+    q = p + rng.normal(scale=3.0, size=p.shape)
+    fp, _ = body.evaluate(p, np.inf)
+    fq, _ = body.evaluate(q, np.inf)
+    assert np.all(np.abs(fp - fq) <= np.linalg.norm(p - q, axis=1) + 1e-9)
+
+
+def test_surface_voxels_match_brute_force():
+    """Narrow band + primitive culling find exactly the voxels a full-grid evaluation finds."""
+    size = 64
+    body = human.build_body("dance", 0.2, 0.0, 52.0 / human.rest_height_m(), np.array([32.0, 2.0, 32.0]))[0]
+    fast = surface_voxels(body, size)
+    ax = np.arange(size + 1, dtype=np.float64)
+    corners = np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
+    values, _ = body.evaluate(corners, np.inf)
+    neg = (values < 0).reshape(size + 1, size + 1, size + 1)
+    cube = np.stack([neg[i:i + size, j:j + size, k:k + size] for i in (0, 1) for j in (0, 1) for k in (0, 1)], -1)
+    crossed = cube.any(-1) & ~cube.all(-1)
+    brute = np.argwhere(crossed)
+    assert len(fast) > 1500
+    np.testing.assert_array_equal(fast, brute)  # both lexicographic
+
+
+# -- the human figure -------------------------------------------------------------------------------
+def test_human_is_deterministic_and_8i_like():
+    p1, c1 = human.generate_frame(3, size="tiny")
+    p2, c2 = human.generate_frame(3, size="tiny")
+    np.testing.assert_array_equal(p1, p2)
+    np.testing.assert_array_equal(c1, c2)
+    assert 10_000 <= len(p1) <= 30_000
+    assert p1.dtype == np.float64 and c1.dtype == np.uint8 and c1.shape == p1.shape
+    assert np.array_equal(p1, np.round(p1)) and p1.min() >= 0 and p1.max() <= 1023
+    assert len(np.unique(p1, axis=0)) == len(p1)  # one point per occupied voxel
+    # a surface, not a volume: nearly every point has a face/edge neighbour, the shell is thin
+    d, _ = cKDTree(p1).query(p1, k=2)
+    assert np.median(d[:, 1]) == 1.0
+    # several materials (skin, shirt, trousers, hair, shoes) -> several distinct colour clusters
+    assert len(np.unique(c1 // 64, axis=0)) >= 4
+
+
+def test_human_seed_and_frame_change_output():
+    p0, c0 = human.generate_frame(0, size="tiny")
+    p_seed, c_seed = human.generate_frame(0, size="tiny", seed=1)
+    p_next, _ = human.generate_frame(1, size="tiny")
+    assert not np.array_equal(p0, p_seed) and not np.array_equal(c0, c_seed)
+    assert not (len(p0) == len(p_next) and np.array_equal(p0, p_next))
+
+
+def test_human_motion_is_articulated():
+    """Walking: between frames 0 and 4 the feet move far more than the chest (not a rigid motion)."""
+    p0, _ = human.generate_frame(0, size="tiny")
+    p4, _ = human.generate_frame(4, size="tiny")
+    moved = cKDTree(p4).query(p0)[0]
+    y = p0[:, 1]
+    lo, h = y.min(), np.ptp(y)
+    feet = y < lo + 0.12 * h
+    chest = (y > lo + 0.6 * h) & (y < lo + 0.75 * h) & (np.abs(p0[:, 0] - p0[:, 0].mean()) < 15)
+    assert feet.sum() > 500 and chest.sum() > 500
+    assert moved[feet].mean() > 4 * moved[chest].mean()
+    assert moved[feet].mean() > 5.0  # voxels
+
+
+def test_human_motions_and_bit_depth():
+    for motion in human.MOTIONS:
+        p, _ = human.generate_frame(5, motion=motion, size="tiny", bit_depth=9)
+        assert p.max() <= 511 and p.min() >= 0
+    with pytest.raises(ValueError, match="unknown motion"):
+        human.generate_frame(0, motion="fly", size="tiny")
+    with pytest.raises(ValueError, match="does not fit"):
+        human.generate_frame(0, size="default", bit_depth=10, height=1000)
+    with pytest.raises(ValueError, match="unknown size"):
+        human.generate_frame(0, size="huge")
+
+
+# -- the bunny --------------------------------------------------------------------------------------
+def icp_rmse(a: np.ndarray, b: np.ndarray) -> float:
+    """RMSE of the best rigid (point-to-point ICP) alignment of a onto b."""
+    pa = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(a))
+    pb = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(b))
+    reg = o3d.pipelines.registration.registration_icp(
+        pa, pb, 10.0, np.eye(4), o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+        o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=100))
+    return reg.inlier_rmse
+
+
+def test_bunny_deterministic_voxelized_and_non_rigid():
+    p0, c0 = bunny.generate_frame(0, size="tiny")
+    again, c_again = bunny.generate_frame(0, size="tiny")
+    np.testing.assert_array_equal(p0, again)
+    np.testing.assert_array_equal(c0, c_again)
+    assert 10_000 <= len(p0) <= 30_000
+    assert np.array_equal(p0, np.round(p0)) and p0.min() >= 0 and p0.max() <= 1023
+    assert len(np.unique(p0, axis=0)) == len(p0)
+    resampled, _ = bunny.generate_frame(0, size="tiny", seed=1)  # same shape, other samples
+    later, _ = bunny.generate_frame(10, size="tiny")
+    assert icp_rmse(later, p0) > 3 * icp_rmse(resampled, p0)
+
+
+def test_bunny_float_samples():
+    p, c = bunny.generate_frame(2, bit_depth=None, points=5000, seed=4)
+    assert p.shape == (5000, 3) and c.shape == (5000, 3)
+    assert not np.array_equal(p, np.round(p))
+    q, _ = bunny.generate_frame(2, bit_depth=None, points=5000, seed=5)
+    assert not np.array_equal(p, q)
+
+
+# -- cache ------------------------------------------------------------------------------------------
+def test_cache_round_trip_and_key(tmp_path):
+    key = cache.cache_key("human", 1, {"size": "tiny", "seed": 0}, 3)
+    assert key != cache.cache_key("human", 1, {"size": "tiny", "seed": 1}, 3)
+    assert key != cache.cache_key("human", 2, {"size": "tiny", "seed": 0}, 3)
+    assert key != cache.cache_key("human", 1, {"size": "tiny", "seed": 0}, 4)
+    assert cache.load_cached(key, "human") is None
+    arrays = {"points": np.arange(12, dtype=np.uint16).reshape(4, 3), "colors": np.ones((4, 3), np.uint8)}
+    path = cache.store_cached(key, "human", arrays)
+    assert path is not None and path.parent.parent == tmp_path / "cache"
+    back = cache.load_cached(key, "human")
+    for name in arrays:
+        np.testing.assert_array_equal(back[name], arrays[name])
+    path.write_bytes(b"not a zip")  # a damaged entry reads as a miss
+    assert cache.load_cached(key, "human") is None
+    assert not list(path.parent.glob(".tmp-*"))  # no temporary file left behind
