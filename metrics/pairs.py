@@ -115,8 +115,22 @@ def _sorted_query(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, k: in
     _, idx = tree.query(queries, k=k, workers=-1)
     idx = idx.reshape(len(queries), k)
     sq = squared_distances(queries[:, None, :], targets[idx])
+    if k == 1:
+        return idx, sq
+    if k == 2:  # a swap is enough, and much cheaper than argsort on the full-size first query
+        swap = sq[:, 1] < sq[:, 0]
+        idx[swap] = idx[swap][:, ::-1]
+        sq[swap] = sq[swap][:, ::-1]
+        return idx, sq
     order = np.argsort(sq, axis=1, kind="stable")
     return np.take_along_axis(idx, order, axis=1), np.take_along_axis(sq, order, axis=1)
+
+
+def build_tree(points: np.ndarray) -> cKDTree:
+    """The KD-tree used for every query. ``balanced_tree=False, leafsize=32`` measured fastest for
+    two builds + three 2-neighbour queries on the 100k golden pair: 0.30 s CPU against 0.35 s with
+    scipy's defaults (leafsize 8: 0.40 s; compact_nodes=False: 0.39 s)."""
+    return cKDTree(points, leafsize=32, balanced_tree=False)
 
 
 def query_neighbours(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, order: np.ndarray | None = None) -> Neighbours:
@@ -243,11 +257,11 @@ class CloudPair:
     # -- trees and queries ------------------------------------------------------------------
     @cached_property
     def reference_tree(self) -> cKDTree:
-        return cKDTree(self.reference)
+        return build_tree(self.reference)
 
     @cached_property
     def result_tree(self) -> cKDTree:
-        return cKDTree(self.result)
+        return build_tree(self.result)
 
     @cached_property
     def ref_to_res(self) -> Neighbours:

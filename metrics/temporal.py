@@ -33,7 +33,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from metrics.pairs import check_points
+from metrics.pairs import build_tree, check_points
 
 #: Neighbours for the PCA normal of a ground-truth hole point.
 NORMAL_NEIGHBOURS = 12
@@ -68,8 +68,8 @@ class _Frame:
     def __init__(self, reference, result, regions, margin, index):
         self.gt = check_points(reference, f"reference frame {index}")
         self.res = check_points(result, f"result frame {index}")
-        self.gt_tree = cKDTree(self.gt)
-        self.res_tree = cKDTree(self.res)
+        self.gt_tree = build_tree(self.gt)
+        self.res_tree = build_tree(self.res)
         self.hole = np.flatnonzero(_region_mask(regions, self.gt, margin))
 
     def errors(self, gt_index: np.ndarray) -> np.ndarray:
