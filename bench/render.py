@@ -57,7 +57,7 @@ def shade_normals(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 def _disk_offsets(radius: int) -> np.ndarray:
     r = int(radius)
     dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
-    keep = dx ** 2 + dy ** 2 <= r * r + r  # a round splat (the +r keeps radius-1 splats a plus sign)
+    keep = dx ** 2 + dy ** 2 <= r * r + r  # a round splat; radius 1 is a 3x3 square, 2 drops the corners
     return np.stack([dy[keep], dx[keep]], 1)
 
 
