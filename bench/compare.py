@@ -9,7 +9,11 @@ A **summary** condenses the results store into one row per
 
 Only the latest run of each (sequence, holes, holes_params, seed, method, method_params) enters, so
 a store holding several code versions summarizes the newest unless `code_version` is given.
-Per-frame wall time is the metric ``time_s`` (scope "frame"), as the runner stores it.
+Frame-level values (frame >= 0) and sequence-level values (frame = -1) of the same metric are not
+mixed: a (run, metric, scope, peak) with frame-level values uses only those; one without uses its
+sequence-level value (e.g. temporal_consistency). Time is "time per frame": the runner stores
+``time_s`` per frame for per-frame methods, but only the sequence total at frame -1 for methods
+that use neighbouring frames; such a total is divided by the run's frame count.
 
 A summary is saved as CSV (a ``# key: value`` header block, then the rows) or JSON
 (``{"format": "dpcbench-summary", "meta": {...}, "rows": [...]}``); both carry ``meta`` with the
@@ -25,7 +29,9 @@ A row REGRESSED when the change passes its tolerance in the bad direction (direc
 `HIGHER_IS_BETTER` below); improved when it passes it in the good direction. Resource metrics
 (time_s, peak_mem_mb) are compared and shown, but fail the gate only with ``gate_time=True``.
 A row present in the baseline and absent from the current summary is MISSING and fails the gate
-(a method that started crashing must not pass silently).
+(a method that started crashing must not pass silently). Metrics without a tolerance, and
+INFO_METRICS (facts about the damaged input, such as removed_fraction), are shown as "changed" or
+✓ and never gated.
 """
 
 from __future__ import annotations
@@ -71,11 +77,15 @@ DEFAULT_TOLERANCES = {
     "nshd": 1.10, "hausdorff": 1.10, "chamfer": 1.10, "temporal_consistency": 1.10,
     "time_s": 1.5, "peak_mem_mb": 1.5,
 }
+#: facts about the input, not the method (e.g. the share of points the holes removed): compared and
+#: shown, never gated; a change means the data or the damage changed, which the table should show
+INFO_METRICS = ("removed_fraction",)
 #: per-frame times below this (seconds) are too noisy to gate on; compared but never REGRESSED
 TIME_FLOOR_S = 0.05
 
 STATUS_OK, STATUS_IMPROVED, STATUS_REGRESSED = "✓", "improved", "REGRESSED"
 STATUS_MISSING, STATUS_NEW, STATUS_SLOWER, STATUS_FASTER = "MISSING", "new", "slower", "faster"
+STATUS_CHANGED = "changed"
 
 SUMMARY_FORMAT = "dpcbench-summary"
 
@@ -167,6 +177,21 @@ def _population_std(values: pd.Series) -> float:
     return float(np.std(finite))
 
 
+def _frame_level_values(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (run, metric, scope, peak): the frame-level rows if any, else the sequence-level ones,
+    with a sequence-total time_s turned into seconds per frame (total / frames in the run)."""
+    cell = ["run_id", "metric", "scope", "peak"]
+    has_frames = df["frame"] >= 0
+    covered = df.loc[has_frames, cell].drop_duplicates()
+    sequence_level = df[~has_frames].merge(covered, on=cell, how="left", indicator="side")
+    sequence_level = sequence_level[sequence_level["side"] == "left_only"].drop(columns="side")
+    frame_counts = df.loc[has_frames].groupby("run_id")["frame"].nunique()
+    is_total_time = sequence_level["metric"] == "time_s"
+    counts = sequence_level.loc[is_total_time, "run_id"].map(frame_counts).fillna(1).clip(lower=1)
+    sequence_level.loc[is_total_time, "value"] = sequence_level.loc[is_total_time, "value"] / counts
+    return pd.concat([df[has_frames], sequence_level], ignore_index=True)
+
+
 def summarize(results: pd.DataFrame, *, experiment: str | None = None,
               code_version: str | None = None) -> pd.DataFrame:
     """One row per KEY_COLUMNS: mean, std (population) and count of the stored values.
@@ -175,6 +200,7 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
              run_id, metric, scope, peak, value, created_at (+ experiment, code_version to filter).
     Keeps, per RUN_KEY, only the run with the newest created_at, then averages over frames and seeds.
     Values that are NaN are left out of mean/std; n_frames counts the finite and infinite ones.
+    Frame-level vs sequence-level values: see the module docstring.
     """
     required = set(RUN_KEY) | {"run_id", "metric", "scope", "peak", "value", "created_at"}
     missing = sorted(required - set(results.columns))
@@ -196,7 +222,7 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
     run_times = df.groupby("run_id", sort=False, dropna=False).agg(created=("created_at", "min"),
                                                      **{k: (k, "first") for k in RUN_KEY})
     newest = run_times.sort_values("created").groupby(RUN_KEY, sort=False, dropna=False).tail(1).index
-    df = df[df["run_id"].isin(newest)]
+    df = _frame_level_values(df[df["run_id"].isin(newest)])
     grouped = df.groupby(KEY_COLUMNS, sort=True)["value"]
     summary = grouped.agg(mean="mean", std=_population_std, n_frames="count").reset_index()
     summary["n_frames"] = summary["n_frames"].astype(int)
@@ -400,10 +426,8 @@ def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances:
         record = {c: getattr(row, c) for c in KEY_COLUMNS}
         metric = record["metric"]
         kind = change_kind(metric)
-        if metric not in tolerances:
-            raise KeyError(f"no tolerance for metric {metric!r}; add it to the [tolerances] table "
-                           f"(a {'difference' if kind == 'delta' else 'ratio, e.g. 1.10'})")
-        tolerance = tolerances[metric]
+        informative = metric in INFO_METRICS or metric not in tolerances
+        tolerance = math.nan if informative else tolerances[metric]
         b, c = float(row.baseline), float(row.current)
         if row.side == "left_only":
             change, status = math.nan, STATUS_MISSING
@@ -411,10 +435,13 @@ def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances:
             change, status = math.nan, STATUS_NEW
         elif math.isnan(b) and math.isnan(c):
             change, status = math.nan, STATUS_OK
+        elif informative:
+            change = _change(kind, b, c)
+            status = STATUS_OK if math.isclose(b, c, rel_tol=1e-9, abs_tol=1e-12) else STATUS_CHANGED
         else:
             change = _change(kind, b, c)
             status = _status(metric, kind, change, tolerance, b)
-        gated = metric not in RESOURCE_METRICS or gate_time
+        gated = not informative and (metric not in RESOURCE_METRICS or gate_time)
         record.update(baseline=b, current=c, kind=kind, change=change, tolerance=tolerance,
                       status=status, gated=gated)
         rows.append(record)
@@ -444,11 +471,13 @@ def format_change(kind: str, change: float, metric: str = "") -> str:
         return "-"
     if kind == "delta":
         unit = " dB" if metric.startswith("gpsnr") else ""
-        return f"{change:+.3f}{unit}"
+        return f"{0.0 if abs(change) < 5e-4 else change:+.3f}{unit}"  # no "-0.000"
     return "x inf" if math.isinf(change) else f"x{change:.3f}"
 
 
 def format_tolerance(kind: str, tolerance: float, metric: str = "") -> str:
+    if math.isnan(tolerance):
+        return "info"
     if kind == "delta":
         return f"±{tolerance:g}{' dB' if metric.startswith('gpsnr') else ''}"
     return f"x{tolerance:g}"

@@ -96,8 +96,15 @@ def paper_reference() -> pd.DataFrame:
 # data preparation
 @dataclass
 class History:
-    """Summaries per code version. versions: code versions oldest first; table: summarize() rows
-    plus columns code_version and label (method + short params)."""
+    """Summaries per code version.
+
+    versions: code versions, oldest first (by their first run).
+    table:    `compare.summarize` rows per version plus columns code_version, label (method + short
+              params) and measured. The state at version v is cumulative: each cell's newest run
+              among the runs of versions up to v, so a sweep that spans several commits (or reruns
+              only some cells) still shows every cell; ``measured`` is True where the cell was run
+              at v itself, False where its value is carried over from an earlier version.
+    """
 
     versions: list[str]
     version_dates: dict[str, str]
@@ -119,22 +126,26 @@ def method_label(method: str, params_json: str) -> str:
 
 
 def build_history(results: pd.DataFrame) -> History:
-    """Summarize each code version of the results table (see module docstring)."""
+    """Summarize the results table at each code version (see History)."""
+    columns = compare.SUMMARY_COLUMNS + ["code_version", "label", "measured"]
     if results.empty:
-        return History([], {}, pd.DataFrame(columns=compare.SUMMARY_COLUMNS + ["code_version", "label"]))
+        return History([], {}, pd.DataFrame(columns=columns))
     results = results.copy()
     results["code_version"] = results["code_version"].fillna("unknown").astype(str)
     first_seen = results.groupby("code_version")["created_at"].min().sort_values()
     versions = list(first_seen.index)
     parts = []
-    for version in versions:
-        summary = compare.summarize(results, code_version=version)
+    for i, version in enumerate(versions):
+        summary = compare.summarize(results[results["code_version"].isin(versions[: i + 1])])
+        own = compare.summarize(results, code_version=version)[compare.KEY_COLUMNS]
+        summary = summary.merge(own.assign(measured=True), on=compare.KEY_COLUMNS, how="left")
+        summary["measured"] = summary["measured"].astype("boolean").fillna(False).astype(bool)
         summary["code_version"] = version
         parts.append(summary)
     table = pd.concat(parts, ignore_index=True)
     table["label"] = [method_label(m, p) for m, p in zip(table["method"], table["method_params"])]
     dates = {v: str(first_seen[v])[:16].replace("T", " ") for v in versions}
-    return History(versions, dates, table)
+    return History(versions, dates, table[columns])
 
 
 def method_colours(labels) -> dict[str, str]:
@@ -179,6 +190,17 @@ def _matplotlib():
     return plt
 
 
+def _plot_line(ax, line: pd.DataFrame, colour: str, linestyle: str = "-", label: str | None = None) -> None:
+    """One method's values over versions: filled markers where measured at that version, hollow
+    where carried over from an earlier one."""
+    ax.plot(line["x"], line["mean"], color=colour, linewidth=1.6, linestyle=linestyle, label=label, marker="o",
+            markersize=4, markevery=[i for i, m in enumerate(line["measured"]) if m] or None)
+    carried = line[~line["measured"].astype(bool)]
+    if len(carried):
+        ax.plot(carried["x"], carried["mean"], linestyle="none", marker="o", markersize=4.5,
+                markerfacecolor="white", markeredgecolor=colour)
+
+
 def quality_chart(history: History, sequence: str, holes: str, holes_params: str, metrics: list[str],
                   colours: dict[str, str], paper: pd.DataFrame) -> str:
     """rows = scopes, columns = metrics; x = code versions; one line per method configuration."""
@@ -198,8 +220,7 @@ def quality_chart(history: History, sequence: str, holes: str, holes_params: str
             for label, rows in cell.groupby("label", sort=False):
                 rows = rows.assign(x=rows["code_version"].map(x_of)).sort_values("x")
                 for peak, line in rows.groupby("peak"):
-                    ax.plot(line["x"], line["mean"], marker="o", markersize=4, linewidth=1.6,
-                            color=colours[label], linestyle="-" if peak in ("", "intrinsic") else ":")
+                    _plot_line(ax, line, colours[label], linestyle="-" if peak in ("", "intrinsic") else ":")
             for _, ref in paper_rows[paper_rows["metric"] == metric].iterrows():
                 colour = next((v for k, v in colours.items() if k.split(" (")[0] == ref["method"]), "#6b7280")
                 ax.axhline(ref["value"], color=colour, linestyle="--", linewidth=0.9, alpha=0.7)
@@ -212,6 +233,9 @@ def quality_chart(history: History, sequence: str, holes: str, holes_params: str
             ax.set_title(f"{METRIC_LABELS.get(metric, metric)} · {scope}", loc="left")
     handles = [plt.Line2D([], [], color=colours[l], marker="o", linewidth=1.6, label=l)
                for l in sorted(set(sub["label"]), key=list(colours).index)]
+    if not sub["measured"].all():
+        handles.append(plt.Line2D([], [], color="#6b7280", marker="o", markerfacecolor="white", linestyle="none",
+                                  label="carried over (not rerun)"))
     if not paper_rows.empty:
         handles.append(plt.Line2D([], [], color="#6b7280", linestyle="--", label="paper (Table 1/2)"))
     fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 6), frameon=False,
@@ -232,8 +256,7 @@ def time_chart(history: History, colours: dict[str, str]) -> str | None:
     for ax, ((sequence, holes, _), rows) in zip(axes[0], groups):
         for label, line in rows.groupby("label", sort=False):
             line = line.assign(x=line["code_version"].map(x_of)).sort_values("x")
-            ax.plot(line["x"], line["mean"], marker="o", markersize=4, linewidth=1.6, color=colours[label],
-                    label=label)
+            _plot_line(ax, line, colours[label], label=label)
         if (rows["mean"] > 0).all():
             ax.set_yscale("log")
         ax.set_xticks(range(len(history.versions)))
@@ -425,7 +448,7 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
     colours = method_colours(history.table["label"]) if len(history.table) else {}
     metrics_present = set(history.table["metric"]) if len(history.table) else set()
     quality_metrics = [m for m in QUALITY_ORDER if m in metrics_present] + \
-        sorted(metrics_present - set(QUALITY_ORDER) - set(compare.RESOURCE_METRICS))
+        sorted(metrics_present - set(QUALITY_ORDER) - set(compare.RESOURCE_METRICS) - set(compare.INFO_METRICS))
 
     # the latest comparison: newest version vs the previous one, or vs a given baseline
     comparison, compared_what = None, ""
@@ -474,14 +497,18 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
     sections = []
     # comparison
     if comparison is not None:
-        flagged = comparison.table[comparison.table["status"] != compare.STATUS_OK]
-        severity = {compare.STATUS_REGRESSED: 0, compare.STATUS_MISSING: 1, compare.STATUS_SLOWER: 2}
-        flagged = flagged.assign(_rank=flagged["status"].map(severity).fillna(3)).sort_values(
-            "_rank", kind="stable").drop(columns="_rank")
+        flagged = comparison.table[~comparison.table["status"].isin([compare.STATUS_OK, compare.STATUS_NEW])]
+        n_new = int((comparison.table["status"] == compare.STATUS_NEW).sum())
+        severity = {compare.STATUS_REGRESSED: 0, compare.STATUS_MISSING: 1, compare.STATUS_SLOWER: 2,
+                    compare.STATUS_IMPROVED: 3, compare.STATUS_FASTER: 4}
+        flagged = flagged.assign(_rank=flagged["status"].map(severity).fillna(5)).sort_values(
+            "_rank", kind="stable").drop(columns="_rank")  # the bad news first
         verdict = ('<span class="badge bad">FAILED</span>' if comparison.failed
                    else '<span class="badge good">PASSED</span>')
         body = (comparison_table(comparison, colours, flagged) if len(flagged)
                 else "<p>Every row is within tolerance.</p>")
+        if n_new:
+            body += f'<p class="note">{n_new} row(s) are new in this version (no earlier value to compare).</p>'
         sections.append(
             f'<section id="comparison"><h2>Latest comparison {verdict}</h2>'
             f'<p class="note">{_e(compared_what)}. Changes: dB for PSNR, ratios for NSHD, distances and time; '

@@ -66,6 +66,32 @@ def test_summarize_keeps_newest_run_and_filters():
     assert len(merged) == 1 and merged["method_params"].iloc[0] == '{"a":2,"b":1}'
 
 
+def test_sequence_level_values_are_not_mixed_with_frame_values():
+    # a per-frame method: time per frame + the run total at frame -1 (ignored, per-frame rows exist)
+    per_frame = results_frame({("lozes-pde", "time_s", "frame"): [1.0, 3.0]})
+    per_frame = pd.concat([per_frame, per_frame.iloc[[0]].assign(frame=-1, value=4.0)])
+    # a temporal method: only the total (6 s over 3 frames, known from its quality rows) -> 2 s a frame
+    temporal = results_frame({("temporal-graph", "gpsnr_d1", "frame"): [30.0, 31.0, 32.0],
+                              ("temporal-graph", "time_s", "frame"): [6.0]}).copy()
+    temporal.loc[temporal["metric"] == "time_s", "frame"] = -1
+    # a sequence-level metric stays as it is
+    tc = results_frame({("none", "temporal_consistency", "holes"): [0.7]}).assign(frame=-1)
+    s = compare.summarize(pd.concat([per_frame, temporal, tc], ignore_index=True)).set_index(["method", "metric"])
+    assert s.loc[("lozes-pde", "time_s"), "mean"] == pytest.approx(2.0)
+    assert s.loc[("lozes-pde", "time_s"), "n_frames"] == 2
+    assert s.loc[("temporal-graph", "time_s"), "mean"] == pytest.approx(2.0)
+    assert s.loc[("none", "temporal_consistency"), "mean"] == pytest.approx(0.7)
+
+
+def test_input_facts_are_shown_not_gated():
+    base = summary({("m", "removed_fraction", "frame"): 0.03, ("m", "gpsnr_d1", "frame"): 30.0})
+    cur = summary({("m", "removed_fraction", "frame"): 0.05, ("m", "gpsnr_d1", "frame"): 30.0})
+    result = compare.compare_summaries(base, cur)
+    row = result.table[result.table["metric"] == "removed_fraction"].iloc[0]
+    assert row["status"] == compare.STATUS_CHANGED and not row["gated"] and not result.failed
+    assert "changed (not gated)" in result.format() and "info" in result.format()
+
+
 def test_summarize_errors():
     with pytest.raises(ValueError, match="lacks the columns"):
         compare.summarize(pd.DataFrame({"value": [1.0]}))

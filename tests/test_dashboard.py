@@ -161,3 +161,23 @@ def test_dashboard_in_headless_chromium(tmp_path, capsys):
     assert dom.count("11111111") >= 6 and dom.count("22222222") >= 6
     assert 'data-chart="benchmarks" data-sessions="2"' in dom
     assert "test_gpsnr_1m" in dom
+
+
+def test_history_is_cumulative_over_versions(tmp_path):
+    """A cell not rerun at the newer version keeps its last value there (measured False), so a
+    partial rerun or a sweep spanning two commits shows no cell as missing."""
+    store = make_store(tmp_path / "s.sqlite", versions=(0,))
+    version, when = VERSIONS[1]
+    store.record_run("only-none", dict(sequence="human", holes="region", holes_params={"preset": "small"}, seed=0,
+                                       method="none", method_params={}, code_version=version, created_at=when,
+                                       finished_at=when), [dict(frame=0, metric="gpsnr_d1", scope="frame",
+                                                                peak="intrinsic", value=99.0)], ["regression"])
+    history = dashboard.build_history(store.results_frame())
+    newest = history.table[history.table["code_version"] == version].set_index(["method", "metric", "scope"])
+    assert newest.loc[("none", "gpsnr_d1", "frame"), "mean"] == 99.0
+    assert bool(newest.loc[("none", "gpsnr_d1", "frame"), "measured"])
+    carried = newest.loc[("temporal-graph", "gpsnr_d1", "frame")]
+    assert carried["mean"] == pytest.approx(50.0, abs=0.1) and not bool(carried["measured"])
+    # the page compares the cumulative states: nothing missing, the rerun cell improved
+    page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame())
+    assert 'data-status="MISSING"' not in page and 'data-status="improved"' in page
