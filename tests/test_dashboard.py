@@ -168,10 +168,14 @@ def test_history_is_cumulative_over_versions(tmp_path):
     partial rerun or a sweep spanning two commits shows no cell as missing."""
     store = make_store(tmp_path / "s.sqlite", versions=(0,))
     version, when = VERSIONS[1]
+    previous = store.results_frame()
+    previous = previous[previous["method"] == "none"]
+    rows = [dict(frame=r.frame, metric=r.metric, scope=r.scope, peak=r.peak,
+                 value=99.0 if (r.metric, r.scope) == ("gpsnr_d1", "frame") else r.value)
+            for r in previous.itertuples(index=False)]
     store.record_run("only-none", dict(sequence="human", holes="region", holes_params={"preset": "small"}, seed=0,
                                        method="none", method_params={}, code_version=version, created_at=when,
-                                       finished_at=when), [dict(frame=0, metric="gpsnr_d1", scope="frame",
-                                                                peak="intrinsic", value=99.0)], ["regression"])
+                                       finished_at=when), rows, ["regression"])
     history = dashboard.build_history(store.results_frame())
     newest = history.table[history.table["code_version"] == version].set_index(["method", "metric", "scope"])
     assert newest.loc[("none", "gpsnr_d1", "frame"), "mean"] == 99.0
