@@ -269,6 +269,9 @@ def test_cli_compare_store_against_baseline(tmp_path, capsys):
     assert "REGRESSED" in text and "-1.000 dB" in text and "FAILED: 1 regression" in text
     assert "slower (not gated)" in text
     assert pd.read_csv(out_csv)["status"].tolist().count("REGRESSED") == 1
+    assert cli_main(["compare", str(baseline), str(store2), "--changes-only"]) == 1
+    changed = capsys.readouterr().out
+    assert "gpsnr_d1" in changed and "nshd" not in changed  # only rows that are not ✓
     # time gated on request: now two failures
     assert cli_main(["compare", str(baseline), str(store2), "--gate-time"]) == 1
     assert "FAILED: 2 regression" in capsys.readouterr().out
@@ -276,6 +279,9 @@ def test_cli_compare_store_against_baseline(tmp_path, capsys):
 
 def test_cli_compare_errors(tmp_path, capsys):
     store = write_store(tmp_path / "a.sqlite", {("none", "gpsnr_d1", "frame"): [30.0]})
+    absent = tmp_path / "absent.sqlite"
+    assert cli_main(["compare", str(tmp_path / "b.csv"), "--store", str(absent)]) == 2
+    assert "no results store there" in capsys.readouterr().err and not absent.exists()
     assert cli_main(["compare", str(tmp_path / "nope.csv"), str(store)]) == 2
     assert "no such summary file" in capsys.readouterr().err
     assert cli_main(["compare", str(tmp_path / "b.txt"), str(store)]) == 2

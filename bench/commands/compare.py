@@ -54,7 +54,7 @@ def current_from_store(store_path, experiment: str | None):
     except ImportError as err:
         raise UserError(f"cannot read a results store here ({err}); pass a summary file as CURRENT") from None
     try:
-        store = ResultsStore(store_path) if store_path is not None else ResultsStore()
+        store = ResultsStore(store_path, readonly=True)
         results = store.results_frame()
         runs = store.runs_frame()
     except (ValueError, OSError, KeyError) as err:
