@@ -3,6 +3,8 @@ normals when the frames have no colours), with an optional magnified zoom box.""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from bench.errors import UserError
 
 
@@ -11,8 +13,8 @@ def register(subparsers) -> None:
                                    description=__doc__)
     parser.add_argument("source", metavar="PATH_OR_NAME", help="folder / glob / PLY file, or a dataset name")
     parser.add_argument("--out", required=True, help="PNG file to write")
-    parser.add_argument("--frames", default="0-3",
-                        help="frame indices: a list (0,6,12), a range (0-3) or one index (5); default 0-3")
+    parser.add_argument("--frames", default=None,
+                        help="frame indices: a list (0,6,12), a range (0-3) or one index (5); default: the first 4")
     parser.add_argument("--zoom", default=None, metavar="X0,Y0,Z0,X1,Y1,Z1",
                         help="3D box to magnify in a row under the frames")
     parser.add_argument("--view", default="front", help="front, back, left, right, top, or AZIMUTH,ELEVATION degrees")
@@ -23,6 +25,21 @@ def register(subparsers) -> None:
     parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper's sequences")
     parser.set_defaults(func=run)
+
+
+DEFAULT_FRAMES = 4
+
+
+def _frame_count(source: str) -> int:
+    """Frames available (for the default selection): dataset names have at least DEFAULT_FRAMES."""
+    from bench.datasets import EMBEDDED, PAPER
+    from bench.sequences import list_frame_files
+
+    if source.lower() in EMBEDDED or source.lower() in PAPER:
+        return DEFAULT_FRAMES
+    if not Path(source).exists() and not any(ch in source for ch in "*?["):
+        return DEFAULT_FRAMES  # load_dataset explains what is wrong with the name
+    return len(list_frame_files(source))
 
 
 def _numbers(text: str, count: int | None, option: str) -> list[float]:
@@ -42,6 +59,8 @@ def run(args) -> int:
     frames = parse_frames(args.frames)
     if isinstance(frames, int):
         frames = [frames]  # one number is one frame index here
+    if frames is None:
+        frames = list(range(min(DEFAULT_FRAMES, _frame_count(args.source))))
     view = args.view if args.view in VIEWS else _numbers(args.view, 2, "--view")
     zoom = _numbers(args.zoom, 6, "--zoom") if args.zoom else None
     if args.point_size is not None and not 0 <= args.point_size <= 20:
