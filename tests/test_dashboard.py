@@ -20,7 +20,7 @@ METHODS = {"temporal-graph": (40.0, 1e-7, 2.0), "fu-nonlocal": (36.0, 3e-7, 1.5)
 VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"), ("2222222222bbbbbbbbbb", "2026-01-02T10:00:00+00:00")]
 
 
-def make_store(path, *, versions=(0, 1)):
+def make_store(path, *, versions=(0, 1), spec_ids=False):
     """Runs of 3 methods on 1 sequence at two code versions; at the second, fu-nonlocal loses 2 dB
     GPSNR D1 and doubles its NSHD (both scopes), everything else is identical."""
     store = ResultsStore(path)
@@ -39,7 +39,8 @@ def make_store(path, *, versions=(0, 1)):
                                      value=psnr + offset + 4 + noise[frame]))
                     rows.append(dict(frame=frame, metric="nshd", scope=scope, peak="", value=nshd * (2 if worse else 1)))
                 rows.append(dict(frame=frame, metric="time_s", scope="frame", peak="", value=seconds))
-            store.record_run(f"{version[:4]}-{method}", dict(
+            # spec_ids: ids that hash the spec only, as the runner's do: equal across commits
+            store.record_run(method if spec_ids else f"{version[:4]}-{method}", dict(
                 sequence="human", holes="region", holes_params={"preset": "small"}, seed=0, method=method,
                 method_params={}, method_version="1", code_version=version, spec={}, created_at=when,
                 finished_at=when, env={"packages": {"numpy": np.__version__}}), rows, ["regression"])
@@ -140,8 +141,8 @@ def test_dashboard_in_headless_chromium(tmp_path, capsys):
     """Two stores (one per code version, as two regression runs at two commits give) merged by
     --store twice; chromium loads the page and its DOM shows the flagged rows, the methods, both
     commits and the benchmark history."""
-    make_store(tmp_path / "first.sqlite", versions=(0,))
-    make_store(tmp_path / "second.sqlite", versions=(1,))
+    make_store(tmp_path / "first.sqlite", versions=(0,), spec_ids=True)
+    make_store(tmp_path / "second.sqlite", versions=(1,), spec_ids=True)
     out = tmp_path / "dash.html"
     bench_dir = write_benchmark_sessions(tmp_path / "bench")
     assert cli_main(["dashboard", "--out", str(out), "--store", str(tmp_path / "first.sqlite"),

@@ -38,13 +38,21 @@ def load_stores(paths, experiment):
     from bench.store import ResultsStore
 
     results, runs = [], []
-    for path in paths or [None]:
+    paths = paths or [None]
+    for i, path in enumerate(paths):
         try:
             store = ResultsStore(path, readonly=True)
-            results.append(store.results_frame(experiment))
-            runs.append(store.runs_frame(experiment))
+            store_results = store.results_frame(experiment)
+            store_runs = store.runs_frame(experiment)
         except ValueError as err:
             raise UserError(str(err)) from None
+        if len(paths) > 1:
+            # run ids hash the spec, not the commit: the same run in two stores (e.g. one per commit)
+            # is two runs here
+            store_results["run_id"] = f"{i}:" + store_results["run_id"]
+            store_runs["run_id"] = f"{i}:" + store_runs["run_id"]
+        results.append(store_results)
+        runs.append(store_runs)
     return pd.concat(results, ignore_index=True), pd.concat(runs, ignore_index=True)
 
 
