@@ -496,14 +496,15 @@ def short_params(params_json: str, limit: int = 40) -> str:
 
 
 def format_comparison(comparison: Comparison, *, only_changes: bool = False, width: int = 160) -> str:
-    """The comparison as an aligned text table plus a one-line verdict."""
+    """The comparison as text: one aligned table per (sequence, holes) block, then a verdict line.
+
+    Columns: method (+ params), metric (@peak), scope, baseline, current, change, tolerance,
+    status; the column widths are shared by all blocks so that they line up.
+    """
     table = comparison.table
     if only_changes:
         table = table[table["status"] != STATUS_OK]
     display = pd.DataFrame({
-        "sequence": table["sequence"],
-        "holes": [h + (f" ({short_params(p, 24)})" if p != "{}" else "") for h, p in
-                  zip(table["holes"], table["holes_params"])],
         "method": [m + (f" ({short_params(p)})" if p != "{}" else "") for m, p in
                    zip(table["method"], table["method_params"])],
         "metric": [m + (f"@{p}" if p else "") for m, p in zip(table["metric"], table["peak"])],
@@ -515,19 +516,32 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
                       zip(table["kind"], table["tolerance"], table["metric"])],
         "status": [s if g or s in (STATUS_OK, STATUS_NEW) else f"{s} (not gated)"
                    for s, g in zip(table["status"], table["gated"])],
-    })
+    }, index=table.index)
     lines = []
     if display.empty:
         lines.append("(no rows)" if not only_changes else "(no changes beyond tolerance)")
     else:
-        with pd.option_context("display.width", width, "display.max_colwidth", 60, "display.max_rows", None):
-            lines.append(display.to_string(index=False))
+        widths = {c: max(len(c), int(display[c].str.len().max())) for c in display.columns}
+        left = {"method", "metric", "scope", "status"}
+
+        def row_text(values: dict) -> str:
+            cells = [str(values[c]).ljust(widths[c]) if c in left else str(values[c]).rjust(widths[c])
+                     for c in display.columns]
+            return "  ".join(cells).rstrip()
+
+        blocks = table.groupby(["sequence", "holes", "holes_params"], sort=False)
+        for (sequence, holes, holes_params), block in blocks:
+            params = f" ({short_params(holes_params, 80)})" if holes_params != "{}" else ""
+            lines.append(f"== {sequence} · holes: {holes}{params}")
+            lines.append(row_text({c: c for c in display.columns}))
+            for index in block.index:
+                lines.append(row_text(display.loc[index].to_dict()))
+            lines.append("")
     counts = comparison.counts()
     failures = comparison.failures
     verdict = (f"FAILED: {len(failures)} regression(s) beyond tolerance" if comparison.failed
                else "PASSED: no quality metric regressed beyond tolerance")
     summary = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
     time_note = "" if comparison.gate_time else " (time compared, not gated: use --gate-time)"
-    lines.append("")
     lines.append(f"{verdict}; {len(comparison.table)} rows: {summary}{time_note}")
     return "\n".join(lines)
