@@ -99,12 +99,13 @@ def zoom_box(regions: list, pad: float = 1.3) -> tuple:
 
 def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list[str], out_png: str | Path, *,
                     zoom_regions: list | None = None, highlight_regions: list[list] | None = None,
-                    view=None, title: str = "") -> Path:
+                    view=None, title: str = "", highlight_from_row: int = 2) -> Path:
     """A paper-style subjective figure (Fig. 3/4): one row per (label, frames) entry (ground truth,
     with holes, each method), one column per frame, drawn by `bench.render.render_clouds` with the
     same scale in every panel, shaded by normals. ``zoom_regions``: hole regions whose box is outlined
     and magnified under each row. ``highlight_regions``: per column, regions whose points are painted
-    red (the filled area) in every row except the first two."""
+    red (the filled area) in every row from ``highlight_from_row`` on (default 2: not in the ground
+    truth and the damaged input)."""
     from bench.render import render_clouds
     from holes.regions import union_mask
 
@@ -114,7 +115,7 @@ def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list
         titles.append([f"{label}, {frame_labels[c]}" for c in range(len(frames))])
         marks = []
         for c, pts in enumerate(frames):
-            regs = highlight_regions[c] if highlight_regions is not None and r >= 2 else None
+            regs = highlight_regions[c] if highlight_regions is not None and r >= highlight_from_row else None
             marks.append(union_mask(regs, pts) if regs else None)
         highlight.append(marks)
     box = zoom_box(zoom_regions) if zoom_regions else None

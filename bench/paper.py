@@ -59,3 +59,173 @@ def paper_mean_gains() -> dict[str, float]:
     rows = list(TABLE1_GPSNR.values())
     proposed = [r[3] for r in rows]
     return {col: sum(p - r[i] for p, r in zip(proposed, rows)) / len(rows) for i, col in enumerate(COLUMNS[:3])}
+
+
+# -- the protocol `reproduce-paper` runs ----------------------------------------------------------
+PRESETS_DIR = __import__("pathlib").Path(__file__).resolve().parent / "presets"
+#: consecutive frames shown in the subjective figures and used for the real-hole runs
+REAL_HOLE_FRAMES = 3
+
+
+class PaperProtocol:
+    """The runs of `reproduce-paper`: ``synthetic`` (Tables 1-2, Fig. 4) and ``real`` (Fig. 3).
+
+    standins: True when the sequences are the embedded stand-ins (no --data-dir).
+    """
+
+    def __init__(self, preset: str, standins: bool, synthetic: list, real: list, config: dict):
+        self.preset = preset
+        self.standins = standins
+        self.synthetic = synthetic
+        self.real = real
+        self.config = config
+
+
+def available_paper_sequences(data_dir) -> list[str]:
+    """Names (bench.datasets.PAPER keys) of the paper's sequences found under ``data_dir``."""
+    from pathlib import Path
+
+    from bench.datasets import PAPER, find_paper_folder
+
+    root = Path(data_dir).expanduser()
+    if not root.is_dir():
+        raise ValueError(f"--data-dir {root}: no such folder; give the folder that holds e.g. longdress/Ply/*.ply")
+    return [name for name in PAPER_SEQUENCES if find_paper_folder(PAPER[name], root) is not None]
+
+
+def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frames: int | None = None) -> PaperProtocol:
+    """Expand the preset (paper-quick.toml or paper.toml) into runs.
+
+    Synthetic holes: the preset's sequences (stand-ins) or, with ``data_dir``, every paper sequence
+    found there with the preset's frame count. Real holes (Fig. 3): on the stand-in human, acquisition
+    holes from the "occlusion" generator, regions *detected* by `holes.detection.detect_holes` (the
+    ground truth is known, so they are scored too); on the paper's data, the first sequence's own
+    capture holes (no hole generator, no ground truth, not scored), regions detected likewise.
+    """
+    import copy
+    import tomllib
+
+    from bench.config import parse_config
+
+    preset = "paper-quick" if quick else "paper"
+    base = tomllib.loads((PRESETS_DIR / f"{preset}.toml").read_text())
+    if frames is not None and frames < 2:
+        raise ValueError("--frames: the temporal method needs at least 2 frames")
+    for seq in base["sequences"]:
+        if size:
+            seq.setdefault("params", {})["size"] = size
+        if frames:
+            seq["frames"] = frames
+    frames = base["sequences"][0].get("frames")
+    standins = True
+    synthetic_cfg = copy.deepcopy(base)
+    real_cfg = copy.deepcopy(base)
+    real_cfg["experiment"]["name"] = f"{preset}-real-holes"
+    real_cfg["experiment"]["regions"] = "detected"
+    if data_dir:
+        found = available_paper_sequences(data_dir)
+        if not found:
+            raise ValueError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
+                             "found there; expected e.g. longdress/Ply/longdress_vox10_1051.ply ... (see "
+                             "`dpcbench datasets`), or leave --data-dir out to run on the embedded stand-ins")
+        standins = False
+        synthetic_cfg["experiment"]["name"] = f"{preset}-data"
+        synthetic_cfg["experiment"]["data_dir"] = str(data_dir)
+        synthetic_cfg["sequences"] = [{"name": n, "frames": frames, "label": PAPER_SEQUENCES[n]} for n in found]
+        real_cfg["experiment"]["name"] = f"{preset}-data-real-holes"
+        real_cfg["experiment"]["data_dir"] = str(data_dir)
+        real_cfg["sequences"] = [{"name": found[0], "frames": REAL_HOLE_FRAMES, "label": PAPER_SEQUENCES[found[0]]}]
+        real_cfg["holes"] = [{"generator": "none"}]
+    else:
+        first = copy.deepcopy(base["sequences"][0])
+        first["frames"] = [0, REAL_HOLE_FRAMES]
+        real_cfg["sequences"] = [first]
+        real_cfg["holes"] = [{"generator": "occlusion", "seed": 0}]
+    synthetic = parse_config(synthetic_cfg, source=f"preset {preset}").expand()
+    real = parse_config(real_cfg, source=f"preset {preset} (real holes)").expand()
+    return PaperProtocol(preset, standins, synthetic, real, synthetic_cfg)
+
+
+def _done_folders(store, specs) -> dict:
+    """method name -> (spec, run folder) of the done runs among ``specs`` (first per method)."""
+    from pathlib import Path
+
+    runs = store.runs_frame().drop_duplicates("run_id").set_index("run_id")
+    out = {}
+    for spec in specs:
+        if spec.run_id in runs.index and runs.loc[spec.run_id, "status"] == "done" and spec.method["name"] not in out:
+            out[spec.method["name"]] = (spec, Path(runs.loc[spec.run_id, "output_dir"]))
+    return out
+
+
+def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
+    """Fig. 4-like (synthetic holes) and Fig. 3-like (detected real holes) subjective figures.
+
+    Returns figure stem -> a caption for REPORT.md. A figure whose runs did not finish is skipped,
+    and the caption says so."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from bench.figures import subjective_grid
+    from bench.runner import load_ground_truth, read_run_folder
+
+    fig_dir = Path(fig_dir)
+    notes = {}
+
+    # Fig. 4: the first sequence and seed of the synthetic runs
+    first_seq = protocol.synthetic[0].sequence_label if protocol.synthetic else None
+    seed = protocol.synthetic[0].holes["seed"] if protocol.synthetic else None
+    specs = [s for s in protocol.synthetic if s.sequence_label == first_seq and s.holes["seed"] == seed]
+    done = _done_folders(store, specs)
+    if done:
+        spec0, folder0 = next(iter(done.values()))
+        truth = load_ground_truth(spec0.sequence)
+        content0 = read_run_folder(folder0)
+        n = len(truth.frames)
+        shown = sorted(set(np.linspace(0, n - 1, min(4, n)).round().astype(int).tolist()))
+        regions = content0["regions"]
+        zoom = [regions[f][0] for f in shown if regions[f]][:1]
+        rows = [("Ground truth", [truth.frames[f].points for f in shown]),
+                ("With holes", [content0["damaged"][f] for f in shown])]
+        for name, label, _ in PAPER_METHODS:
+            if name in done:
+                rows.append((label, [read_run_folder(done[name][1])["inpainted"][f] for f in shown]))
+        subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig4_synthetic_holes.png", zoom_regions=zoom,
+                        highlight_regions=[regions[f] for f in shown],
+                        title=f"Synthetic holes, {first_seq}")
+        missing = [label for name, label, _ in PAPER_METHODS if name not in done]
+        notes["fig4_synthetic_holes"] = (
+            f"Like the paper's Fig. 4: {first_seq}, seed {seed}; rows ground truth, with holes, then each method; "
+            f"columns frames {shown}; the orange box (first hole) is magnified under each row; points inside "
+            "the hole regions are red in the method rows." + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))
+
+    # Fig. 3: detected holes on consecutive frames
+    done = _done_folders(store, protocol.real)
+    if done:
+        spec0, folder0 = next(iter(done.values()))
+        truth = load_ground_truth(spec0.sequence)
+        content0 = read_run_folder(folder0)
+        detected = content0["detected"] or [[] for _ in content0["damaged"]]
+        shown = list(range(len(content0["damaged"])))
+        zoom = [detected[f][0] for f in shown if detected[f]][:1]
+        if protocol.standins:
+            rows = [("Ground truth", [truth.frames[f].points for f in shown]),
+                    ("Acquisition holes", content0["damaged"])]
+        else:
+            rows = [("Captured", content0["damaged"]), ("Captured (detected holes)", content0["damaged"])]
+        for name, label, _ in PAPER_METHODS:
+            if name in done:
+                rows.append((label, read_run_folder(done[name][1])["inpainted"]))
+        subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig3_real_holes.png", zoom_regions=zoom,
+                        highlight_regions=[detected[f] for f in shown],
+                        title=f"Detected holes, {spec0.sequence_label}")
+        counts = [len(d) for d in detected]
+        source = ("acquisition holes simulated by the occlusion generator (a capture rig's blind spots), whose "
+                  "ground truth is known: these runs are scored too (table 'real_holes_gpsnr')"
+                  if protocol.standins else "the sequence's own capture holes (no ground truth: not scored)")
+        notes["fig3_real_holes"] = (
+            f"Like the paper's Fig. 3: {source}. The methods get the regions found by "
+            f"`holes.detection.detect_holes` ({counts} regions per frame), not the true ones; consecutive "
+            "frames show temporal coherence; red = points inside the detected regions.")
+    return notes

@@ -70,7 +70,7 @@ class ComparisonTable:
     n: dict
     scale: float = 1.0
     unit: str = ""
-    decimals: int = 2
+    decimals: int | None = 2
     paper: dict | None = None
     notes: list[str] = field(default_factory=list)
 
@@ -85,8 +85,14 @@ class ComparisonTable:
         if (row, col) not in self.mean:
             return "–"
         m, s = self.mean[(row, col)] * self.scale, self.std[(row, col)] * self.scale
-        text = f"{m:.{self.decimals}f} ± {s:.{self.decimals}f}"
+        text = f"{self._fmt(m)} ± {self._fmt(s)}"
         return fmt_bold(text) if bold else text
+
+    def _fmt(self, x: float) -> str:
+        """``decimals`` fixed decimals; with decimals=None, 2 decimals for |x| >= 1, else 3 significant digits."""
+        if self.decimals is not None:
+            return f"{x:.{self.decimals}f}"
+        return f"{x:.2f}" if abs(x) >= 1 or x == 0 else f"{x:.3g}"
 
     def _paper_rows(self):
         for row in self.paper or {}:
@@ -97,7 +103,7 @@ class ComparisonTable:
 
     def conventions(self) -> str:
         peak = f", PSNR peak {self.peak}" if self.peak else ""
-        scale = f", values x{1 / self.scale:g}" if self.scale != 1 else ""
+        scale = f", in units of {1 / self.scale:.0e}".replace("e-0", "e-") if self.scale != 1 else ""
         direction = "higher is better" if self.higher_is_better else "lower is better"
         return (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
                 f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}; "
@@ -164,7 +170,7 @@ def frame_values(df: pd.DataFrame, metric: str, scope: str, peak: str = "") -> p
 
 def comparison_table(df: pd.DataFrame, metric: str, scope: str = "frame", peak: str = "", *,
                      title: str | None = None, column_of=None, columns: list[str] | None = None,
-                     rows: list[str] | None = None, scale: float = 1.0, decimals: int = 2,
+                     rows: list[str] | None = None, scale: float = 1.0, decimals: int | None = 2,
                      paper: dict | None = None, notes: list[str] | None = None) -> ComparisonTable:
     """Build the table from the tidy results ``df``.
 

@@ -1,0 +1,69 @@
+"""`dpcbench report RESULTS`: a method comparison report (Markdown + figures) from a results store."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from bench.errors import UserError
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "report", help="method comparison report (Markdown, LaTeX, CSV tables and figures) from a results store",
+        description="Tables (rows = sequences, columns = methods, mean ± std over frames, best per row in bold) "
+                    "for every metric and scope of an experiment, bar charts, per-frame curves, runtime, failures.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("results", help="results store (SQLite file) or a folder holding results.sqlite")
+    p.add_argument("--experiment", default=None, help="experiment name (default: the only one, else required)")
+    p.add_argument("--metrics", default=None, help="comma-separated metrics (default: all stored)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=main)
+
+
+def resolve_store(text: str) -> Path:
+    path = Path(text).expanduser()
+    if path.is_dir():
+        candidates = sorted(path.glob("*.sqlite"))
+        if (path / "results.sqlite").is_file():
+            return path / "results.sqlite"
+        if len(candidates) == 1:
+            return candidates[0]
+        raise UserError(f"{path}: expected one results store (*.sqlite) in the folder, found {len(candidates)}; "
+                        "pass the store file itself")
+    if not path.is_file():
+        raise UserError(f"{path}: no such results store; run `dpcbench run CONFIG --store {path}` first")
+    return path
+
+
+def main(args) -> int:
+    from bench.reports import write_comparison_report
+    from bench.store import ResultsStore
+
+    try:
+        store = ResultsStore(resolve_store(args.results), readonly=True)
+        experiments = store.experiments()
+    except ValueError as err:
+        raise UserError(str(err)) from err
+    experiment = args.experiment
+    if experiment is None:
+        if len(experiments) != 1:
+            raise UserError(f"the store holds {len(experiments)} experiments ({', '.join(experiments) or 'none'}); "
+                            "choose one with --experiment NAME")
+        experiment = experiments[0]
+    elif experiment not in experiments:
+        raise UserError(f"no experiment {experiment!r} in {store.path}; it holds: {', '.join(experiments) or 'none'}")
+    df = store.results_frame(experiment)
+    runs = store.runs_frame(experiment)
+    if df.empty:
+        raise UserError(f"experiment {experiment!r} has no finished run ({len(runs)} failed); see `dpcbench run` output")
+    metrics = [m.strip() for m in args.metrics.split(",")] if args.metrics else None
+    if metrics:
+        unknown = [m for m in metrics if m not in set(df["metric"])]
+        if unknown:
+            raise UserError(f"--metrics: {', '.join(unknown)} not stored for {experiment!r}; stored: "
+                            f"{', '.join(sorted(set(df['metric'])))}")
+    report = write_comparison_report(df, runs, args.out, title=f"Method comparison: experiment {experiment}",
+                                     metrics=metrics)
+    print(f"report: {report}")
+    return 0
