@@ -25,7 +25,7 @@ import numpy as np
 from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, surface_voxels
 
 #: bump when the output for the same parameters changes (part of the cache key)
-GENERATOR_VERSION = 2
+GENERATOR_VERSION = 3
 
 MOTIONS = ("walk", "dance", "wave")
 #: figure height (rest pose, voxels) per size preset; None -> a fraction of the grid, see frame_params

@@ -18,6 +18,12 @@ import numpy as np
 SQRT3_HALF = float(np.sqrt(3.0) / 2.0)
 
 
+def _rotate_inverse(v: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """v @ R (= R^T applied to each row), as broadcast products: BLAS on tall (n, 3) arrays is slower
+    here and much slower when other processes load the cores."""
+    return v[:, :1] * R[0] + v[:, 1:2] * R[1] + v[:, 2:3] * R[2]
+
+
 @dataclass
 class RoundCone:
     """Capsule with different radii at its ends: points within the swept sphere from a (radius ra)
@@ -36,7 +42,7 @@ class RoundCone:
         a2 = l2 - rr * rr
         il2 = 1.0 / l2
         pa = p - self.a
-        y = pa @ ba
+        y = pa[:, 0] * ba[0] + pa[:, 1] * ba[1] + pa[:, 2] * ba[2]  # pa . ba without a BLAS call (see _rotate_inverse)
         z = y - l2
         w = pa * l2 - np.outer(y, ba)
         x2 = np.einsum("ij,ij->i", w, w)
@@ -66,7 +72,7 @@ class Ellipsoid:
     R: np.ndarray
 
     def distance(self, p: np.ndarray) -> np.ndarray:
-        q = (p - self.c) @ self.R / self.radii
+        q = _rotate_inverse(p - self.c, self.R) / self.radii
         return float(self.radii.min()) * (np.sqrt(np.einsum("ij,ij->i", q, q)) - 1.0)
 
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
