@@ -8,11 +8,15 @@ Scale conventions, used everywhere in `holes/`:
   diagonal neighbours, so the estimate is exactly 1; for random sampling of density rho it is
   about ``1.13 / sqrt(rho)``. The 8th neighbour (not the 1st) keeps the estimate stable when
   samples are duplicated or clumped.
-- ``cube_size(points)``: the cube size M of the proposed method (paper, Sec. 3.1: "M is set
-  according to the coordinate range of P_f (M = 20 in our experiments)"), i.e.
-  ``M = 20 * L / 1024`` with L the largest side of the axis-aligned bounding box. For the 8i 10-bit
-  bodies, whose height fills the 1024 grid, this is the paper's M = 20; for any other scale or
-  density the holes keep the same size relative to the body.
+- ``cube_size(points)``: the cube size M that hole sizes are measured in,
+  ``M = min(20 * spacing, 20 * L / 1024)`` with L the largest side of the axis-aligned bounding
+  box. The first term is M as the proposed method uses it (``methods.temporal_graph``: 20 point
+  spacings, the paper's M = 20 voxels at 10 bits); the second is the paper's M relative to the
+  body (paper, Sec. 3.1, commented text: "M is set according to the coordinate range of P_f";
+  the 8i 10-bit bodies fill the 1024 grid). On those bodies both are 20. On sparser captures
+  (Dynamic FAUST: 100k points for a 1023-tall body, spacing ~2.8) or on the embedded human at
+  small sizes (186 voxels tall) the second is smaller and keeps holes the size the paper's holes
+  have relative to the body, instead of swallowing a limb.
 """
 
 from __future__ import annotations
@@ -62,13 +66,14 @@ def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int =
     return spacing
 
 
-def cube_size(points: np.ndarray) -> float:
-    """The method's cube size M for this frame: 20 * (largest bounding-box side) / 1024."""
+def cube_size(points: np.ndarray, spacing: float | None = None) -> float:
+    """The cube size M for sizing holes: min(20 * spacing, 20 * (largest bounding-box side) / 1024)."""
     points = np.asarray(points, dtype=np.float64)
     extent = float((points.max(axis=0) - points.min(axis=0)).max())
     if not extent > 0:
         raise ValueError("the frame has zero extent (all points coincide); cannot size holes")
-    return PAPER_CUBE_SIZE * extent / PAPER_GRID
+    spacing = point_spacing(points) if spacing is None else spacing
+    return PAPER_CUBE_SIZE * min(spacing, extent / PAPER_GRID)
 
 
 def radius_components(points: np.ndarray, radius: float) -> tuple[int, np.ndarray]:

@@ -1,20 +1,26 @@
 """Synthetic holes with ground truth: region holes (the paper's synthetic experiments) and dropouts.
 
 Sizes are relative to the cube size M of the proposed method (`holes.geometry.cube_size`:
-M = 20 * largest bounding-box side / 1024, the paper's M = 20 on 10-bit bodies), so a preset gives
-holes of the same size relative to the body at any scale or point density.
+M = min(20 point spacings, 20 * largest bounding-box side / 1024); both are the paper's M = 20 on
+the 8i 10-bit bodies), so a preset gives holes of the same size relative to the body on sparse or
+small data, and relative to the method's cube on data denser than the paper's.
 
-``region`` presets (ball radius, or half side of a cube, in units of M; holes per frame), with the
-fraction of points they removed on the real human frames of Dynamic FAUST 50004 "punching"
-(17 frames, 100k points, body 1023 tall, M = 20; balls; seeds 0-4; see tests/test_holes.py):
+``region`` presets (ball radius, or half side of a cube, in units of M; holes per frame) and the
+fraction of points they removed per frame (mean [min-max] over 5 frames x 3 seeds; command:
+``scratch/measure_presets.py``, kept out of the repo because it reads ../shared):
 
-=======  =====  ========  ==================================
-preset   count  radius    removed per frame (measured)
-=======  =====  ========  ==================================
-small    3      0.75 M    see REGION_PRESETS_MEASURED
-medium   4      1.5 M     (the setting the method issues use)
-large    5      3 M       (bigger, more complex holes, as the paper's Soldier figure)
-=======  =====  ========  ==================================
+=======  =====  ========  ===========================  ===========================
+preset   count  radius    DFAUST punching, M = 20.0    embedded human small, M = 7.3
+=======  =====  ========  ===========================  ===========================
+small    3      0.75 M    ball 0.29 % [0.24-0.40]      ball 0.43 % [0.41-0.45]
+medium   4      1.5 M     ball 1.52 % [1.33-1.73]      ball 2.37 % [2.25-2.49]
+                          cube 2.28 % [1.98-2.65]      cube 3.30 % [3.00-3.48]
+large    5      3 M       ball 8.1 % [6.8-10.0]        ball 13.5 % [11.5-15.6]
+=======  =====  ========  ===========================  ===========================
+
+"medium" is what the method issues evaluate on (1-3 % of the points in 4 holes of 1.5 M, like
+holes a cube-based method must bridge); "large" gives the bigger, more complex holes of the
+paper's Soldier figure; "small" holes fit inside one cube.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ REGION_PRESETS: dict[str, tuple[int, float]] = {
 }
 
 #: how many random surface points are tried as hole centres before giving up on placing a hole
-_PLACEMENT_TRIES = 5000
+_PLACEMENT_TRIES = 2000
 
 
 def _make_hole(shape: str, center: np.ndarray, size: float, **extra) -> HoleRegion:
@@ -45,10 +51,15 @@ def _make_hole(shape: str, center: np.ndarray, size: float, **extra) -> HoleRegi
 
 
 def _size_for_points(tree: cKDTree, center: np.ndarray, shape: str, n_points: int) -> float:
-    """Radius (ball) or half side (cube) that holds the ``n_points`` nearest points of ``center``
-    (Euclidean for balls, Chebyshev for axis-aligned cubes)."""
-    dist, _ = tree.query(center, k=[n_points], p=2 if shape == "ball" else np.inf)
-    return float(dist[0]) * (1 + 1e-9)
+    """Radius (ball, Euclidean) or half side (axis-aligned cube, Chebyshev) holding as close to
+    ``n_points`` nearest points of ``center`` as ties allow: on voxelized data many points share a
+    distance, so the size is the distinct neighbour distance whose count is closest to n_points."""
+    k = min(tree.n, int(n_points * 1.5) + 16)
+    dist, _ = tree.query(center, k=k, p=2 if shape == "ball" else np.inf)
+    levels, counts = np.unique(dist, return_counts=True)
+    inside = np.cumsum(counts)  # points within each distinct distance
+    best = int(np.argmin(np.abs(inside - n_points)))
+    return float(levels[best]) * (1 + 1e-9) + 1e-12
 
 
 def _separated(shape: str, center: np.ndarray, size: float, centers: list, sizes: list) -> bool:
@@ -87,6 +98,25 @@ def track_point(
                 break
     _, idx = target_tree.query(center + shift)
     return target[idx]
+
+
+def hole_overlap(frames: list[np.ndarray], removed: list[np.ndarray]) -> float:
+    """Frame-to-frame overlap of removed surface, for comparing coherent and independent holes.
+
+    For each pair (f, f+1): every point of the intact frame f+1 is mapped to its nearest
+    neighbour in the intact frame f (no point correspondence needed); A = removed[f+1],
+    B = removed[f] at those neighbours; IoU = |A and B| / |A or B|. Returns the mean IoU over the
+    F-1 pairs (1.0: the same surface is missing in every frame; about 0 for independent holes).
+    """
+    if len(frames) < 2:
+        raise ValueError("hole_overlap needs at least two frames")
+    ious = []
+    for f in range(len(frames) - 1):
+        _, nn = cKDTree(frames[f]).query(frames[f + 1], workers=-1)
+        a, b = removed[f + 1], removed[f][nn]
+        union = np.logical_or(a, b).sum()
+        ious.append(np.logical_and(a, b).sum() / union if union else 1.0)
+    return float(np.mean(ious))
 
 
 class RegionHoles(HoleGenerator):
@@ -144,6 +174,9 @@ class RegionHoles(HoleGenerator):
             raise ValueError(f"region holes: shape must be 'ball' or 'cube', got {self.shape!r}")
         if self.fraction is not None and not 0 < self.fraction < 1:
             raise ValueError(f"region holes: fraction must be in (0, 1), got {self.fraction!r}")
+        if self.fraction is not None and self.fraction > self.max_fraction:
+            raise ValueError(f"region holes: fraction {self.fraction} exceeds max_fraction {self.max_fraction}; "
+                             "ask for less (or raise max_fraction)")
         if self.cube_size is not None and not self.cube_size > 0:
             raise ValueError(f"region holes: cube_size must be positive, got {self.cube_size!r}")
         if not 0 < self.max_fraction <= 1:

@@ -1,0 +1,119 @@
+"""Occlusion holes: a rig around a convex object sees everything; on the human the holes are concave."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull, cKDTree
+
+from holes.geometry import estimate_normals
+from holes.occlusion import sphere_cameras, stage_cameras, visible_mask
+from holes.registry import get_generator
+
+
+@pytest.fixture(scope="module")
+def human_frame():
+    from bench.datasets import load_dataset
+
+    return load_dataset("human", frames=1, size="tiny", progress=False).points[0]
+
+
+@pytest.fixture(scope="module")
+def around(human_frame):
+    """Occlusion damage of the human by a 20-camera sphere rig (sees all of any convex object)."""
+    return get_generator("occlusion", rig="sphere").damage([human_frame], 0)
+
+
+@pytest.fixture(scope="module")
+def stage(human_frame):
+    """Occlusion damage of the human by the default stage rig (2 rings of 6 cameras)."""
+    return get_generator("occlusion").damage([human_frame], 0)
+
+
+def sphere(n=20000, radius=100.0, seed=0):
+    p = np.random.default_rng(seed).normal(size=(n, 3))
+    return radius * p / np.linalg.norm(p, axis=1, keepdims=True)
+
+
+def depth_below_hull(points):
+    """Distance (N,) from each point to the boundary of the convex hull of all points (0 on it)."""
+    hull = ConvexHull(points)
+    return -(points @ hull.equations[:, :3].T + hull.equations[:, 3]).max(axis=1)
+
+
+def test_surrounding_rig_sees_all_of_a_convex_object():
+    pts = sphere(5000)
+    normals, _, _ = estimate_normals(pts, cKDTree(pts))
+    assert visible_mask(pts, normals, sphere_cameras(pts, 20), min_cos=0.2).all()
+    # so the generator removes nothing, and says so instead of returning an undamaged frame
+    with pytest.raises(ValueError, match="lose no point"):
+        get_generator("occlusion", rig="sphere", count=12).damage([pts], 0)
+
+
+def test_one_camera_sees_the_near_side_of_a_sphere():
+    """Closed form: from distance d a sphere of radius a shows the cap with p.c/|c| > a^2/d... here
+    the cap of points whose outward normal has n.(c - p) > 0; with min_cos=0 HPR must agree on all
+    points except a thin band at the horizon (< 2 % of the points)."""
+    pts = sphere()
+    cam = np.array([[0.0, 0.0, 400.0]])
+    normals = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    seen = visible_mask(pts, normals, cam, min_cos=0.0)
+    truly = np.einsum("ij,ij->i", normals, cam - pts) > 0
+    assert (seen != truly).mean() < 0.02
+    assert seen[truly].mean() > 0.99
+
+
+def test_grazing_threshold_removes_the_horizon():
+    pts = sphere()
+    cam = np.array([[0.0, 0.0, 400.0]])
+    normals = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    loose = visible_mask(pts, normals, cam, min_cos=0.0)
+    strict = visible_mask(pts, normals, cam, min_cos=0.5)
+    assert strict.sum() < loose.sum() and not (strict & ~loose).any()
+    view = cam - pts[strict]
+    cos = np.einsum("ij,ij->i", normals[strict], view / np.linalg.norm(view, axis=1, keepdims=True))
+    assert cos.min() >= 0.5
+
+
+def test_occlusion_holes_are_in_concave_regions_of_the_human(human_frame, around):
+    """With a rig that sees all of any convex object, what stays unseen on the human lies in its
+    concavities (armpits, between the legs): measured as depth below the convex hull, the removed
+    points lie on average 1.7x deeper than the surface as a whole (tiny human, frame 0), and
+    nearly all of them (96 %) deeper than 5 voxels, against 65 % of all points."""
+    res = around
+    removed = res.removed[0]
+    depth = depth_below_hull(human_frame)
+    assert 0.001 < removed.mean() < 0.05
+    assert depth[removed].mean() > 1.5 * depth.mean()
+    assert (depth[removed] > 5).mean() > 0.9
+    # every removed point is inside an oriented-box region
+    assert all(r.shape == "box" for r in res.regions[0])
+    inside = np.zeros(len(human_frame), bool)
+    for r in res.regions[0]:
+        inside |= r.contains(human_frame)
+    assert inside[removed].all()
+
+
+def test_stage_rig_geometry(human_frame):
+    cams = stage_cameras(human_frame, rings=(0.3, 0.8), per_ring=6, distance=1.5, up="y")
+    assert cams.shape == (12, 3)
+    lo, hi = human_frame.min(axis=0), human_frame.max(axis=0)
+    np.testing.assert_allclose(sorted(set(np.round(cams[:, 1], 6))), [lo[1] + 0.3 * (hi[1] - lo[1]), lo[1] + 0.8 * (hi[1] - lo[1])])
+    centre = (lo + hi) / 2
+    horizontal = np.linalg.norm((cams - centre)[:, [0, 2]], axis=1)
+    np.testing.assert_allclose(horizontal, 1.5 * np.linalg.norm(hi - lo))
+
+
+def test_stage_rig_leaves_more_holes_than_a_surrounding_rig(human_frame, stage, around):
+    """A stage (2 rings, no camera above or below) misses the top of the head and the soles too."""
+    stage_removed, around_removed = stage.removed[0], around.removed[0]
+    assert stage_removed.sum() > around_removed.sum()
+    top = human_frame[:, 1] > human_frame[:, 1].max() - 3
+    assert stage_removed[top].mean() > around_removed[top].mean() + 0.3
+
+
+def test_random_azimuth_depends_on_the_seed_only(human_frame):
+    gen = get_generator("occlusion", random_azimuth=True, rings=(0.5,), per_ring=3)
+    a, b, c = (gen.damage([human_frame], s).removed[0] for s in (1, 1, 2))
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
