@@ -101,6 +101,10 @@ def test_page_is_self_contained_and_flags_the_regression(tmp_path):
                           r'<span[^>]*></span>([^<]+)</td>', changes)) == {"fu-nonlocal"}
     assert 'data-commits="2"' in page
     assert "pymeshlab said no" in page  # failed run listed
+    # against the paper: temporal-graph 40 dB vs fu-nonlocal 36 - 2 dB, NSHD 1e-7 vs 6e-7 (both scopes)
+    gaps = page.split('<section id="paper">')[1].split("</section>")[0]
+    assert gaps.count('<td class="num">+6.00 dB</td>') == 2 and gaps.count("x6.00") == 2
+    assert '+5.26 dB' in gaps and '+26.80 dB' in gaps  # the paper's mean gains, from its Table 1
     # the detector of external requests works
     assert dashboard.external_references('<img src="https://example.org/x.png">')
     assert dashboard.external_references("<style>@import url(//cdn.example/x.css)</style>")
