@@ -1,0 +1,162 @@
+"""Tables (closed-form cells, bold best, paper rows, three formats), reports from a store, the paper
+protocol's expansion and stand-in labelling."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench import paper
+from bench.cli import main as cli_main
+from bench.reports import paper_tables, write_comparison_report, write_paper_report
+from bench.store import ResultsStore
+from bench.tables import comparison_table
+
+METHODS = ["meshlab", "lozes-pde", "fu-nonlocal", "temporal-graph"]
+
+
+def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)"), frames=3, experiment="exp"):
+    """Per frame f of method k on sequence s: gpsnr_d1 = 10 + 5k + f (+1 on the second sequence),
+    nshd = (4 - k) * 1e-7 * (f + 1)."""
+    store = ResultsStore(path)
+    for s_i, seq in enumerate(sequences):
+        for k, method in enumerate(METHODS):
+            rows = []
+            for f in range(frames):
+                rows.append({"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic",
+                             "value": 10.0 + 5 * k + f + s_i})
+                rows.append({"frame": f, "metric": "nshd", "scope": "frame", "peak": "", "value": (4 - k) * 1e-7 * (f + 1)})
+                rows.append({"frame": f, "metric": "time_s", "scope": "frame", "peak": "", "value": 0.5 * (k + 1)})
+            rows.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "", "value": 0.5 * (k + 1) * frames})
+            rows.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "", "value": 100.0 + k})
+            record = {"sequence": seq, "holes": "region", "holes_params": {"preset": "medium"}, "seed": 0,
+                      "method": method, "method_params": {}, "method_version": "1", "code_version": "abc",
+                      "spec": {}, "env": {"git_commit": "abc", "python": "3.11", "packages": {}, "machine": {}}}
+            store.record_run(f"{seq[:3]}-{method}", record, rows, [experiment])
+    store.record_failure("bad-run", {"sequence": sequences[0], "method": "meshlab", "spec": {}}, "MeshlabError: boom",
+                         [experiment])
+    return store
+
+
+def test_table_cells_best_and_formats(tmp_path):
+    store = _store_with_results(tmp_path / "s.sqlite")
+    df = store.results_frame("exp")
+    t1, t2 = paper_tables(df, standins=True)
+    # closed form: mean over frames 0..2 of 10 + 5k + f + s_i = 11 + 5k + s_i, sample std = 1
+    assert t1.mean[("Human (stand-in)", "Proposed")] == pytest.approx(26.0)
+    assert t1.mean[("Bunny (stand-in)", "Meshlab")] == pytest.approx(12.0)
+    assert t1.std[("Human (stand-in)", "Hu")] == pytest.approx(1.0)
+    assert t1.n[("Human (stand-in)", "Lozes")] == 3
+    assert t1.best("Human (stand-in)", t1.mean) == "Proposed"  # highest GPSNR
+    assert t2.best("Human (stand-in)", t2.mean) == "Proposed"  # lowest NSHD
+    assert t2.mean[("Human (stand-in)", "Meshlab")] == pytest.approx(8e-7)
+    md = t1.markdown()
+    assert "| Human (stand-in) | 11.00 ± 1.00 | 16.00 ± 1.00 | 21.00 ± 1.00 | **26.00 ± 1.00** |" in md
+    assert "| *Loot (paper)* | 16.4451 | 27.3715 | 40.1546 | **47.5648** |" in md
+    assert "peak intrinsic" in md and "scope `frame`" in md and "STAND-IN" in md
+    md2 = t2.markdown()
+    assert "**2.0000 ± 1.0000**" in md2  # Proposed: (4-3) * (1,2,3) x1e-7 -> mean 2, std 1 in units of 1e-7
+    assert "in units of 1e-7" in md2
+    tex = t1.latex()
+    assert r"\textbf{26.00 $\pm$ 1.00}" in tex and r"\textit{Longdress (paper)}" in tex
+    rows = list(csv.DictReader(io.StringIO(t1.csv())))
+    ours = {(r["sequence"], r["method"]): float(r["mean"]) for r in rows if r["source"] == "ours"}
+    assert ours[("Bunny (stand-in)", "Hu")] == pytest.approx(22.0)
+    assert {r["sequence"] for r in rows if r["source"] == "paper"} == set(paper.TABLE1_GPSNR)
+
+
+def test_paper_values_and_headline():
+    gains = paper.paper_mean_gains()
+    for col, value in paper.HEADLINE_GAIN_DB.items():
+        assert gains[col] == pytest.approx(value, abs=0.01)
+    assert paper.paper_table("nshd")["Soldier"]["Proposed"] == 1.2057
+
+
+def test_missing_cells_and_order(tmp_path):
+    df = _store_with_results(tmp_path / "s.sqlite").results_frame("exp")
+    df = df[~((df.method == "lozes-pde") & (df.sequence == "Bunny (stand-in)"))]
+    t1, _ = paper_tables(df, standins=True)
+    assert ("Bunny (stand-in)", "Lozes") not in t1.mean
+    assert "| Bunny (stand-in) | 12.00 ± 1.00 | – |" in t1.markdown()
+    generic = comparison_table(df, "gpsnr_d1", "frame", "intrinsic")
+    assert set(generic.columns) == set(METHODS)
+
+
+def test_comparison_report_and_cli(tmp_path, capsys):
+    store = _store_with_results(tmp_path / "s.sqlite")
+    _store_with_results(tmp_path / "s.sqlite", experiment="other")
+    out = tmp_path / "report"
+    assert cli_main(["report", str(tmp_path / "s.sqlite"), "--experiment", "exp", "--out", str(out)]) == 0
+    text = (out / "REPORT.md").read_text()
+    assert "gpsnr_d1 (frame)" in text and "Runtime" in text and "MeshlabError: boom" in text
+    for name in ("gpsnr_d1_frame.png", "gpsnr_d1_frame_per_frame.png", "nshd_frame.png"):
+        assert (out / "figures" / name).stat().st_size > 1000
+    assert (out / "tables" / "nshd_frame.tex").is_file()
+    # two experiments and no --experiment: a clear error, no traceback
+    assert cli_main(["report", str(tmp_path / "s.sqlite"), "--out", str(out)]) == 2
+    assert "choose one with --experiment" in capsys.readouterr().err
+    assert cli_main(["report", str(tmp_path / "nope.sqlite"), "--out", str(out)]) == 2
+    junk = tmp_path / "junk.sqlite"
+    junk.write_bytes(b"garbage" * 100)
+    assert cli_main(["report", str(junk), "--out", str(out)]) == 2
+    assert "move it aside" in capsys.readouterr().err
+
+
+def test_paper_report_labels_stand_ins_everywhere(tmp_path):
+    store = _store_with_results(tmp_path / "s.sqlite")
+    df = store.results_frame("exp")
+    runs = store.runs_frame("exp")
+    out = tmp_path / "paper"
+    report = write_paper_report(df, runs, out, standins=True, preset="paper-quick", command="dpcbench reproduce-paper --quick",
+                                elapsed_s=60.0, figure_notes={})
+    text = report.read_text()
+    assert "STAND-IN" in text and "Proposed > Hu > Lozes > Meshlab" in text
+    # our gains: Proposed - Meshlab = 15 dB on both rows
+    assert "| Meshlab | +15.00 | +26.80 |" in text
+    for f in (out / "tables").iterdir():
+        assert "stand-in" in f.read_text().lower(), f.name
+    assert (out / "figures" / "table1_gpsnr.png").stat().st_size > 1000
+    assert (out / "figures" / "per_frame_nshd.png").stat().st_size > 1000
+
+
+def test_paper_protocol_stand_ins_and_data_dir(tmp_path):
+    proto = paper.paper_protocol(quick=True, size="tiny", frames=2)
+    assert proto.standins
+    assert [s.method["name"] for s in proto.synthetic[:4]] == METHODS
+    assert proto.synthetic[0].method["params"] == {"output": "whole"}
+    assert all("stand-in" in s.sequence_label for s in proto.synthetic + proto.real)
+    assert {s.protocol["regions"] for s in proto.real} == {"detected"}
+    assert {s.holes["generator"] for s in proto.real} == {"occlusion"}
+    # a data folder with the paper's layout: the paper's sequences replace the stand-ins
+    ply = tmp_path / "data" / "longdress" / "Ply"
+    ply.mkdir(parents=True)
+    from bench.plyio import write_ply
+
+    for i in range(2):
+        write_ply(ply / f"longdress_vox10_{1051 + i:04d}.ply", np.random.default_rng(i).integers(0, 1023, (50, 3)).astype(float))
+    proto = paper.paper_protocol(quick=True, data_dir=tmp_path / "data")
+    assert not proto.standins
+    assert {s.sequence_label for s in proto.synthetic} == {"Longdress"}
+    assert {s.holes["generator"] for s in proto.real} == {"none"}
+    with pytest.raises(ValueError, match="none of the paper's sequences"):
+        paper.paper_protocol(quick=True, data_dir=tmp_path)
+
+
+def test_subjective_grid_renders(tmp_path):
+    from bench.figures import subjective_grid
+    from holes.regions import HoleRegion
+
+    rng = np.random.default_rng(0)
+    base = rng.normal(size=(500, 3))
+    base /= np.linalg.norm(base, axis=1, keepdims=True)
+    region = HoleRegion.ball(base[0], 0.4)
+    damaged = base[~region.contains(base)]
+    rows = [("Ground truth", [base, base]), ("With holes", [damaged, damaged]), ("Method", [base, base])]
+    out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region],
+                          highlight_regions=[[region], [region]], title="test")
+    assert out.stat().st_size > 1000
