@@ -182,6 +182,8 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
+    from bench.progress import progress_bar
+
     if shading not in ("auto", "color", "normal"):
         raise ValueError(f"shading must be auto, color or normal, got {shading!r}")
     clouds = list(clouds)
@@ -247,34 +249,39 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     fig_h = sum(row_heights) / dpi + 0.35 * rows_out + (0.4 if suptitle else 0.0)
     fig, axes = plt.subplots(rows_out, n_cols, figsize=(fig_w + 0.2 * n_cols, fig_h), squeeze=False,
                              gridspec_kw={"height_ratios": row_heights})
-    for r in range(n_rows):
-        for c in range(n_cols):
-            pts, col = panels[r][c]
-            radius = point_size if point_size is not None else _auto_radius(pts, scale)
-            ax = axes[r * (2 if box is not None else 1)][c]
-            ax.imshow(rasterize(pts, col, rotation, (lo, hi), width, height, radius), interpolation="nearest")
-            ax.set_axis_off()
-            if titles_g[r][c]:
-                ax.set_title(str(titles_g[r][c]), fontsize=9)
-            if box is None:
-                continue
-            # the zoom box's screen rectangle (its 8 corners projected) on the full view
-            corners = np.array([[x, y, z] for x in (box[0][0], box[1][0]) for y in (box[0][1], box[1][1])
-                                for z in (box[0][2], box[1][2])]) @ rotation.T
-            blo, bhi = corners[:, :2].min(0), corners[:, :2].max(0)
-            ax.add_patch(Rectangle(((blo[0] - lo[0]) * scale, (hi[1] - bhi[1]) * scale), (bhi[0] - blo[0]) * scale,
-                                   (bhi[1] - blo[1]) * scale, fill=False, edgecolor="orange", linewidth=1.2))
-            inside = np.all((pts >= box[0]) & (pts <= box[1]), axis=1)
-            zoom_ax = axes[r * 2 + 1][c]
-            zw = max(16, int(round(zh * (bhi[0] - blo[0]) / max(bhi[1] - blo[1], 1e-12))))
-            zscale = min((zw - 1) / max(bhi[0] - blo[0], 1e-12), (zh - 1) / max(bhi[1] - blo[1], 1e-12))
-            zradius = point_size if point_size is not None else _auto_radius(pts[inside], zscale) if inside.sum() > 1 else 2
-            zoom_ax.imshow(rasterize(pts[inside], col[inside], rotation, (blo, bhi), zw, zh, zradius),
-                           interpolation="nearest")
-            zoom_ax.set_axis_off()
-            for spine in zoom_ax.spines.values():
-                spine.set_edgecolor("orange")
-            zoom_ax.set_title("zoom", fontsize=8, color="darkorange")
+
+    cells = [(r, c) for r in range(n_rows) for c in range(n_cols)]
+    large = sum(len(panels[r][c][0]) for r, c in cells) > 2_000_000  # about 2 s of rasterizing
+    for r, c in progress_bar(cells, desc="rendering", unit="panel", quiet=None if large else True):
+        pts, col = panels[r][c]
+        radius = point_size if point_size is not None else _auto_radius(pts, scale)
+        ax = axes[r * (2 if box is not None else 1)][c]
+        ax.imshow(rasterize(pts, col, rotation, (lo, hi), width, height, radius), interpolation="nearest")
+        ax.set_axis_off()
+        if titles_g[r][c]:
+            ax.set_title(str(titles_g[r][c]), fontsize=9)
+        if box is None:
+            continue
+        # the zoom box's screen rectangle (its 8 corners projected) on the full view
+        corners = rotate(np.array([[x, y, z] for x in (box[0][0], box[1][0]) for y in (box[0][1], box[1][1])
+                                   for z in (box[0][2], box[1][2])]), rotation)
+        blo, bhi = corners[:, :2].min(0), corners[:, :2].max(0)
+        ax.add_patch(Rectangle(((blo[0] - lo[0]) * scale, (hi[1] - bhi[1]) * scale), (bhi[0] - blo[0]) * scale,
+                               (bhi[1] - blo[1]) * scale, fill=False, edgecolor="orange", linewidth=1.2))
+        inside = np.all((pts >= box[0]) & (pts <= box[1]), axis=1)
+        zoom_ax = axes[r * 2 + 1][c]
+        zw = max(16, int(round(zh * (bhi[0] - blo[0]) / max(bhi[1] - blo[1], 1e-12))))
+        zscale = min((zw - 1) / max(bhi[0] - blo[0], 1e-12), (zh - 1) / max(bhi[1] - blo[1], 1e-12))
+        zradius = point_size
+        if zradius is None:
+            zradius = _auto_radius(pts[inside], zscale) if inside.sum() > 1 else 2
+        zoom_ax.imshow(rasterize(pts[inside], col[inside], rotation, (blo, bhi), zw, zh, zradius),
+                       interpolation="nearest")
+        zoom_ax.set_xticks([])
+        zoom_ax.set_yticks([])
+        for spine in zoom_ax.spines.values():
+            spine.set_edgecolor("orange")
+        zoom_ax.set_title("zoom", fontsize=8, color="darkorange")
     if suptitle:
         fig.suptitle(suptitle)
     fig.tight_layout()

@@ -139,17 +139,17 @@ def test_human_seed_and_frame_change_output():
 
 
 def test_human_motion_is_articulated():
-    """Walking: between frames 0 and 4 the feet move far more than the chest (not a rigid motion)."""
+    """Walking: between consecutive frames the feet move far more than the chest (not a rigid motion)."""
     p0, _ = human.generate_frame(0, size="tiny")
-    p4, _ = human.generate_frame(4, size="tiny")
-    moved = cKDTree(p4).query(p0)[0]
+    p1, _ = human.generate_frame(1, size="tiny")
+    moved = cKDTree(p1).query(p0)[0]
     y = p0[:, 1]
     lo, h = y.min(), np.ptp(y)
     feet = y < lo + 0.12 * h
     chest = (y > lo + 0.6 * h) & (y < lo + 0.75 * h) & (np.abs(p0[:, 0] - p0[:, 0].mean()) < 15)
     assert feet.sum() > 500 and chest.sum() > 500
     assert moved[feet].mean() > 4 * moved[chest].mean()
-    assert moved[feet].mean() > 5.0  # voxels
+    assert moved[feet].mean() > 1.5  # voxels, on a 180-voxel figure
 
 
 def test_human_motions_and_bit_depth():
