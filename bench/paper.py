@@ -103,7 +103,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     capture holes (no hole generator, no ground truth, not scored), regions detected likewise.
     """
     import copy
-    import tomllib
+    from bench.config import tomllib  # stdlib tomllib, or tomli on Python 3.10
 
     from bench.config import parse_config
 

@@ -450,6 +450,10 @@ def run_isolated(spec_dict: dict, runs_dir: str, force: bool = False, threads: i
                 proc.kill()
                 proc.wait()
                 timed_out = True
+            except BaseException:  # Ctrl-C in the driver: the worker goes with it
+                proc.kill()
+                proc.wait()
+                raise
             finally:
                 with _LIVE_LOCK:
                     _LIVE_PROCESSES.discard(proc)
