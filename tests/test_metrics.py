@@ -355,6 +355,9 @@ def test_one_pair_serves_all_metrics_and_scopes(monkeypatch):
     rng = np.random.default_rng(0)
     a = rng.random((500, 3))
     b = a + rng.normal(0, 0.01, a.shape)
-    metrics.score_frame_scopes(a, b, list(metrics.DEFAULT_METRICS) + ["d1_mse", "d2_mse", "hausdorff_psnr"],
-                               regions=[HoleRegion.ball([0.5, 0.5, 0.5], 0.3)])
+    names = list(metrics.DEFAULT_METRICS) + ["d1_mse", "d2_mse", "hausdorff_psnr"]
+    region = [HoleRegion.ball([0.5, 0.5, 0.5], 0.3)]
+    both = metrics.score_frame_scopes(a, b, names, regions=region)
     assert sorted(built) == [500, 500]  # one tree per cloud (normal estimation uses open3d's own)
+    assert both["frame"] == metrics.score_frame(a, b, names)
+    assert both["holes"] == metrics.score_frame(a, b, names, regions=region)
