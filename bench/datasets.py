@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import inspect
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Iterable
 
 import numpy as np
 
@@ -224,7 +224,8 @@ def generate_embedded(name: str, frames=None, *, cache: bool = True, progress: b
                 points, colours = module.generate_frame(index, **full)
             except (ValueError, TypeError) as err:
                 raise UserError(f"{name}: {err}") from err
-            arrays = {"points": points.astype(np.float32 if full.get("bit_depth") is None else np.uint16),
+            # voxel indices (<= 16 bits) are stored exactly as uint16; float samples keep float64
+            arrays = {"points": points if full.get("bit_depth") is None else points.astype(np.uint16),
                       "colors": colours}
             if cache:
                 store_cached(key, name, arrays)

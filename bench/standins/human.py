@@ -2,7 +2,7 @@
 
 The body is a smooth union (polynomial smooth-min, blend radius ``BLEND_M``) of round cones (limbs,
 neck, hands, feet) and ellipsoids (pelvis, abdomen, chest, head, hair cap, nose) attached to a
-skeleton of 24 joints. Forward kinematics: a joint's world rotation is its parent's world rotation
+skeleton of 21 joints. Forward kinematics: a joint's world rotation is its parent's world rotation
 times its own local rotation (a function of time for the chosen motion), and a child joint sits at
 ``P_child = P_joint + R_world(joint) @ (rest_child - rest_joint)``. After posing, the figure is moved
 vertically so the lowest foot touches the floor.
