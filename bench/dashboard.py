@@ -190,6 +190,14 @@ def _matplotlib():
     return plt
 
 
+def _seconds_axis(axis) -> None:
+    """Plain numbers (0.01, 0.5, 20) on a log axis of seconds instead of powers of ten."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def _plot_line(ax, line: pd.DataFrame, colour: str, linestyle: str = "-", label: str | None = None) -> None:
     """One method's values over versions: filled markers where measured at that version, hollow
     where carried over from an earlier one."""
@@ -259,6 +267,7 @@ def time_chart(history: History, colours: dict[str, str]) -> str | None:
             _plot_line(ax, line, colours[label], label=label)
         if (rows["mean"] > 0).all():
             ax.set_yscale("log")
+            _seconds_axis(ax.yaxis)
         ax.set_xticks(range(len(history.versions)))
         ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right", fontsize=7.5)
         ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
@@ -294,7 +303,8 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
         ax.set_yticks(range(len(latest)))
         ax.set_yticklabels(latest["fullname"].str.split("::").str[-1], fontsize=7.5)
         ax.set_xscale("log")
-        ax.set_xlabel("median seconds (log)")
+        _seconds_axis(ax.xaxis)
+        ax.set_xlabel("median seconds (log scale)")
         ax.set_title(f"benchmark session {session_labels[0].replace(chr(10), ' ')}", loc="left")
         fig.tight_layout()
         return _svg(fig)
@@ -307,6 +317,7 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
             ax.plot(xs, line["median"], marker="o", markersize=3.5, linewidth=1.3, color=PALETTE[i % len(PALETTE)],
                     label=name.split("::")[-1])
         ax.set_yscale("log")
+        _seconds_axis(ax.yaxis)
         ax.set_xticks(range(len(sessions)))
         ax.set_xticklabels(session_labels, fontsize=6.5)
         ax.set_title(f"{group}: median s", loc="left")
