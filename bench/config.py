@@ -20,7 +20,8 @@ grids), and the metrics with their options::
     label = "Human (stand-in)"      # how reports name it (default: name)
 
     [[holes]]
-    generator = "region"            # holes.registry name
+    generator = "region"            # holes.registry name; "none" = the data's own (real) holes:
+                                    # nothing removed, no ground truth, so no quality metrics
     params = { preset = "medium", count = 2 }
     seeds = [0, 1]                  # or seed = 0
 

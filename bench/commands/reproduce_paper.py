@@ -19,8 +19,10 @@ def register(subparsers) -> None:
                     "holes. With --data-dir, on the paper's sequences found there (longdress, loot, redandblack, "
                     "soldier, ulliwegner); otherwise on the embedded stand-ins (human, bunny), labelled as such "
                     "in every output. Runs are cached in the results store: rerunning only redoes what is missing. "
-                    "--quick (human and bunny, ~100k points a frame, 4 frames each) takes about 10 minutes on a "
-                    "2-core machine; the full preset (10 frames of ~300k-1M points, 3 seeds) takes hours.",
+                    "--quick: human and bunny at size tiny (10-30k points a frame), 3 frames each, one seed, plus 3 "
+                    "frames with acquisition holes for the real-hole figure (target: under 10 minutes on 2 cores; "
+                    "MeshLab dominates). The full preset (10 frames of 300k-1M points, 3 seeds) takes many hours: "
+                    "see bench/presets/paper.toml.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--data-dir", default=None, help="folder holding local copies of the paper's sequences")
     p.add_argument("--quick", action="store_true", help="the small preset (paper-quick.toml)")
@@ -32,7 +34,7 @@ def register(subparsers) -> None:
                    help="results store; default $DPCBENCH_STORE or ~/.cache/dpcbench/results.sqlite")
     p.add_argument("--executor", choices=("serial", "pool", "dask"), default="pool")
     p.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler address (implies dask)")
-    p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: all cores)")
+    p.add_argument("--jobs", type=int, default=None, help="parallel runs; None = all cores")
     p.add_argument("--force", action="store_true", help="redo every run")
     p.add_argument("--retry-failed", action="store_true", help="redo runs that failed before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -25,7 +25,7 @@ def register(subparsers) -> None:
     p.add_argument("--executor", choices=("serial", "pool", "dask"), default="pool")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (tcp://host:8786); implies --executor dask")
-    p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: all cores)")
+    p.add_argument("--jobs", type=int, default=None, help="parallel runs; None = all cores")
     p.add_argument("--timeout", type=float, default=None, help="seconds per run (overrides experiment.timeout_s)")
     p.add_argument("--data-dir", default=None, help="folder holding the paper's sequences (longdress, ...)")
     p.add_argument("--force", action="store_true", help="redo every run, frames included")
