@@ -10,7 +10,20 @@ Like the mask of an image inpainting benchmark, a region is handed to methods; t
 JSON form of one region: ``{"shape": "ball", "center": [x, y, z], "radius": r}`` or
 ``{"shape": "box", "center": [...], "half_extents": [...], "rotation": [[...], [...], [...]]}``.
 A ``holes.json`` file is ``{"format": "dpcbench-holes", "version": 1, "frames": [{"frame": i,
-"regions": [region, ...], ...}, ...], ...}`` (see `regions_to_json`).
+"regions": [region, ...], ...}, ...], ...}`` (see `regions_to_json`). Regions may carry extra
+keys (kept in ``HoleRegion.extra``): ``hole`` (index of a synthetic hole, stable across frames for
+coherent holes), ``point_count`` (removed points in an occlusion piece), ``rim_points`` and
+``inward`` (detected holes).
+
+Written by ``dpcbench damage`` (top-level keys): ``generator`` (registry name), ``generator_version``,
+``params`` (all generator parameters), ``seed``, ``source`` (the INPUT given), ``removed_fraction``
+(list, one per frame); per frame entry: ``points`` (points of the original frame), ``removed``
+(how many were removed), ``removed_fraction``, ``file`` (the damaged PLY beside it). The removed
+points themselves are in ``masks.npz`` beside it: key ``frame_0000`` ... -> bool array over the
+original frame's points (True = removed; ``original[~mask]`` is the damaged frame, same order).
+
+Written by ``dpcbench detect-holes``: ``detector``, ``params`` (the detector parameters given),
+``source``; per frame entry: ``points``, ``region_count``.
 """
 
 from __future__ import annotations
@@ -110,7 +123,12 @@ def regions_to_json(regions_per_frame: list[list[HoleRegion]], **info) -> dict:
     frames = [{"frame": i, "regions": [r.to_dict() for r in regs]} for i, regs in enumerate(regions_per_frame)]
     per_frame = info.pop("per_frame", None)
     if per_frame:
+        if len(per_frame) != len(frames):
+            raise ValueError(f"per_frame has {len(per_frame)} entries for {len(frames)} frames")
         for entry, extra in zip(frames, per_frame):
+            clash = {"frame", "regions"} & set(extra)
+            if clash:
+                raise ValueError(f"per_frame entries may not use the reserved keys {sorted(clash)}")
             entry.update(extra)
     return {"format": HOLES_FORMAT, "version": HOLES_VERSION, **info, "frames": frames}
 

@@ -2,7 +2,7 @@
 
 Runs `holes.detection.detect_holes` on every frame of INPUT (embedded name, paper sequence or PLY
 folder/glob/file) and writes a holes.json (format in `holes.regions`) with the detected ball regions
-per frame, the detector parameters (``params``), and per frame ``points`` and ``regions`` counts.
+per frame, the detector parameters (``params``), and per frame ``points`` and ``region_count``.
 The file can be handed to methods like the regions of a damaged sequence ("blind" protocol).
 """
 
@@ -56,7 +56,7 @@ def run(args) -> int:
         detector="holes.detection.detect_holes",
         params=params,
         source=str(args.input),
-        per_frame=[{"points": int(len(p)), "regions": len(r)} for p, r in zip(seq.points, regions)],
+        per_frame=[{"points": int(len(p)), "region_count": len(r)} for p, r in zip(seq.points, regions)],
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")

@@ -1,0 +1,90 @@
+"""`dpcbench damage` and `dpcbench detect-holes`: files written, round trip, clear errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from bench.plyio import read_ply
+from holes.regions import regions_from_json
+from holes.registry import get_generator
+
+
+@pytest.fixture(scope="module")
+def human():
+    from bench.datasets import load_dataset
+
+    return load_dataset("human", frames=2, size="tiny", progress=False)
+
+
+TINY = ["--frames", "2", "--dataset-param", "size=tiny"]
+
+
+def test_damage_round_trip(tmp_path, human, monkeypatch):
+    monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    out = tmp_path / "dmg"
+    rc = main(["damage", "human", *TINY, "--holes", "region", "--param", "preset=medium",
+               "--param", "coherent=true", "--seed", "5", "--out", str(out)])
+    assert rc == 0
+    record = json.loads((out / "holes.json").read_text())
+    assert record["generator"] == "region" and record["seed"] == 5
+    assert record["params"]["coherent"] is True and record["params"]["preset"] == "medium"
+    masks = np.load(out / "masks.npz")
+    assert sorted(masks.files) == ["frame_0000", "frame_0001"]
+    expected = get_generator("region", preset="medium", coherent=True).damage(human.points, 5)
+    regions = regions_from_json(out / "holes.json")
+    for f, frame in enumerate(human.frames):
+        mask = masks[f"frame_{f:04d}"]
+        np.testing.assert_array_equal(mask, expected.removed[f])
+        entry = record["frames"][f]
+        damaged = read_ply(out / entry["file"])
+        np.testing.assert_array_equal(damaged.points, frame.points[~mask])  # integer coords: exact in float32
+        np.testing.assert_array_equal(damaged.colors, frame.colors[~mask])
+        assert entry["removed"] == mask.sum() and entry["points"] == len(mask)
+        assert record["removed_fraction"][f] == pytest.approx(mask.mean())
+        assert [r.to_dict() for r in regions[f]] == [r.to_dict() for r in expected.regions[f]]
+
+    # detect-holes on the damaged folder finds regions in the same format
+    det = tmp_path / "det" / "holes.json"
+    assert main(["detect-holes", str(out), "--out", str(det)]) == 0
+    detected = regions_from_json(det)
+    assert len(detected) == 2 and all(len(r) >= 1 for r in detected)
+    assert json.loads(det.read_text())["frames"][0]["points"] == len(human.points[0]) - masks["frame_0000"].sum()
+
+
+def test_damage_refuses_to_overwrite(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    args = ["damage", "human", *TINY, "--holes", "dropout", "--out", str(tmp_path)]
+    assert main(args) == 0
+    assert main(args) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(args + ["--overwrite", "--seed", "1"]) == 0
+
+
+@pytest.mark.parametrize(
+    "extra,message",
+    [
+        (["--holes", "nope"], "unknown hole generator 'nope'"),
+        (["--holes", "region", "--param", "bogus=1"], "valid parameters: preset"),
+        (["--holes", "region", "--param", "count=0"], "positive integer"),
+        (["--holes", "region", "--param", "oops"], "KEY=VALUE"),
+    ],
+)
+def test_damage_errors(tmp_path, capsys, extra, message):
+    rc = main(["damage", "human", *TINY, "--out", str(tmp_path / "x"), *extra])
+    assert rc == 2
+    assert message in capsys.readouterr().err
+
+
+def test_missing_input_is_a_clear_error(tmp_path, capsys):
+    assert main(["damage", str(tmp_path / "nothing"), "--holes", "region", "--out", str(tmp_path / "x")]) == 2
+    assert "no such file or folder" in capsys.readouterr().err
+    assert main(["detect-holes", str(tmp_path / "nothing"), "--out", str(tmp_path / "h.json")]) == 2
+
+
+def test_detect_holes_bad_parameter(tmp_path, capsys):
+    assert main(["detect-holes", "human", *TINY, "--param", "radius=3", "--out", str(tmp_path / "h.json")]) == 2
+    assert "unknown detector parameter" in capsys.readouterr().err
