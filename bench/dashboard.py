@@ -111,6 +111,19 @@ class History:
     table: pd.DataFrame
 
 
+def summary_as_results(summary: pd.DataFrame, meta: dict, *, run_prefix: str = "summary") -> pd.DataFrame:
+    """A summary file's rows as store-shaped results (one value per cell: its mean), so a committed
+    baseline can join the history as one code version (its std and frame count are not kept)."""
+    version = str(meta.get("code_version") or "unknown").split(",")[-1]
+    rows = summary.assign(
+        run_id=[f"{run_prefix}:{s}|{h}|{hp}|{m}|{mp}" for s, h, hp, m, mp in
+                zip(summary["sequence"], summary["holes"], summary["holes_params"], summary["method"],
+                    summary["method_params"])],
+        experiment=str(meta.get("experiment", "")), seed=0, method_version="", code_version=version,
+        frame=0, value=summary["mean"], created_at=str(meta.get("date", "")))
+    return rows.drop(columns=["mean", "std", "n_frames"])
+
+
 def short_version(version: str) -> str:
     """'0123456789abcdef...+dirty' -> '01234567+' (a trailing + marks uncommitted changes)."""
     version = str(version)

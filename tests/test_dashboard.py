@@ -190,3 +190,23 @@ def test_history_is_cumulative_over_versions(tmp_path):
     # the page compares the cumulative states: nothing missing, the rerun cell improved
     page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame())
     assert 'data-status="MISSING"' not in page and 'data-status="improved"' in page
+
+
+def test_summary_files_join_the_history(tmp_path, capsys):
+    """An older summary (e.g. a committed baseline) plus a store at a newer version: two versions,
+    and the newer one's regression is flagged against the summary's values."""
+    from bench import compare
+
+    old = make_store(tmp_path / "old.sqlite", versions=(0,))
+    summary = tmp_path / "old.csv"
+    meta = compare.summary_meta(VERSIONS[0][0], environment={}, experiment="regression")
+    meta["date"] = VERSIONS[0][1]  # the history orders versions by time: the summary's date stands for its runs
+    compare.write_summary(compare.summarize(old.results_frame()), summary, meta)
+    make_store(tmp_path / "new.sqlite", versions=(1,))
+    out = tmp_path / "d.html"
+    assert cli_main(["dashboard", "--out", str(out), "--store", str(tmp_path / "new.sqlite"),
+                     "--summary", str(summary)]) == 0
+    page = out.read_text()
+    assert 'data-commits="2"' in page
+    changes = page.split('<section id="comparison">')[1].split("<details>")[0]
+    assert changes.count('data-status="REGRESSED"') == 4

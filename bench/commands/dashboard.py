@@ -23,6 +23,9 @@ def register(subparsers) -> None:
     parser.add_argument("--benchmarks", action="append", default=None, metavar="DIR_OR_JSON",
                         help="pytest-benchmark JSON file or storage folder (repeatable; default: ./.benchmarks "
                              "when it exists)")
+    parser.add_argument("--summary", action="append", default=None, metavar="FILE",
+                        help="a summary .csv/.json (e.g. an older results/regression-baseline.csv from git) added "
+                             "to the history as one more code version; repeatable")
     parser.add_argument("--baseline", default=None,
                         help="compare the newest code version against this summary .csv/.json instead of "
                              "the previous code version")
@@ -57,13 +60,26 @@ def load_stores(paths, experiment):
 
 
 def run(args) -> int:
+    import pandas as pd
+
     from bench import benchsuite, compare, dashboard
     from bench.commands.compare import TOLERANCES_FILE
+    from bench.store import RESULT_COLUMNS
 
     out = Path(args.out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise UserError(f"{out}: --out must name an .html file")
-    results, runs = load_stores(args.store, args.experiment)
+    if args.summary and not args.store:
+        results, runs = pd.DataFrame(columns=RESULT_COLUMNS), None
+    else:
+        results, runs = load_stores(args.store, args.experiment)
+    for i, path in enumerate(args.summary or []):
+        try:
+            table, meta = compare.read_summary(path)
+        except ValueError as err:
+            raise UserError(str(err)) from None
+        results = pd.concat([results, dashboard.summary_as_results(table, meta, run_prefix=f"summary{i}")],
+                            ignore_index=True)
     benchmarks = None
     bench_paths = args.benchmarks or ([".benchmarks"] if Path(".benchmarks").is_dir() else [])
     if bench_paths:
