@@ -43,13 +43,18 @@ import math
 import os
 import platform
 import subprocess
-import tomllib
+import sys
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10, as bench.config
+    import tomli as tomllib
 
 #: what identifies one summary row (besides the metric values)
 KEY_COLUMNS = ["sequence", "holes", "holes_params", "method", "method_params", "metric", "scope", "peak"]
