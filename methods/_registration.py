@@ -35,12 +35,14 @@ def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int = 10, trim: float = 0.9,
-                     source_tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     max_points: int = 256, source_tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Rigid (R, t) that moves the complete ``source`` (S, 3) onto the ``partial`` target (T, 3).
 
     Each iteration pairs every target point q_j with its nearest source point under the current
     inverse transform, keeps the ``trim`` fraction of closest pairs (robust to the target's rim and
-    to the source's extra surface), and solves `kabsch` for the pairs. Starts from the identity
+    to the source's extra surface), and solves `kabsch` for the pairs. At most ``max_points`` target
+    points are paired (an evenly spaced, deterministic subset of the rows): six unknowns need far
+    fewer pairs than a cube holds. Starts from the identity
     (callers translate the source into place first). Stops early when the update is below 1e-6.
     Returns (R, t) such that ``source @ R.T + t`` lies on the partial target.
     """
@@ -49,6 +51,8 @@ def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int
         return rotation, translation
     tree = source_tree if source_tree is not None else cKDTree(source)
     partial = np.asarray(partial, dtype=np.float64)
+    if len(partial) > max_points:
+        partial = partial[np.linspace(0, len(partial) - 1, max_points).astype(np.int64)]
     keep_count = max(3, int(np.ceil(trim * len(partial))))
     for _ in range(iterations):
         # target points expressed in the source's own frame: R^T (q - t)

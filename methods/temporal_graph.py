@@ -112,6 +112,8 @@ class _CubeGraphInpainting(InpaintingMethod):
             raise ValueError(f"{self.name}: known_points must be one of {_KNOWN_MODES}, got {self.known_points!r}")
         if self.snap not in ("auto", True, False):
             raise ValueError(f"{self.name}: snap must be 'auto', true or false, got {self.snap!r}")
+        if not isinstance(self.feature_fraction, (int, float)) or not 0 < self.feature_fraction <= 1:
+            raise ValueError(f"{self.name}: feature_fraction must be in (0, 1], got {self.feature_fraction!r}")
         if not isinstance(self.intra_candidates, int) or self.intra_candidates < 1:
             raise ValueError(f"{self.name}: intra_candidates must be an integer >= 1, got {self.intra_candidates!r}")
         if not isinstance(self.icp_iterations, int) or self.icp_iterations < 0:
@@ -121,77 +123,113 @@ class _CubeGraphInpainting(InpaintingMethod):
     def inpaint(self, frames, regions=None):
         frames, regions = self._check_inputs(frames, regions)
         self._validate()
-        unit = float(self.spacing) if self.spacing is not None else point_spacing(max(frames, key=len))
+        trees: dict = {}  # k-d tree of each input frame, built once, dropped once behind
+
+        def tree_of(f):
+            if f not in trees:
+                trees[f] = cKDTree(frames[f])
+            return trees[f]
+
+        if self.spacing is not None:
+            unit = float(self.spacing)
+        else:
+            largest = max(range(len(frames)), key=lambda f: len(frames[f]))
+            unit = point_spacing(frames[largest], tree=tree_of(largest))
         voxelized = self.snap is True or (
             self.snap == "auto" and all(np.array_equal(f, np.round(f)) for f in frames))
         if regions is None:
             from holes.detection import detect_holes  # lazily: blind protocol only
 
             regions = [list(detect_holes(frame)) for frame in frames]
-        self._check_regions(frames, regions, unit)
+        for f in range(len(frames)):
+            if regions[f]:
+                self._check_regions(f, frames[f], regions[f], unit, tree_of(f))
         beta = self._beta()
         if beta > 0 and len(frames) == 1:
             warnings.warn(f"{self.name}: a one-frame sequence has no neighbouring frames; "
                           "using the spatial terms only (as fu-nonlocal)", stacklevel=2)
         outputs: list[np.ndarray] = []
+        output_tree = None
         for f, frame in enumerate(frames):
+            for old in [k for k in trees if k < f - 1]:
+                del trees[old]
             if not regions[f]:
                 outputs.append(frame.copy())
+                output_tree = None  # same points as the input: its tree serves
                 continue
             neighbours = []
             if beta > 0:
                 if f > 0:
-                    neighbours.append((outputs[f - 1], []))  # already inpainted: no holes left
+                    # already inpainted: no holes left
+                    prev_tree = output_tree if output_tree is not None else tree_of(f - 1)
+                    neighbours.append(dict(points=outputs[f - 1], tree=prev_tree, regions=[]))
                 if f + 1 < len(frames):
-                    neighbours.append((frames[f + 1], regions[f + 1]))
-            outputs.append(self._inpaint_frame(frame, regions[f], neighbours, unit, voxelized))
+                    neighbours.append(dict(points=frames[f + 1], tree=tree_of(f + 1), regions=regions[f + 1]))
+            outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], neighbours, unit, voxelized))
+            output_tree = cKDTree(outputs[f]) if beta > 0 and f + 1 < len(frames) and regions[f + 1] else None
         return outputs
 
-    def _check_regions(self, frames, regions, unit):
+    def _check_regions(self, f, frame, frame_regions, unit, tree):
         reach = self.cube_size * unit
-        for f, (frame, frame_regions) in enumerate(zip(frames, regions)):
-            if not frame_regions:
-                continue
-            tree = cKDTree(frame)
-            inside = np.zeros(len(frame), dtype=bool)
-            for region in frame_regions:
-                dist, _ = tree.query(region.center)
-                if dist > region.bounding_radius + reach:
-                    raise ValueError(
-                        f"{self.name}: frame {f}: hole region centred at {np.round(region.center, 3).tolist()} "
-                        f"is {dist:.3g} away from the nearest point, farther than its size plus one cube "
-                        f"({region.bounding_radius + reach:.3g}); the regions do not belong to this cloud "
-                        "(wrong holes.json or wrong frame order?)")
-                inside |= region.contains(frame)
-            if inside.all():
-                raise ValueError(f"{self.name}: frame {f}: the hole regions cover every point of the frame; "
-                                 "nothing is left to fill from")
+        inside = np.zeros(len(frame), dtype=bool)
+        for region in frame_regions:
+            dist, _ = tree.query(region.center)
+            if dist > region.bounding_radius + reach:
+                raise ValueError(
+                    f"{self.name}: frame {f}: hole region centred at {np.round(region.center, 3).tolist()} "
+                    f"is {dist:.3g} away from the nearest point, farther than its size plus one cube "
+                    f"({region.bounding_radius + reach:.3g}); the regions do not belong to this cloud "
+                    "(wrong holes.json or wrong frame order?)")
+            inside |= region.contains(frame)
+        if inside.all():
+            raise ValueError(f"{self.name}: frame {f}: the hole regions cover every point of the frame; "
+                             "nothing is left to fill from")
 
     # -- one frame --------------------------------------------------------------------------
     def _normal_features(self, points: np.ndarray, tree: cKDTree, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-        """Unit normals (N, 3), oriented away from the centroid, and per-point AGTV a_i (N,)."""
-        import open3d as o3d  # lazily: heavy import
+        """Unit normals (N, 3) and per-point AGTV a_i (N,) on a fixed sample of the points, NaN elsewhere.
 
-        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-        cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=10))
-        normals = np.asarray(cloud.normals)
-        flip = np.einsum("ij,ij->i", normals, points - points.mean(axis=0)) < 0
-        normals[flip] *= -1.0
-        dist, idx = tree.query(points, k=9, workers=-1)
-        dist, idx = dist[:, 1:], idx[:, 1:]
-        neighbour_normals = normals[idx]  # (N, 8, 3)
-        sign = np.sign(np.einsum("ij,ikj->ik", normals, neighbour_normals))
+        The sample is a fixed-seed ``feature_fraction`` of the points (all of them at 1.0). Normal of a
+        sampled point: the eigenvector of the smallest eigenvalue of the covariance of its 10 nearest
+        points in the whole frame, oriented away from the frame centroid. Written with numpy (batched
+        ``eigh``) instead of open3d's ``estimate_normals`` because open3d can only estimate the normals
+        of every point, and the AGTV needs the neighbour search anyway. AGTV of a sampled point:
+        a_i = sum_{j in 8-NN of i in the sample} exp(-||p_i - p_j||^2 / 2 sigma_s^2) ||n_i - s_ij n_j||_1,
+        s_ij = sign(n_i . n_j), sigma_s = sigma / sqrt(feature_fraction) (the sample's spacing grows
+        as 1 / sqrt(fraction) on a surface).
+        """
+        n = len(points)
+        count = max(min(n, 9), int(round(self.feature_fraction * n)))
+        sample = np.sort(np.random.default_rng(0).choice(n, count, replace=False)) if count < n else np.arange(n)
+        sampled = points[sample]
+        _, idx = tree.query(sampled, k=min(10, n), workers=-1)
+        neigh = points[idx]
+        neigh -= neigh.mean(axis=1, keepdims=True)
+        cov = np.einsum("nki,nkj->nij", neigh, neigh)
+        _, vectors = np.linalg.eigh(cov)
+        sample_normals = vectors[:, :, 0]
+        flip = np.einsum("ij,ij->i", sample_normals, sampled - points.mean(axis=0)) < 0
+        sample_normals[flip] *= -1.0
+        k = min(9, count)
+        dist, nbr = cKDTree(sampled).query(sampled, k=k, workers=-1)
+        dist, nbr = dist[:, 1:], nbr[:, 1:]
+        neighbour_normals = sample_normals[nbr]
+        sign = np.sign(np.einsum("ij,ikj->ik", sample_normals, neighbour_normals))
         sign[sign == 0] = 1.0
-        diff = np.abs(normals[:, None, :] - sign[..., None] * neighbour_normals).sum(axis=2)
-        agtv = (np.exp(-dist ** 2 / (2.0 * sigma ** 2)) * diff).sum(axis=1)
+        diff = np.abs(sample_normals[:, None, :] - sign[..., None] * neighbour_normals).sum(axis=2)
+        sigma_s = sigma / np.sqrt(min(1.0, count / n))
+        sample_agtv = (np.exp(-dist ** 2 / (2.0 * sigma_s ** 2)) * diff).sum(axis=1)
+        normals = np.full((n, 3), np.nan)
+        agtv = np.full(n, np.nan)
+        normals[sample] = sample_normals
+        agtv[sample] = sample_agtv
         return normals, agtv
 
-    def _inpaint_frame(self, points, regions, neighbours, unit, voxelized):
+    def _inpaint_frame(self, points, tree, regions, neighbours, unit, voxelized):
         cube = self.cube_size * unit
         per = self.cells_per_cube
         cell = cube / per
         sigma = self.sigma * unit
-        tree = cKDTree(points)
         normals, agtv = self._normal_features(points, tree, sigma)
         grid = CellGrid(points.min(axis=0), points.max(axis=0), cell, per, pad=per)
 
@@ -201,16 +239,19 @@ class _CubeGraphInpainting(InpaintingMethod):
         cube_counts = grid.cube_sums(counts)
         cube_holes = grid.cube_sums(hole_cells.astype(np.int64))
         ok = (cube_holes == 0) & (cube_counts >= self.min_known_points)
+        sampled = ~np.isnan(agtv)
+        sample_counts = grid.cube_sums(grid.bin(points[sampled]))
+        ok &= sample_counts > 0
         anchors = np.argwhere(ok)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cand_count = cube_counts[ok].astype(np.float64)
-            cand_dc = grid.cube_sums(grid.bin(points, normals))[ok] / cand_count[:, None]
-            cand_agtv = grid.cube_sums(grid.bin(points, agtv))[ok] / cand_count
+        cand_count = cube_counts[ok].astype(np.float64)
+        cand_samples = sample_counts[ok].astype(np.float64)
+        cand_dc = grid.cube_sums(grid.bin(points[sampled], normals[sampled]))[ok] / cand_samples[:, None]
+        cand_agtv = grid.cube_sums(grid.bin(points[sampled], agtv[sampled]))[ok] / cand_samples
         candidates = dict(lower=grid.cube_lower(anchors), count=cand_count, dc=cand_dc, agtv=cand_agtv,
                           tree=cKDTree(np.column_stack([cand_dc, self.agtv_weight * cand_agtv])) if len(anchors) else None)
 
         context = dict(points=points, tree=tree, grid=grid, cube=cube, cell=cell, unit=unit, sigma=sigma,
-                       candidates=candidates, neighbours=[self._neighbour(n, r) for n, r in neighbours])
+                       candidates=candidates, neighbours=neighbours)
         out = points.copy()
         new_points = []
         for group in self._region_groups(regions, cube + cell):
@@ -220,16 +261,40 @@ class _CubeGraphInpainting(InpaintingMethod):
             new_points.append(added)
         added = np.vstack(new_points) if new_points else np.empty((0, 3))
         if voxelized and len(added):
-            added = np.unique(np.round(added), axis=0)
             if self.known_points == "free":
-                out = np.round(out)
+                out = np.floor(out + 0.5)
+            added = self._voxelize(added, regions)
             dist, _ = cKDTree(out).query(added, distance_upper_bound=0.5)
             added = added[~np.isfinite(dist)]
         return np.vstack([out, added])
 
     @staticmethod
-    def _neighbour(points, regions):
-        return dict(points=points, tree=cKDTree(points), regions=regions)
+    def _voxelize(added: np.ndarray, regions) -> np.ndarray:
+        """The grid voxels (integer points) of the surface that the new points ``added`` (P, 3) sample.
+
+        Rounding each new point on its own leaves gaps and doubles where the filled patch is rotated
+        or smoothed off the lattice. Instead every voxel within one step of a new point, inside a
+        hole region, is kept when it lies within half a voxel of the local tangent plane of its
+        nearest new point (plane from the 8 nearest new points) and within one voxel of that point.
+        """
+        if len(added) < 4:
+            return np.unique(np.floor(added + 0.5), axis=0)
+        tree = cKDTree(added)
+        _, nbr = tree.query(added, k=min(8, len(added)))
+        neigh = added[nbr] - added[nbr].mean(axis=1, keepdims=True)
+        _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", neigh, neigh))
+        normals = vectors[:, :, 0]
+        offsets = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        # round half up, not half to even: a lattice shifted by half a voxel must not fold
+        base = np.unique(np.floor(added + 0.5), axis=0)
+        voxels = np.unique((base[:, None, :] + offsets[None]).reshape(-1, 3), axis=0)
+        inside = np.zeros(len(voxels), dtype=bool)
+        for region in regions:
+            inside |= region.contains(voxels)
+        voxels = voxels[inside]
+        dist, nearest = tree.query(voxels)
+        off_plane = np.abs(np.einsum("ij,ij->i", voxels - added[nearest], normals[nearest]))
+        return voxels[(dist <= 1.0) & (off_plane <= 0.5)]
 
     @staticmethod
     def _hole_cells(grid: CellGrid, regions) -> np.ndarray:
@@ -315,8 +380,9 @@ class _CubeGraphInpainting(InpaintingMethod):
         for key in ("pending", "known", "central"):
             sums[key] = np.zeros(tuple(n_anchor), dtype=np.int64)
         refresh(np.zeros(3, dtype=np.int64), n_anchor)
+        tried = np.zeros(tuple(n_anchor), dtype=bool)  # each cube is a target at most once
         while True:
-            enough = sums["known"] >= self.min_known_points
+            enough = (sums["known"] >= self.min_known_points) & ~tried
             eligible = (sums["central"] > 0) & enough
             if not eligible.any():
                 # no known-rich cube is centred on the hole any more: any cube touching it
@@ -325,8 +391,9 @@ class _CubeGraphInpainting(InpaintingMethod):
                     break
             # the target cube with the most known data first: holes fill from the rim inward
             pick = np.array(np.unravel_index(np.argmax(np.where(eligible, sums["known"], -1)), eligible.shape))
-            new = self._fill_cube(grid.cube_lower(a0 + pick), regions, pending, a0, local, ctx, fix_known)
-            pending[tuple(slice(p, p + per) for p in pick)] = False
+            lower = grid.cube_lower(a0 + pick)
+            new = self._fill_cube(lower, regions, pending, a0, local, ctx, fix_known)
+            tried[tuple(pick)] = True
             if len(new):
                 added.append(new)
                 cells = grid.cell_of(new) - a0
@@ -337,12 +404,37 @@ class _CubeGraphInpainting(InpaintingMethod):
                 local["normals"] = np.vstack([local["normals"], nan])
                 local["agtv"] = np.concatenate([local["agtv"], nan[:, 0]])
                 local["index"] = np.concatenate([local["index"], np.full(len(new), -1)])
+            self._settle_cells(pending, pick, lower, local["points"], grid)
             refresh(pick - per + 1, pick + per)
         moved = []
         if not fix_known:
             original = local["index"] >= 0
             moved = list(zip(local["index"][original], local["points"][original]))
         return moved, (np.vstack(added) if added else np.empty((0, 3)))
+
+    def _settle_cells(self, pending, pick, lower, points, grid):
+        """After filling the cube anchored at local cell ``pick``: its pending cells that now hold
+        points, and those farther than one cell from every point of the cube (empty space off the
+        surface), are done. Empty cells next to the surface stay pending: the source did not cover
+        them (e.g. it came from the edge of the data), and another cube may."""
+        per, cell = self.cells_per_cube, grid.cell
+        block = pending[tuple(slice(p, p + per) for p in pick)]
+        idx = np.argwhere(block)
+        if not len(idx):
+            return
+        inside = points[in_box(points, lower - cell, grid.cube_size + 2 * cell)]
+        done = np.ones(len(idx), dtype=bool)
+        if len(inside):
+            centres = lower + (idx + 0.5) * cell
+            occupied = np.zeros(len(idx), dtype=bool)
+            cells = np.floor((inside - lower) / cell).astype(np.int64)
+            ok = ((cells >= 0) & (cells < per)).all(axis=1)
+            flat = set(np.ravel_multi_index(cells[ok].T, (per,) * 3).tolist())
+            occupied = np.isin(np.ravel_multi_index(idx.T, (per,) * 3), list(flat))
+            dist, _ = cKDTree(inside).query(centres)
+            far = dist > cell
+            done = occupied | far
+        block[tuple(idx[done].T)] = False
 
     def _fill_cube(self, lower, regions, pending, a0, local, ctx, fix_known) -> np.ndarray:
         """Inpaint the target cube at ``lower``; returns its new points (P, 3) (known points moved
@@ -377,20 +469,27 @@ class _CubeGraphInpainting(InpaintingMethod):
         rows = np.vstack([target, new])
         known = np.zeros(len(rows), dtype=bool)
         known[:m] = True
-        temporal = []
+        temporal, contradicted = [], []
         beta = self._beta()
         if beta > 0:
             for neighbour in ctx["neighbours"]:
                 link = self._temporal_link(rows, target, lower, neighbour, ctx)
                 if link is not None:
-                    temporal.append(link)
+                    temporal.append(link[:2])
+                    contradicted.append(link[2])
         k = self.k_neighbors if self.k_neighbors is not None else max(1, int(round(np.sqrt(m))))
         laplacian = knn_laplacian(rows, k, ctx["sigma"])
         result = solve_cube(rows, rows, known, laplacian, alpha=self.alpha, gamma=self.gamma, beta=beta,
                             temporal=temporal, fix_known=fix_known)
         if not fix_known:
             local["points"][in_cube] = result[:m]
-        return result[m:]
+        new = result[m:]
+        if self.drop_contradicted and temporal:
+            # a new point that a neighbouring frame contradicts and none supports is dropped
+            supported = np.any([linked[m:] for _, linked in temporal], axis=0)
+            against = np.any([c[m:] for c in contradicted], axis=0)
+            new = new[supported | ~against]
+        return new
 
     def _intra_source(self, lower, target, dc_t, agtv_t, ctx):
         """The aligned intra-source points (S, 3) for the target cube at ``lower``, or None.
@@ -439,25 +538,35 @@ class _CubeGraphInpainting(InpaintingMethod):
         cube, cell, unit = ctx["cube"], ctx["cell"], ctx["unit"]
         box = self.search_box * cube
         centre = lower + cube / 2.0
-        box_idx = neighbour["tree"].query_ball_point(centre, box / 2.0, p=np.inf)
-        if len(box_idx) < 3:
+        box_lower = centre - box / 2.0
+        # nearest neighbour of each target point in the box: the frame's nearest neighbour when it
+        # lies in the box (a point whose nearest neighbour is outside has no counterpart in the box
+        # near it and does not vote)
+        _, nearest = neighbour["tree"].query(target)
+        votes = neighbour["points"][nearest]
+        votes = votes[in_box(votes, box_lower, box)]
+        if len(votes) < 3:
             return None
-        box_points = neighbour["points"][box_idx]
-        _, nearest = cKDTree(box_points).query(target)
-        window_lower, _ = best_window(box_points[nearest], centre - box / 2.0, box, cube, unit)
-        source = box_points[in_box(box_points, window_lower - cell, cube + 2 * cell)]
+        window_lower, _ = best_window(votes, box_lower, box, cube, unit)
+        half = cube / 2.0
+        window_idx = neighbour["tree"].query_ball_point(window_lower + half, half + cell, p=np.inf)
+        source = neighbour["points"][window_idx]
         if len(source) < 3:
             return None
         rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations)
         aligned = source @ rotation.T + translation
         dist, idx = cKDTree(aligned).query(rows)
         linked = dist <= self.link_radius * unit
+        in_hole = np.zeros(len(rows), dtype=bool)
         if neighbour["regions"]:
             # rows that land in a hole of the (not yet inpainted) neighbour have no true counterpart
             back = (rows - translation) @ rotation
             for region in neighbour["regions"]:
-                linked &= ~region.contains(back)
-        return aligned[idx], linked
+                in_hole |= region.contains(back)
+        linked &= ~in_hole
+        # contradicted: the neighbour has data there but none of it near the row
+        contradicted = ~linked & ~in_hole
+        return aligned[idx], linked, contradicted
 
 
 class TemporalGraph(_CubeGraphInpainting):
@@ -481,7 +590,8 @@ class TemporalGraph(_CubeGraphInpainting):
 
     def __init__(self, cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5, gamma=0.5,
                  sigma=1.0, k_neighbors=None, spacing=None, known_points="fixed", min_known_points=16,
-                 icp_iterations=10, link_radius=5.0, snap="auto", agtv_weight=1.0, intra_candidates=1):
+                 icp_iterations=10, link_radius=5.0, snap="auto", agtv_weight=1.0, intra_candidates=1,
+                 drop_contradicted=False, feature_fraction=0.25):
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.search_box = search_box
@@ -498,6 +608,8 @@ class TemporalGraph(_CubeGraphInpainting):
         self.snap = snap
         self.agtv_weight = agtv_weight
         self.intra_candidates = intra_candidates
+        self.feature_fraction = feature_fraction
+        self.drop_contradicted = drop_contradicted
 
 
 class FuNonlocal(_CubeGraphInpainting):
@@ -512,7 +624,7 @@ class FuNonlocal(_CubeGraphInpainting):
 
     def __init__(self, cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0, k_neighbors=None,
                  spacing=None, known_points="fixed", min_known_points=16, icp_iterations=10, snap="auto",
-                 agtv_weight=1.0, intra_candidates=1):
+                 agtv_weight=1.0, intra_candidates=1, feature_fraction=0.25):
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.alpha = alpha
@@ -526,4 +638,6 @@ class FuNonlocal(_CubeGraphInpainting):
         self.snap = snap
         self.agtv_weight = agtv_weight
         self.intra_candidates = intra_candidates
+        self.feature_fraction = feature_fraction
+        self.drop_contradicted = False  # not a parameter: no temporal evidence without neighbours
         self.beta = 0.0  # not a parameter: the temporal terms are off by definition

@@ -1,0 +1,319 @@
+"""temporal-graph and fu-nonlocal: helpers against brute force, known surfaces, switches, errors."""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from holes.regions import HoleRegion
+from methods._cubes import CellGrid, best_window, block_sums, in_box, point_spacing
+from methods._graph import knn_laplacian, solve_cube
+from methods._registration import align_to_partial, kabsch
+from methods.registry import get_method
+from methods.temporal_graph import FuNonlocal, TemporalGraph
+
+
+# -- synthetic surfaces -------------------------------------------------------------------------
+
+def voxel_plane(size=48, shift=(0.0, 0.0, 0.0)):
+    """Integer grid points of the plane z = 20 (size x size voxels), shifted by an integer offset."""
+    i, j = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    pts = np.column_stack([i.ravel(), j.ravel(), np.full(i.size, 20)]).astype(np.float64)
+    return pts + np.asarray(shift, dtype=np.float64)
+
+
+def fibonacci_sphere(radius=25.0, spacing=1.0, center=(0.0, 0.0, 0.0)):
+    n = int(4 * np.pi * radius ** 2 / spacing ** 2)
+    k = np.arange(n) + 0.5
+    phi = np.arccos(1 - 2 * k / n)
+    theta = np.pi * (1 + 5 ** 0.5) * k
+    pts = np.column_stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)])
+    return radius * pts + np.asarray(center)
+
+
+def punch(frames, regions_per_frame):
+    """Damaged frames (points inside the regions removed) and the removed points."""
+    damaged, removed = [], []
+    for pts, regions in zip(frames, regions_per_frame):
+        inside = np.zeros(len(pts), dtype=bool)
+        for r in regions:
+            inside |= r.contains(pts)
+        damaged.append(pts[~inside])
+        removed.append(pts[inside])
+    return damaged, removed
+
+
+FAST = dict(cube_size=12.0, min_known_points=12)
+
+
+# -- cubes ----------------------------------------------------------------------------------------
+
+def test_every_point_lies_in_cells_per_cube_cubed_cubes_of_the_grid():
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-7.3, 19.1, size=(400, 3))
+    grid = CellGrid(pts.min(axis=0), pts.max(axis=0), cell=2.5, cells_per_cube=4, pad=4)
+    counts = grid.bin(pts)
+    assert counts.sum() == len(pts)  # every point falls in a cell of the grid
+    cube_counts = grid.cube_sums(counts)
+    membership = np.zeros(cube_counts.shape, dtype=np.int64)
+    for p in pts:
+        anchors = grid.cubes_of_point(p)
+        assert len(anchors) == 64
+        assert ((anchors >= 0) & (anchors < np.array(cube_counts.shape))).all()  # all those cubes exist
+        for a in anchors:
+            assert in_box(p[None], grid.cube_lower(a), grid.cube_size)[0]
+            membership[tuple(a)] += 1
+    # the per-cube counts of the summed-volume table equal the brute-force membership
+    np.testing.assert_array_equal(cube_counts, membership)
+
+
+def test_block_sums_match_brute_force():
+    rng = np.random.default_rng(2)
+    grid = rng.integers(0, 5, size=(7, 6, 8))
+    width = 3
+    got = block_sums(grid, width)
+    want = np.zeros((5, 4, 6))
+    for i, j, k in itertools.product(range(5), range(4), range(6)):
+        want[i, j, k] = grid[i:i + width, j:j + width, k:k + width].sum()
+    np.testing.assert_array_equal(got, want)
+    channels = rng.normal(size=(5, 5, 5, 2))
+    got = block_sums(channels, 2)
+    np.testing.assert_allclose(got[1, 2, 3], channels[1:3, 2:4, 3:5].sum(axis=(0, 1, 2)))
+
+
+def test_best_window_matches_exhaustive_search():
+    rng = np.random.default_rng(3)
+    pts = np.vstack([rng.uniform(0, 12, size=(60, 3)), rng.normal(7.0, 0.8, size=(40, 3))])
+    lower, count = best_window(pts, np.zeros(3), 12.0, 4.0, 1.0)
+    best = 0
+    for a in itertools.product(range(9), repeat=3):
+        best = max(best, int(in_box(pts, np.array(a, float), 4.0).sum()))
+    assert count == best
+    assert in_box(pts, lower, 4.0).sum() == best
+
+
+def test_point_spacing_is_one_on_a_voxel_plane():
+    assert point_spacing(voxel_plane()) == pytest.approx(1.0)
+
+
+# -- registration ---------------------------------------------------------------------------------
+
+def random_rotation(rng):
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] *= -1
+    return q
+
+
+def test_kabsch_recovers_a_rigid_motion():
+    rng = np.random.default_rng(4)
+    src = rng.normal(size=(50, 3))
+    rot, t = random_rotation(rng), np.array([1.0, -2.0, 0.5])
+    got_r, got_t = kabsch(src, src @ rot.T + t)
+    np.testing.assert_allclose(got_r, rot, atol=1e-10)
+    np.testing.assert_allclose(got_t, t, atol=1e-10)
+
+
+def test_align_to_partial_fits_a_complete_patch_onto_a_patch_with_a_hole():
+    # a curved patch (paraboloid), moved by a small rigid motion; the target lacks its centre
+    xy = np.random.default_rng(8).uniform(-6, 6, size=(800, 2))
+    patch = np.column_stack([xy, 0.08 * xy[:, 0] ** 2 + 0.15 * xy[:, 1] ** 2 + 0.03 * xy[:, 0] * xy[:, 1]])
+    angle = 0.05
+    rot = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    moved = patch @ rot.T + np.array([0.2, -0.15, 0.3])
+    partial = moved[np.linalg.norm(patch[:, :2], axis=1) > 2.5]
+    r, t = align_to_partial(patch, partial, iterations=30)
+    np.testing.assert_allclose(patch @ r.T + t, moved, atol=1e-3)
+
+
+# -- graph and solve -----------------------------------------------------------------------------
+
+def test_knn_laplacian_is_symmetric_with_zero_row_sums_and_gaussian_weights():
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(0, 5, size=(40, 3))
+    lap = knn_laplacian(pts, 4, sigma=1.5).toarray()
+    np.testing.assert_allclose(lap, lap.T)
+    np.testing.assert_allclose(lap.sum(axis=1), 0, atol=1e-12)
+    k, l = np.argwhere(np.triu(lap, 1) < 0)[0]
+    assert -lap[k, l] == pytest.approx(np.exp(-np.sum((pts[k] - pts[l]) ** 2) / (2 * 1.5 ** 2)))
+
+
+@pytest.mark.parametrize("fix_known", [False, True])
+def test_sparse_solve_matches_a_dense_solve(fix_known):
+    rng = np.random.default_rng(6)
+    n = 30
+    rows = rng.normal(size=(n, 3))
+    known = rng.random(n) < 0.6
+    target, source = rows + 0.1, rows - 0.2
+    prev, nxt = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    link_prev, link_next = rng.random(n) < 0.8, np.ones(n, dtype=bool)
+    lap = knn_laplacian(rows, 5, 1.0)
+    alpha, beta, gamma = 1.0, 0.5, 0.5
+    got = solve_cube(target, source, known, lap, alpha=alpha, beta=beta, gamma=gamma,
+                     temporal=[(prev, link_prev), (nxt, link_next)], fix_known=fix_known)
+    # dense reference: the normal equations of Eq. (5), built independently
+    om_bar, om = np.diag(known.astype(float)), np.diag((~known).astype(float))
+    d_prev, d_next = np.diag(link_prev.astype(float)), np.diag(link_next.astype(float))
+    a = om_bar + alpha * om + beta * (d_prev + d_next) + gamma * lap.toarray()
+    b = om_bar @ target + alpha * om @ source + beta * d_prev @ prev + beta * d_next @ nxt
+    if not fix_known:
+        want = np.linalg.solve(a, b)
+    else:
+        u = ~known
+        want = target.copy()
+        want[u] = np.linalg.solve(a[np.ix_(u, u)], b[u] - a[np.ix_(u, known)] @ target[known])
+    np.testing.assert_allclose(got, want, atol=1e-10)
+
+
+def test_all_links_give_the_papers_two_beta_identity():
+    rng = np.random.default_rng(7)
+    n = 12
+    rows = rng.normal(size=(n, 3))
+    known = np.arange(n) < 8
+    lap = sp.csr_matrix(knn_laplacian(rows, 3, 1.0))
+    t1, t2 = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    got = solve_cube(rows, rows, known, lap, alpha=1.0, beta=0.5, gamma=0.5,
+                     temporal=[(t1, np.ones(n, bool)), (t2, np.ones(n, bool))])
+    om_bar, om = np.diag(known.astype(float)), np.diag((~known).astype(float))
+    a = om_bar + om + 2 * 0.5 * np.eye(n) + 0.5 * lap.toarray()
+    want = np.linalg.solve(a, om_bar @ rows + om @ rows + 0.5 * t1 + 0.5 * t2)
+    np.testing.assert_allclose(got, want, atol=1e-10)
+
+
+# -- the methods on known surfaces ---------------------------------------------------------------
+
+def plane_sequence():
+    frames = [voxel_plane(shift=(s, 0, 0)) for s in (0, 1, 2)]
+    hole = [[], [HoleRegion.ball([24.0, 24.0, 20.0], 7.0)], []]
+    damaged, removed = punch(frames, hole)
+    return damaged, hole, removed
+
+
+@pytest.mark.parametrize("name", ["temporal-graph", "fu-nonlocal"])
+def test_plane_hole_is_filled_on_the_plane(name):
+    damaged, hole, removed = plane_sequence()
+    out = get_method(name, **FAST).inpaint(damaged, hole)
+    new = out[1][len(damaged[1]):]
+    np.testing.assert_array_equal(out[1][:len(damaged[1])], damaged[1])  # known points stay
+    assert len(new) >= 0.8 * len(removed[1])
+    assert np.abs(new[:, 2] - 20.0).max() <= 1.0  # on the plane, to the voxel
+    assert hole[1][0].contains(new).all()  # only inside the hole
+    assert np.array_equal(new, np.round(new))  # voxelized input: new points on the grid
+    assert len(np.unique(out[1], axis=0)) == len(out[1])  # no duplicate points
+    np.testing.assert_array_equal(out[0], damaged[0])  # frames without holes unchanged
+
+
+def test_sphere_hole_is_filled_onto_the_sphere():
+    frames = [fibonacci_sphere(center=(c, 0, 0)) for c in (0.0, 0.7, 1.4)]
+    regions = [[HoleRegion.ball([c, 0.0, 25.0], 6.0)] for c in (0.0, 0.7, 1.4)]
+    damaged, removed = punch(frames, regions)
+    out = TemporalGraph(**FAST).inpaint(damaged, regions)
+    for f in range(3):
+        new = out[f][len(damaged[f]):]
+        centre = np.array([(0.0, 0.7, 1.4)[f], 0, 0])
+        assert len(new) >= 0.6 * len(removed[f])
+        radial = np.linalg.norm(new - centre, axis=1)
+        assert np.abs(radial - 25.0).max() < 1.0
+        assert np.abs(radial - 25.0).mean() < 0.3
+
+
+def test_temporal_graph_with_beta_zero_equals_fu_nonlocal():
+    damaged, hole, _ = plane_sequence()
+    hole = [[HoleRegion.ball([20.0, 20.0, 20.0], 6.0)], hole[1], [HoleRegion.ball([26.0, 30.0, 20.0], 6.0)]]
+    damaged, _ = punch([voxel_plane(shift=(s, 0, 0)) for s in (0, 1, 2)], hole)
+    a = TemporalGraph(beta=0.0, **FAST).inpaint(damaged, hole)
+    b = FuNonlocal(**FAST).inpaint(damaged, hole)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+    c = TemporalGraph(**FAST).inpaint(damaged, hole)
+    assert any(not np.array_equal(x, y) for x, y in zip(a, c))  # the temporal terms do act
+
+
+def test_deterministic_and_inputs_untouched():
+    damaged, hole, _ = plane_sequence()
+    copies = [d.copy() for d in damaged]
+    first = TemporalGraph(**FAST).inpaint(damaged, hole)
+    second = TemporalGraph(**FAST).inpaint(damaged, hole)
+    for x, y, d, c in zip(first, second, damaged, copies):
+        np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(d, c)
+        assert x is not d
+
+
+def test_one_frame_sequence_warns_and_uses_the_spatial_terms():
+    damaged, hole, _ = plane_sequence()
+    with pytest.warns(UserWarning, match="one-frame"):
+        out = TemporalGraph(**FAST).inpaint([damaged[1]], [hole[1]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ref = FuNonlocal(**FAST).inpaint([damaged[1]], [hole[1]])
+    np.testing.assert_array_equal(out[0], ref[0])
+
+
+def test_paper_variant_moves_known_points():
+    damaged, hole, _ = plane_sequence()
+    out = TemporalGraph(known_points="free", **FAST).inpaint(damaged, hole)
+    assert len(out[1]) > len(damaged[1])
+    assert np.abs(out[1][:, 2] - 20.0).max() <= 1.0
+
+
+def test_blind_mode_detects_and_fills_a_sphere_hole():
+    pytest.importorskip("holes.detection")
+    sphere = fibonacci_sphere(radius=25.0)
+    region = HoleRegion.ball([0.0, 0.0, 25.0], 6.0)
+    damaged, removed = punch([sphere], [[region]])
+    with pytest.warns(UserWarning):
+        out = TemporalGraph(**FAST).inpaint(damaged)  # regions=None: blind
+    new = out[0][len(damaged[0]):]
+    assert len(new) >= 0.5 * len(removed[0])
+    assert np.abs(np.linalg.norm(new, axis=1) - 25.0).max() < 1.0
+
+
+# -- errors ----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("params, match", [
+    (dict(cube_size=0), "cube_size"),
+    (dict(cube_size=-3.0), "cube_size"),
+    (dict(sigma=0), "sigma"),
+    (dict(k_neighbors=50, min_known_points=16), "K must be <= m"),
+    (dict(k_neighbors=0), "k_neighbors"),
+    (dict(known_points="sometimes"), "known_points"),
+    (dict(alpha=0.0), "alpha"),
+    (dict(beta=-1.0), "beta"),
+    (dict(cells_per_cube=2.5), "cells_per_cube"),
+    (dict(feature_fraction=0.0), "feature_fraction"),
+])
+def test_bad_parameters_are_refused(params, match):
+    damaged, hole, _ = plane_sequence()
+    with pytest.raises(ValueError, match=match):
+        TemporalGraph(**params).inpaint(damaged, hole)
+
+
+def test_bad_inputs_are_refused():
+    damaged, hole, _ = plane_sequence()
+    with pytest.raises(ValueError, match="zero points"):
+        TemporalGraph().inpaint([damaged[0], np.empty((0, 3)), damaged[2]], hole)
+    far = [[], [HoleRegion.ball([500.0, 500.0, 500.0], 5.0)], []]
+    with pytest.raises(ValueError, match="do not belong to this cloud"):
+        TemporalGraph().inpaint(damaged, far)
+    everything = [[], [HoleRegion.ball([24.0, 24.0, 20.0], 100.0)], []]
+    with pytest.raises(ValueError, match="cover every point"):
+        TemporalGraph().inpaint(damaged, everything)
+    with pytest.raises(ValueError, match="NaN"):
+        bad = damaged[1].copy()
+        bad[3, 1] = np.nan
+        TemporalGraph().inpaint([damaged[0], bad, damaged[2]], hole)
+    with pytest.raises(ValueError, match="region lists"):
+        TemporalGraph().inpaint(damaged, hole[:2])
+
+
+def test_class_facts():
+    assert TemporalGraph.uses_neighbour_frames and not FuNonlocal.uses_neighbour_frames
+    assert TemporalGraph.detects_holes and FuNonlocal.detects_holes
+    assert "beta" not in FuNonlocal().get_params()
+    assert TemporalGraph().get_params()["beta"] == 0.5
