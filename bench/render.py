@@ -18,6 +18,7 @@ import numpy as np
 VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "left": (-90.0, 0.0), "right": (90.0, 0.0),
          "top": (0.0, 90.0)}
 HIGHLIGHT_COLOR = (230, 20, 20)
+SHADINGS = ("auto", "color", "normal", "shaded")
 
 
 def view_rotation(view) -> np.ndarray:
@@ -50,14 +51,35 @@ def estimate_normals(points: np.ndarray, k: int = 16) -> np.ndarray:
     return np.asarray(pcd.normals)
 
 
-def shade_normals(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-    """Grey-blue Lambert shading (N, 3) uint8 of unoriented normals: intensity = 0.2 + 0.8 |n' . l|,
-    n' = R n (view space), l = unit (-0.3, 0.4, 1) (light from the viewer, a little up-left)."""
+def lambert(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Lambert intensity (N,) of unoriented normals: 0.2 + 0.8 |n' . l|, n' = R n (view space),
+    l = unit (-0.3, 0.4, 1) (light from the viewer, a little up-left)."""
     light = np.array([-0.3, 0.4, 1.0])
     light /= np.linalg.norm(light)
-    intensity = 0.2 + 0.8 * np.abs(rotate(normals, rotation) @ light)
+    return 0.2 + 0.8 * np.abs(rotate(normals, rotation) @ light)
+
+
+def shade_normals(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Grey-blue shading (N, 3) uint8: ``lambert`` intensity times RGB (200, 205, 215)."""
     base = np.array([200.0, 205.0, 215.0])
-    return np.clip(intensity[:, None] * base, 0, 255).astype(np.uint8)
+    return np.clip(lambert(normals, rotation)[:, None] * base, 0, 255).astype(np.uint8)
+
+
+def panel_colours(points: np.ndarray, colors, normals, shading: str, rotation: np.ndarray) -> np.ndarray:
+    """The (N, 3) uint8 colours a panel is drawn with (see render_clouds' ``shading``)."""
+    if shading == "color" and colors is None:
+        raise ValueError("shading='color' but the cloud has no colours; use shading='auto' or 'normal'")
+    use_normals = shading in ("normal", "shaded") or colors is None
+    if use_normals and normals is None:
+        normals = estimate_normals(points) if len(points) >= 3 else None
+    if colors is None or shading == "normal":
+        if normals is None:  # fewer than 3 points: no normal to estimate
+            return np.full((len(points), 3), 128, np.uint8)
+        return shade_normals(normals, rotation)
+    colors = np.asarray(colors)
+    if shading == "shaded" and normals is not None:
+        return np.clip(colors * lambert(normals, rotation)[:, None], 0, 255).astype(np.uint8)
+    return np.array(colors, dtype=np.uint8, copy=True)
 
 
 def _disk_offsets(radius: int) -> np.ndarray:
@@ -173,8 +195,9 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     highlight:  per-panel boolean masks (N,) of points to paint red (e.g. the filled points), or None.
     view:       a name in VIEWS or (azimuth, elevation) degrees.
     point_size: splat radius in pixels; None = from the point spacing.
-    shading:    "auto" (colours when present, else normals), "color", or "normal" (normals estimated
-                with open3d when the cloud has none).
+    shading:    "auto" (colours when present, else normals), "color", "normal" (grey Lambert shading
+                of the normals), or "shaded" (colours times the Lambert intensity, to see the geometry
+                of coloured clouds); normals are estimated with open3d when the cloud has none.
     """
     import matplotlib
 
@@ -184,8 +207,8 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
 
     from bench.progress import progress_bar
 
-    if shading not in ("auto", "color", "normal"):
-        raise ValueError(f"shading must be auto, color or normal, got {shading!r}")
+    if shading not in SHADINGS:
+        raise ValueError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
     clouds = list(clouds)
     if not clouds:
         raise ValueError("nothing to render: the list of clouds is empty")
@@ -209,11 +232,9 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
             if not np.isfinite(pts).all():
                 raise ValueError(f"panel ({r}, {c}): the cloud has NaN or infinite coordinates")
             col = colors_g[r][c] if colors_g[r][c] is not None else own_colors
-            if shading == "normal" or (shading == "auto" and col is None):
-                if normals is None and len(pts) >= 3:
-                    normals = estimate_normals(pts)
-                col = shade_normals(normals, rotation) if normals is not None else np.full((len(pts), 3), 128, np.uint8)
-            col = np.array(col, dtype=np.uint8, copy=True)
+            if col is not None and np.shape(col) != pts.shape:
+                raise ValueError(f"panel ({r}, {c}): colours have shape {np.shape(col)}, points {pts.shape}")
+            col = panel_colours(pts, col, normals, shading, rotation)
             if col.shape != pts.shape:
                 raise ValueError(f"panel ({r}, {c}): colours have shape {col.shape}, points {pts.shape}")
             mask = highlight_g[r][c]

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from bench.plyio import PointCloud
-from bench.render import (HIGHLIGHT_COLOR, rasterize, render_clouds, shade_normals, view_rotation, zoom_box)
+from bench.render import (HIGHLIGHT_COLOR, panel_colours, rasterize, render_clouds, shade_normals, view_rotation,
+                          zoom_box)
 
 RED, BLUE = np.array([255, 0, 0], np.uint8), np.array([0, 0, 255], np.uint8)
 
@@ -49,6 +50,24 @@ def test_shade_normals_facing_light_is_brighter():
     shade = shade_normals(normals, np.eye(3)).astype(int)
     assert shade[0].sum() > shade[1].sum()
     np.testing.assert_array_equal(shade[0], shade[2])  # unoriented normals: n and -n shade alike
+
+
+def test_panel_colours_by_shading_mode():
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    normals = np.array([[0.0, 0, 1]] * 2 + [[1.0, 0, 0]] * 2)  # facing the viewer / edge-on
+    own = np.full((4, 3), 100, np.uint8)
+    rot = np.eye(3)
+    np.testing.assert_array_equal(panel_colours(pts, own, normals, "auto", rot), own)
+    np.testing.assert_array_equal(panel_colours(pts, own, normals, "color", rot), own)
+    np.testing.assert_array_equal(panel_colours(pts, own, normals, "normal", rot), shade_normals(normals, rot))
+    np.testing.assert_array_equal(panel_colours(pts, None, normals, "auto", rot), shade_normals(normals, rot))
+    shaded = panel_colours(pts, own, normals, "shaded", rot).astype(int)
+    assert np.all(shaded <= 100) and shaded[0, 0] > shaded[2, 0]  # lit faces brighter than edge-on ones
+    # no normals given: estimated (a flat square in z = 0 has normals +-z, facing the viewer)
+    flat = panel_colours(pts, None, None, "normal", rot)
+    np.testing.assert_array_equal(flat, shade_normals(np.tile([0.0, 0, 1], (4, 1)), rot))
+    with pytest.raises(ValueError, match="no colours"):
+        panel_colours(pts, None, normals, "color", rot)
 
 
 def test_zoom_box_forms():

@@ -18,8 +18,8 @@ def register(subparsers) -> None:
     parser.add_argument("--zoom", default=None, metavar="X0,Y0,Z0,X1,Y1,Z1",
                         help="3D box to magnify in a row under the frames")
     parser.add_argument("--view", default="front", help="front, back, left, right, top, or AZIMUTH,ELEVATION degrees")
-    parser.add_argument("--shading", default="auto", choices=("auto", "color", "normal"),
-                        help="auto: colours when present, else normals")
+    parser.add_argument("--shading", default="auto", choices=("auto", "color", "normal", "shaded"),
+                        help="auto: colours when present, else normals; shaded: colours lit by the normals")
     parser.add_argument("--point-size", type=int, default=None, help="splat radius in pixels (default: automatic)")
     parser.add_argument("--height", type=int, default=480, help="panel height in pixels (default 480)")
     parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter")
