@@ -80,7 +80,7 @@ EMBEDDED: dict[str, EmbeddedDataset] = {
         "human",
         "procedural human figure in motion (walk/dance/wave), smooth-blended body parts, surface voxelized "
         "like 8i data (integer coordinates at bit_depth, one point per surface voxel), with colours; "
-        "size=tiny ~24k, small ~97k, default ~580k points per frame",
+        "size=tiny ~24k, small ~96k, default ~575k points per frame",
         "bench.standins.human",
     ),
     "bunny": EmbeddedDataset(
