@@ -27,7 +27,8 @@ documents the format.
 A row REGRESSED when the change passes its tolerance in the bad direction (direction from
 ``metrics.registry.METRICS[name].higher_is_better`` when the metrics package has the metric, else
 `HIGHER_IS_BETTER` below); improved when it passes it in the good direction. Resource metrics
-(time_s, peak_mem_mb) are compared and shown, but fail the gate only with ``gate_time=True``.
+(time_s, peak_mem_mb) are compared and shown; time fails the gate only with ``gate_time=True``,
+memory (the worker's peak RSS, interpreter included) never.
 A row present in the baseline and absent from the current summary is MISSING and fails the gate
 (a method that started crashing must not pass silently). Metrics without a tolerance, and
 INFO_METRICS (facts about the damaged input, such as removed_fraction), are shown as "changed" or
@@ -91,6 +92,7 @@ TIME_FLOOR_S = 0.05
 STATUS_OK, STATUS_IMPROVED, STATUS_REGRESSED = "✓", "improved", "REGRESSED"
 STATUS_MISSING, STATUS_NEW, STATUS_SLOWER, STATUS_FASTER = "MISSING", "new", "slower", "faster"
 STATUS_CHANGED = "changed"
+STATUS_MORE_MEMORY, STATUS_LESS_MEMORY = "more memory", "less memory"
 
 SUMMARY_FORMAT = "dpcbench-summary"
 
@@ -374,10 +376,12 @@ def _status(metric: str, kind: str, change: float, tolerance: float, baseline: f
     else:
         worse, better = (change < 1 / tolerance, change > tolerance) if better_high else (change > tolerance,
                                                                                          change < 1 / tolerance)
-    if metric in RESOURCE_METRICS:
-        if metric == "time_s" and abs(baseline) < TIME_FLOOR_S:
+    if metric == "time_s":
+        if abs(baseline) < TIME_FLOOR_S:
             return STATUS_OK
         return STATUS_SLOWER if worse else STATUS_FASTER if better else STATUS_OK
+    if metric in RESOURCE_METRICS:
+        return STATUS_MORE_MEMORY if worse else STATUS_LESS_MEMORY if better else STATUS_OK
     return STATUS_REGRESSED if worse else STATUS_IMPROVED if better else STATUS_OK
 
 
@@ -446,7 +450,8 @@ def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances:
         else:
             change = _change(kind, b, c)
             status = _status(metric, kind, change, tolerance, b)
-        gated = not informative and (metric not in RESOURCE_METRICS or gate_time)
+        # time fails the comparison only on request; memory (process RSS, interpreter included) never
+        gated = not informative and (metric not in RESOURCE_METRICS or (gate_time and metric == "time_s"))
         record.update(baseline=b, current=c, kind=kind, change=change, tolerance=tolerance,
                       status=status, gated=gated)
         rows.append(record)

@@ -402,7 +402,8 @@ def _card(key: str, value, sub: str = "", tone: str = "") -> str:
 
 STATUS_CLASS = {compare.STATUS_REGRESSED: "regressed", compare.STATUS_MISSING: "missing",
                 compare.STATUS_IMPROVED: "improved", compare.STATUS_SLOWER: "slower",
-                compare.STATUS_FASTER: "improved", compare.STATUS_OK: "ok", compare.STATUS_NEW: "new"}
+                compare.STATUS_FASTER: "improved", compare.STATUS_OK: "ok", compare.STATUS_NEW: "new",
+                compare.STATUS_MORE_MEMORY: "slower", compare.STATUS_LESS_MEMORY: "improved"}
 
 
 def comparison_table(comparison: compare.Comparison, colours: dict[str, str], rows: pd.DataFrame | None = None) -> str:

@@ -172,6 +172,10 @@ def test_time_is_reported_but_gated_only_on_request():
     assert "not gated" in loose.format()
     strict = compare.compare_summaries(base, cur, gate_time=True)
     assert strict.failed and len(strict.failures) == 1
+    # memory is shown, never gated, even with gate_time
+    mem = compare.compare_summaries(summary({("m", "peak_mem_mb", "frame"): 100.0}),
+                                    summary({("m", "peak_mem_mb", "frame"): 400.0}), gate_time=True)
+    assert mem.table["status"].iloc[0] == compare.STATUS_MORE_MEMORY and not mem.failed
     # tiny per-frame times are noise: never flagged
     assert status_of(0.001, 0.01, "time_s", gate_time=True) == compare.STATUS_OK
 
