@@ -254,6 +254,9 @@ def quality_chart(history: History, sequence: str, holes: str, holes_params: str
             ax.set_title(f"{METRIC_LABELS.get(metric, metric)} · {scope}", loc="left")
     handles = [plt.Line2D([], [], color=colours[l], marker="o", linewidth=1.6, label=l)
                for l in sorted(set(sub["label"]), key=list(colours).index)]
+    if any(p not in ("", "intrinsic") for p in set(sub["peak"])):
+        handles.append(plt.Line2D([], [], color="#6b7280", linestyle=":", label="dotted: PSNR peak "
+                                  + ", ".join(sorted(p for p in set(sub["peak"]) if p not in ("", "intrinsic")))))
     if not sub["measured"].all():
         handles.append(plt.Line2D([], [], color="#6b7280", marker="o", markerfacecolor="white", linestyle="none",
                                   label="carried over (not rerun)"))
@@ -484,29 +487,36 @@ def paper_gaps(history: History, paper: pd.DataFrame) -> str:
 
 
 def latest_table(history: History, colours: dict[str, str], metrics: list[str]) -> str:
-    """Newest version's means: one table per (sequence, holes), rows = methods, cols = metric x scope."""
+    """Newest version's means: one table per (sequence, holes), rows = methods, columns = metric x
+    scope x peak (the PSNR peak is named when it is not pc_error's default, "intrinsic")."""
     latest = history.table[history.table["code_version"] == history.versions[-1]]
     parts = []
     for (sequence, holes, holes_params), sub in latest.groupby(["sequence", "holes", "holes_params"], sort=True):
-        columns = [(m, s) for s in ("frame", "holes") for m in metrics + ["time_s"]
-                   if not sub[(sub["metric"] == m) & (sub["scope"] == s)].empty]
+        present = set(zip(sub["metric"], sub["scope"], sub["peak"]))
+        peaks = sorted(set(sub["peak"]), key=lambda p: (p not in ("", "intrinsic"), p))
+        columns = [(m, s, p) for s in ("frame", "holes") for m in metrics + ["time_s"] for p in peaks
+                   if (m, s, p) in present]
+        values = sub.set_index(["label", "metric", "scope", "peak"])
         best = {}
-        for metric, scope in columns:
-            cell = sub[(sub["metric"] == metric) & (sub["scope"] == scope)].dropna(subset=["mean"])
+        for column in columns:
+            metric = column[0]
+            cell = sub[(sub["metric"] == metric) & (sub["scope"] == column[1]) & (sub["peak"] == column[2])]
+            cell = cell.dropna(subset=["mean"])
             if len(cell) and metric != "time_s":
-                best[(metric, scope)] = cell["mean"].max() if compare.higher_is_better(metric) else cell["mean"].min()
-        head = "".join(f"<th>{_e(METRIC_LABELS.get(m, m))}<br><span class='note'>{_e(s)}</span></th>"
-                       for m, s in columns)
+                best[column] = cell["mean"].max() if compare.higher_is_better(metric) else cell["mean"].min()
+        head = "".join(f"<th>{_e(METRIC_LABELS.get(m, m))}<br><span class='note'>{_e(s)}"
+                       f"{_e(' · peak ' + p if p not in ('', 'intrinsic') else '')}</span></th>"
+                       for m, s, p in columns)
         body = []
         for label in sorted(set(sub["label"]), key=list(colours).index):
             cells = []
-            for metric, scope in columns:
-                cell = sub[(sub["label"] == label) & (sub["metric"] == metric) & (sub["scope"] == scope)]
-                if cell.empty:
+            for column in columns:
+                key = (label,) + column
+                if key not in values.index:
                     cells.append('<td class="num">-</td>')
                     continue
-                mean, std = float(cell["mean"].iloc[0]), float(cell["std"].iloc[0])
-                css = "num best" if best.get((metric, scope)) == mean else "num"
+                mean, std = float(values.loc[key, "mean"]), float(values.loc[key, "std"])
+                css = "num best" if best.get(column) == mean else "num"
                 spread = f" ± {_fmt(std)}" if std and not math.isnan(std) else ""
                 cells.append(f'<td class="{css}">{_e(_fmt(mean))}{_e(spread)}</td>')
             body.append(f'<tr><td><span class="swatch" style="background:{colours[label]}"></span>{_e(label)}</td>'

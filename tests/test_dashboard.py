@@ -210,3 +210,15 @@ def test_summary_files_join_the_history(tmp_path, capsys):
     assert 'data-commits="2"' in page
     changes = page.split('<section id="comparison">')[1].split("<details>")[0]
     assert changes.count('data-status="REGRESSED"') == 4
+
+
+def test_two_psnr_peaks_are_kept_apart(tmp_path):
+    store = ResultsStore(tmp_path / "s.sqlite")
+    rows = [dict(frame=0, metric="gpsnr_d1", scope="frame", peak="intrinsic", value=21.5),
+            dict(frame=0, metric="gpsnr_d1", scope="frame", peak="1023", value=71.5)]
+    store.record_run("r", dict(sequence="human", holes="region", holes_params={}, seed=0, method="none",
+                               method_params={}, code_version="c1"), rows, ["x"])
+    page = dashboard.render_dashboard(store.results_frame())
+    latest = page.split('<section id="latest">')[1].split("</section>")[0]
+    assert "peak 1023" in latest and ">21.5000<" in latest and ">71.5000<" in latest
+    assert "dotted: PSNR peak 1023" in page
