@@ -259,3 +259,73 @@ def test_lozes_leaves_a_region_without_surface_alone():
     sphere = fibonacci_sphere(8000, 100.0)
     far = HoleRegion.ball([500.0, 0.0, 0.0], 10.0)
     np.testing.assert_array_equal(LozesPDE().inpaint([sphere], [[far]])[0], sphere)
+
+
+# -- meshlab ---------------------------------------------------------------------------------------
+
+from methods.meshlab import MeshlabError, MeshlabFill, sample_triangles  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def holed_sphere():
+    """(damaged (N, 3), hole points (H, 3), region): a 5000-point sphere of radius 50 with a ball hole."""
+    sphere = fibonacci_sphere(5000, 50.0)
+    region = HoleRegion.ball(sphere[np.argmax(sphere @ np.array([0.3, 0.5, 0.8]))], 9.0)
+    hole = region.contains(sphere)
+    return sphere[~hole], sphere[hole], region
+
+
+def test_sample_triangles_is_uniform_and_seeded():
+    vertices = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [3, 0, 0], [3, 3, 0]])
+    faces = np.array([[0, 1, 2], [1, 3, 4]])  # areas 0.5 and 3
+    samples = sample_triangles(vertices, faces, 7000, np.random.default_rng(5))
+    in_small = samples[:, 0] + samples[:, 1] <= 1.0
+    assert in_small.mean() == pytest.approx(0.5 / 3.5, abs=0.02)
+    assert np.allclose(samples[:, 2], 0.0)
+    np.testing.assert_array_equal(samples, sample_triangles(vertices, faces, 7000, np.random.default_rng(5)))
+
+
+@pytest.mark.parametrize("reconstruction", ["ball-pivoting", "poisson"])
+def test_meshlab_holes_only_keeps_every_point_and_adds_only_in_the_hole(holed_sphere, reconstruction):
+    damaged, truth, region = holed_sphere
+    out = MeshlabFill(output="holes-only", reconstruction=reconstruction).inpaint([damaged], [[region]])[0]
+    np.testing.assert_array_equal(out[: len(damaged)], damaged)
+    added = out[len(damaged):]
+    step = sampling_step(damaged)
+    assert 0.5 * len(truth) < len(added) < 1.5 * len(truth)
+    assert region.contains(added, margin=2 * step).all()
+    # the patch is close to the sphere (within the hole's sagitta) and covers the hole
+    sagitta = 50.0 - np.sqrt(50.0 ** 2 - region.radius ** 2)
+    assert np.abs(np.linalg.norm(added, axis=1) - 50.0).max() < 1.5 * sagitta
+    assert cKDTree(added).query(truth)[0].max() < sagitta + 2 * step
+
+
+def test_meshlab_blind_holes_only_fills_the_hole_too(holed_sphere):
+    damaged, truth, region = holed_sphere
+    out = MeshlabFill(output="holes-only").inpaint([damaged], None)[0]
+    added = out[len(damaged):]
+    assert region.contains(added, margin=2 * sampling_step(damaged)).sum() > 0.5 * len(truth)
+
+
+def test_meshlab_whole_resamples_about_the_original_count_on_the_surface(holed_sphere):
+    damaged, truth, region = holed_sphere
+    out = MeshlabFill(output="whole").inpaint([damaged], [[region]])[0]
+    original = len(damaged) + len(truth)
+    assert 0.85 * original < len(out) < 1.15 * original
+    assert cKDTree(damaged).query(out)[0].min() > 0  # every point resampled, none copied
+    assert np.abs(np.linalg.norm(out, axis=1) - 50.0).max() < 2.0
+    # the hole is covered too
+    assert cKDTree(out).query(truth)[0].max() < 2 * sampling_step(damaged)
+
+
+def test_meshlab_failures_are_clear_errors(holed_sphere):
+    damaged, _, region = holed_sphere
+    with pytest.raises(MeshlabError, match="produced no faces"):
+        MeshlabFill(ball_radius=1e-4).inpaint([damaged], [[region]])
+    line = np.column_stack([np.linspace(0.0, 1.0, 200), np.zeros(200), np.zeros(200)])
+    with pytest.raises(MeshlabError, match="ball-pivoting"):
+        MeshlabFill().inpaint([line], [[HoleRegion.ball([0.5, 0, 0], 0.1)]])
+    for bad in ({"output": "mesh"}, {"reconstruction": "alpha"}, {"max_hole_size": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            MeshlabFill(**bad).inpaint([damaged], [[region]])
+    assert issubclass(MeshlabError, RuntimeError)
