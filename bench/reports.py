@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from bench import figures, paper
-from bench.tables import ComparisonTable, comparison_table, higher_is_better, runtime_table
+from bench.tables import ComparisonTable, comparison_table, runtime_table
 
 
 def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, Path]:
@@ -237,6 +237,3 @@ def frame_has(df: pd.DataFrame, metric: str, scope: str, peak: str) -> bool:
         sel = sel[sel["peak"] == peak]
     return not sel.empty
 
-
-__all__ = ["write_table", "write_comparison_report", "write_paper_report", "paper_tables", "ranking_markdown",
-           "higher_is_better"]
