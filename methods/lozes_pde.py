@@ -166,8 +166,8 @@ class LozesPDE(PerFrameMethod):
         unknown = np.arange(n_known, len(positions))
         if len(unknown) == 0:
             return np.empty((0, 3))
-        rows, cols = weights.nonzero()
-        edge_w = np.asarray(weights[rows, cols]).ravel()
+        edges = weights.tocoo()
+        rows, cols, edge_w = edges.row, edges.col, edges.data
 
         tolerance = self.tolerance * spacing
         eps = self.epsilon * spacing

@@ -329,3 +329,26 @@ def test_meshlab_failures_are_clear_errors(holed_sphere):
         with pytest.raises(ValueError, match=next(iter(bad))):
             MeshlabFill(**bad).inpaint([damaged], [[region]])
     assert issubclass(MeshlabError, RuntimeError)
+
+
+# -- blind protocol (regions=None: holes.detection.detect_holes finds the hole) --------------------
+
+def test_blind_lozes_and_temporal_copy_fill_the_detected_hole():
+    sphere = fibonacci_sphere(5000, 50.0)
+    region = HoleRegion.ball(sphere[np.argmax(sphere[:, 2])], 11.0)
+    hole = region.contains(sphere)
+    added = LozesPDE().inpaint([sphere[~hole]])[0][(~hole).sum():]
+    assert 0.7 * hole.sum() < len(added) and region.contains(added, margin=3.0).all()
+
+    def tilt(a):
+        return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+
+    frames = [sphere @ tilt(a).T for a in (0.0, 0.02, 0.04)]
+    region = HoleRegion.ball(frames[1][np.argmax(frames[1][:, 2])], 11.0)
+    hole = region.contains(frames[1])
+    damaged = [frames[0], frames[1][~hole], frames[2]]
+    out = TemporalCopy().inpaint(damaged)
+    assert [len(o) - len(d) for o, d in zip(out, damaged)][::2] == [0, 0]
+    added = out[1][len(damaged[1]):]
+    assert len(added) > 0.8 * hole.sum()
+    assert cKDTree(frames[1]).query(added)[0].max() < 0.5 * sampling_step(frames[1])
