@@ -222,3 +222,15 @@ def test_two_psnr_peaks_are_kept_apart(tmp_path):
     latest = page.split('<section id="latest">')[1].split("</section>")[0]
     assert "peak 1023" in latest and ">21.5000<" in latest and ">71.5000<" in latest
     assert "dotted: PSNR peak 1023" in page
+
+
+def test_comparison_against_a_baseline_summary(tmp_path):
+    from bench import compare
+
+    old = make_store(tmp_path / "old.sqlite", versions=(0,))
+    baseline = (compare.summarize(old.results_frame()), {"code_version": VERSIONS[0][0], "date": "2026-01-01"})
+    new = make_store(tmp_path / "new.sqlite", versions=(1,))
+    page = dashboard.render_dashboard(new.results_frame(), baseline=baseline)
+    changes = page.split('<section id="comparison">')[1].split("<details>")[0]
+    assert "against the baseline summary (code 11111111" in changes
+    assert changes.count('data-status="REGRESSED"') == 4
