@@ -3,53 +3,63 @@
 Fu, Hu, Guo, "3D Dynamic Point Cloud Inpainting via Temporal Consistency on Graphs" (ICME 2020),
 Sec. 3, built on Hu, Fu, Guo [Fu18TIP] (non-local self-similarity on graphs). One implementation:
 `FuNonlocal` is `TemporalGraph` with the temporal terms switched off (beta = 0, no inter-source
-cubes), so the two differ only by the temporal terms.
+cubes), so the two differ only by the temporal terms (tested: beta = 0 gives identical output).
 
-Units. Every length parameter is given in *units* of the data's point spacing ``u`` (``spacing``;
-by default estimated as median 8th-NN distance / sqrt(2), exactly 1 on a voxelized surface). So the
-paper's 10-bit values (M = 20 voxels, sigma = 1 voxel) carry over to any bit depth or to unvoxelized
-captures with the same number of points across a cube.
+Units. Every length parameter is given in *units* u of the data's point spacing (``spacing``; by
+default median 8th-NN distance / sqrt(2) of the largest frame, exactly 1 on a voxelized surface).
+So the paper's 10-bit values (M = 20 voxels, sigma = 1 voxel) carry over to any bit depth or to
+unvoxelized captures with the same number of points across a cube.
 
-Pipeline for frame f (frames are processed in order; frame f-1 is the already inpainted output,
-frame f+1 the damaged input, as the paper's commented text says results feed later frames):
+Pipeline for frame f. Frames are processed in order; the neighbour f-1 is the already inpainted
+output and f+1 the damaged input (the paper's commented text: results feed later frames).
 
-1. Cells of side s = M/4 on a grid; a cube is a 4x4x4 block of cells (side M, step M/4).
-2. Missing data: cells that touch a hole region (the given regions, or in blind mode the regions of
-   `holes.detection.detect_holes`) are *pending*. Target cubes are cubes holding a pending cell and
-   at least ``min_known_points`` known points.
-3. Holes larger than a cube are filled from the boundary inward: per group of overlapping holes,
-   repeatedly take the target cube with the most known points (filled points count as known), fill
-   it, and mark its pending cells done, until no target cube is left.
-4. Intra-source cube: among the cubes of the frame that touch no hole and hold at least as many points
-   as the target cube's known part, the one minimising
-       d = ||DC_t - DC_c||_2 + agtv_weight * |AGTV_t - AGTV_c|
-   with DC = mean unit normal of the cube's points (normals from open3d, K = 10 neighbours, oriented
-   away from the frame centroid) and AGTV = mean over the cube's points of the per-point anisotropic
-   graph total variation a_i = sum_{j in 8-NN(i)} exp(-||p_i - p_j||^2 / 2 sigma^2) ||n_i - s_ij n_j||_1,
-   s_ij = sign(n_i . n_j) (so that a flipped normal is not a variation). Candidate DC/AGTV come from
-   per-cell sums combined by summed-volume tables (one pass over the frame); the target's from its own
-   known points.
-5. Structure matching: the source cube (grown by one cell so that it still covers the target after a
-   rotation) is translated to the target cube's position and aligned by trimmed point-to-point ICP
-   (closed-form Kabsch, pairs from the target's known points to the source; `methods._registration`).
-6. Inter-source cubes (temporal only): in frame g = f-1 and f+1, the box of side H = 2.5 M centred on
-   the co-located cube; every known point of the target cube gets its nearest neighbour in the box;
-   a window of side M slides with stride one unit over the box and the one holding most of those
-   neighbours wins (summed-volume table over a unit-voxel histogram). The window's points (grown by
-   one cell) are aligned to the target's known points like the intra-source cube.
-7. Rows of c_r: the target's known points, plus the *new points*: the aligned intra-source points
-   that fall in the target cube, inside a hole region and in a pending cell. Spatial graph: K-NN
-   (K = round(sqrt(m)), m = known points of the cube) on the initial estimate
-   Omega_bar c_t + Omega c_s_hat, weights exp(-d^2 / 2 sigma^2). Temporal links: every row to its
-   nearest neighbour in each aligned inter-source cube, weight 1, dropped when farther than
-   ``link_radius`` or when the row maps into a hole region of the (not yet inpainted) frame g.
-8. Solve Eq. (6) (with the per-row link count in place of 2I, so a first/last frame or an
-   unlinked row uses beta once or not at all) as one sparse SPD system (`methods._graph.solve_cube`).
-9. Voxelized input (integer coordinates): new points are rounded to the grid and those that coincide
-   with existing points or with each other are dropped.
+1. Cells of side s = M/4 on a grid; a cube is a 4x4x4 block of cells (side M, step M/4), so every
+   point lies in 64 cubes. Per-cube sums come from per-cell sums by summed-volume tables.
+2. Missing data: cells that touch a hole region are *pending*: the given regions, or in blind mode
+   (regions=None) those of `holes.detection.detect_holes` per frame.
+3. Target cubes and holes larger than a cube, from the boundary inward: per group of nearby holes,
+   repeatedly take, among the cubes not yet tried with >= ``min_known_points`` known points and a
+   pending cell in their central 2x2x2 cells (a cube centred on the rim: half known for the
+   matching, half missing), the one with the most known points (filled points count as known);
+   fill it and mark its pending cells done. When no such cube is left, any cube with a pending
+   cell may be taken; the group ends when none is left.
+4. Intra-source cube: cubes of the frame that touch no hole and hold at least as many points as the
+   target's known part, ranked by the Euclidean distance between the 4-vectors
+   (DC, agtv_weight * AGTV), DC = mean normal, AGTV = mean per-point anisotropic graph total
+   variation a_i = sum_{j in 8-NN(i)} exp(-||p_i - p_j||^2 / 2 sigma^2) ||n_i - s_ij n_j||_1
+   (s_ij = sign(n_i . n_j), so an unoriented normal flip is no variation). Normals and a_i are
+   computed once per frame on a fixed ``feature_fraction`` sample of the points (candidate
+   averages over ~100+ points per cube do not need every point; 4x less work). The best
+   ``intra_candidates`` are aligned (step 5) and the one with the smallest trimmed mean residual
+   to the target's known points wins (1 = the paper: the most similar by DC/AGTV alone).
+5. Structure matching: the candidate's points (cube grown by one cell, so that it still covers the
+   target after a rotation) are translated to the target cube and aligned by trimmed point-to-point
+   ICP (closed-form Kabsch on pairs from the target's known points to the source: the partial
+   side pairs into the complete one; `methods._registration`).
+6. Inter-source cubes (temporal only), in f-1 and f+1: the box of side H = 2.5 M centred on the
+   co-located cube; each known point of the target votes for its nearest neighbour in that frame
+   when it lies in the box; a window of side M slides with stride 1 u over the box and the window
+   holding most votes wins (a summed-volume table over a 1 u histogram: O(H^3), not O(H^3 M^3)).
+   Its points (grown by one cell) are aligned onto the target's known points as in step 5.
+7. Rows of c_r: the target's m known points, then the *new points*: the aligned intra-source
+   points inside the target cube, inside a hole region and in a pending cell. Spatial graph: K-NN
+   (K = round(sqrt(m))) on the initial estimate Omega_bar c_t + Omega c_s_hat, weights
+   exp(-d^2 / 2 sigma^2), symmetrised. Temporal links: each row to its nearest neighbour in each
+   aligned inter-source cube, weight 1, unless farther than ``link_radius`` or unless the row
+   falls into a hole region of the (not yet inpainted) frame f+1 (a counterpart there would be
+   the hole's rim, not the surface).
+8. Solve Eq. (6) as one sparse SPD system for the three coordinates (`methods._graph.solve_cube`,
+   scipy's sparse LU), with per-row link counts in place of 2I: a first/last frame has one
+   neighbour and so uses beta once; a one-frame sequence has none (spatial terms only, with a
+   warning). known_points="fixed" keeps the known rows at c_t and solves the new rows only;
+   "free" is the paper's literal "replace the target cube with the resulting cube".
+9. drop_contradicted: a new point that an inter-source cube contradicts (no counterpart within
+   ``link_radius`` although that frame has data there) and none supports is dropped.
+10. Voxelized input (all coordinates integers): the new points are turned into the grid voxels of
+   the surface they sample (`_voxelize`: voxels within half a voxel of the local tangent plane),
+   minus voxels already occupied.
 
-A one-frame sequence has no inter-source cubes: the spatial terms alone are used and a warning says
-so.
+Decisions by measurement: see the `TemporalGraph` docstring.
 """
 
 from __future__ import annotations
@@ -106,7 +116,7 @@ class _CubeGraphInpainting(InpaintingMethod):
                     f"{self.name}: k_neighbors={self.k_neighbors} exceeds min_known_points="
                     f"{self.min_known_points}, so a cube could have fewer points m than K; "
                     "lower k_neighbors or raise min_known_points (K must be <= m)")
-        if self.spacing is not None:
+        if self.spacing not in (None, "points"):
             positive("spacing")
         if self.known_points not in _KNOWN_MODES:
             raise ValueError(f"{self.name}: known_points must be one of {_KNOWN_MODES}, got {self.known_points!r}")
@@ -130,13 +140,22 @@ class _CubeGraphInpainting(InpaintingMethod):
                 trees[f] = cKDTree(frames[f])
             return trees[f]
 
-        if self.spacing is not None:
-            unit = float(self.spacing)
-        else:
-            largest = max(range(len(frames)), key=lambda f: len(frames[f]))
+        integer = all(np.array_equal(f, np.round(f)) for f in frames)
+        voxelized = self.snap is True or (self.snap == "auto" and integer)
+        largest = max(range(len(frames)), key=lambda f: len(frames[f]))
+        if self.spacing == "points":
             unit = point_spacing(frames[largest], tree=tree_of(largest))
-        voxelized = self.snap is True or (
-            self.snap == "auto" and all(np.array_equal(f, np.round(f)) for f in frames))
+        elif self.spacing is not None:
+            unit = float(self.spacing)
+        elif integer:
+            unit = 1.0  # one voxel, whatever the bit depth
+        else:
+            # the paper sets M "according to the coordinate range of P_f": one unit is 1/1024 of
+            # the largest bounding-box side (M = 20 on a body 1023 units tall)
+            extent = float(np.ptp(frames[largest], axis=0).max())
+            if not extent > 0:
+                raise ValueError(f"{self.name}: the frames have zero extent; pass spacing=<length of one unit>")
+            unit = extent / 1024.0
         if regions is None:
             from holes.detection import detect_holes  # lazily: blind protocol only
 
@@ -404,37 +423,13 @@ class _CubeGraphInpainting(InpaintingMethod):
                 local["normals"] = np.vstack([local["normals"], nan])
                 local["agtv"] = np.concatenate([local["agtv"], nan[:, 0]])
                 local["index"] = np.concatenate([local["index"], np.full(len(new), -1)])
-            self._settle_cells(pending, pick, lower, local["points"], grid)
+            pending[tuple(slice(p, p + per) for p in pick)] = False
             refresh(pick - per + 1, pick + per)
         moved = []
         if not fix_known:
             original = local["index"] >= 0
             moved = list(zip(local["index"][original], local["points"][original]))
         return moved, (np.vstack(added) if added else np.empty((0, 3)))
-
-    def _settle_cells(self, pending, pick, lower, points, grid):
-        """After filling the cube anchored at local cell ``pick``: its pending cells that now hold
-        points, and those farther than one cell from every point of the cube (empty space off the
-        surface), are done. Empty cells next to the surface stay pending: the source did not cover
-        them (e.g. it came from the edge of the data), and another cube may."""
-        per, cell = self.cells_per_cube, grid.cell
-        block = pending[tuple(slice(p, p + per) for p in pick)]
-        idx = np.argwhere(block)
-        if not len(idx):
-            return
-        inside = points[in_box(points, lower - cell, grid.cube_size + 2 * cell)]
-        done = np.ones(len(idx), dtype=bool)
-        if len(inside):
-            centres = lower + (idx + 0.5) * cell
-            occupied = np.zeros(len(idx), dtype=bool)
-            cells = np.floor((inside - lower) / cell).astype(np.int64)
-            ok = ((cells >= 0) & (cells < per)).all(axis=1)
-            flat = set(np.ravel_multi_index(cells[ok].T, (per,) * 3).tolist())
-            occupied = np.isin(np.ravel_multi_index(idx.T, (per,) * 3), list(flat))
-            dist, _ = cKDTree(inside).query(centres)
-            far = dist > cell
-            done = occupied | far
-        block[tuple(idx[done].T)] = False
 
     def _fill_cube(self, lower, regions, pending, a0, local, ctx, fix_known) -> np.ndarray:
         """Inpaint the target cube at ``lower``; returns its new points (P, 3) (known points moved
@@ -590,8 +585,8 @@ class TemporalGraph(_CubeGraphInpainting):
 
     def __init__(self, cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5, gamma=0.5,
                  sigma=1.0, k_neighbors=None, spacing=None, known_points="fixed", min_known_points=16,
-                 icp_iterations=10, link_radius=5.0, snap="auto", agtv_weight=1.0, intra_candidates=1,
-                 drop_contradicted=False, feature_fraction=0.25):
+                 icp_iterations=10, link_radius=2.5, snap="auto", agtv_weight=1.0, intra_candidates=4,
+                 drop_contradicted=True, feature_fraction=0.25):
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.search_box = search_box
@@ -624,7 +619,7 @@ class FuNonlocal(_CubeGraphInpainting):
 
     def __init__(self, cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0, k_neighbors=None,
                  spacing=None, known_points="fixed", min_known_points=16, icp_iterations=10, snap="auto",
-                 agtv_weight=1.0, intra_candidates=1, feature_fraction=0.25):
+                 agtv_weight=1.0, intra_candidates=4, feature_fraction=0.25):
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.alpha = alpha

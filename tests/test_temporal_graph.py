@@ -212,7 +212,7 @@ def test_sphere_hole_is_filled_onto_the_sphere():
     frames = [fibonacci_sphere(center=(c, 0, 0)) for c in (0.0, 0.7, 1.4)]
     regions = [[HoleRegion.ball([c, 0.0, 25.0], 6.0)] for c in (0.0, 0.7, 1.4)]
     damaged, removed = punch(frames, regions)
-    out = TemporalGraph(**FAST).inpaint(damaged, regions)
+    out = TemporalGraph(spacing=1.0, **FAST).inpaint(damaged, regions)
     for f in range(3):
         new = out[f][len(damaged[f]):]
         centre = np.array([(0.0, 0.7, 1.4)[f], 0, 0])
@@ -268,7 +268,7 @@ def test_blind_mode_detects_and_fills_a_sphere_hole():
     region = HoleRegion.ball([0.0, 0.0, 25.0], 6.0)
     damaged, removed = punch([sphere], [[region]])
     with pytest.warns(UserWarning):
-        out = TemporalGraph(**FAST).inpaint(damaged)  # regions=None: blind
+        out = TemporalGraph(spacing=1.0, **FAST).inpaint(damaged)  # regions=None: blind
     new = out[0][len(damaged[0]):]
     assert len(new) >= 0.5 * len(removed[0])
     assert np.abs(np.linalg.norm(new, axis=1) - 25.0).max() < 1.0
