@@ -107,7 +107,11 @@ def paper_column(df: pd.DataFrame) -> pd.Series:
 def _rank_line(table: ComparisonTable, row: str) -> str:
     values = {c: table.mean[(row, c)] for c in table.columns if (row, c) in table.mean}
     order = sorted(values, key=values.get, reverse=table.higher_is_better)
-    return " > ".join(order)
+    text = order[0] if order else "–"
+    for prev, cur in zip(order, order[1:]):  # equal means (to 1e-9 relative) are ties, written "="
+        tie = abs(values[cur] - values[prev]) <= 1e-9 * max(abs(values[cur]), abs(values[prev]), 1e-300)
+        text += (" = " if tie else " > ") + cur
+    return text
 
 
 def ranking_markdown(gpsnr: ComparisonTable, nshd: ComparisonTable) -> str:
