@@ -20,8 +20,8 @@ def human_frame():
 
 @pytest.fixture(scope="module")
 def around(human_frame):
-    """Occlusion damage of the human by a 20-camera sphere rig (sees all of any convex object)."""
-    return get_generator("occlusion", rig="sphere").damage([human_frame], 0)
+    """Occlusion damage of the human by an 8-camera sphere rig (sees all of any convex object)."""
+    return get_generator("occlusion", rig="sphere", count=8).damage([human_frame], 0)
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +44,11 @@ def depth_below_hull(points):
 def test_surrounding_rig_sees_all_of_a_convex_object():
     pts = sphere(5000)
     normals, _, _ = estimate_normals(pts, cKDTree(pts))
-    assert visible_mask(pts, normals, sphere_cameras(pts, 20), min_cos=0.2).all()
+    for count in (8, 20):
+        assert visible_mask(pts, normals, sphere_cameras(pts, count), min_cos=0.2).all()
     # so the generator removes nothing, and says so instead of returning an undamaged frame
     with pytest.raises(ValueError, match="lose no point"):
-        get_generator("occlusion", rig="sphere", count=12).damage([pts], 0)
+        get_generator("occlusion", rig="sphere", count=8).damage([pts], 0)
 
 
 def test_one_camera_sees_the_near_side_of_a_sphere():
@@ -77,13 +78,15 @@ def test_grazing_threshold_removes_the_horizon():
 
 def test_occlusion_holes_are_in_concave_regions_of_the_human(human_frame, around):
     """With a rig that sees all of any convex object, what stays unseen on the human lies in its
-    concavities (armpits, between the legs): measured as depth below the convex hull, the removed
-    points lie on average 1.7x deeper than the surface as a whole (tiny human, frame 0), and
-    nearly all of them (96 %) deeper than 5 voxels, against 65 % of all points."""
+    concavities (between the legs, under the arms). Measured as depth below the convex hull on the
+    tiny human with 8 cameras on a sphere: walk frame 0 removes 0.05 % of the points at mean depth
+    14.4 voxels against 7.5 for all points (1.9x), all of them deeper than 5 voxels (65 % of all
+    points are); walk frame 5, dance frame 10 and wave frame 0 gave 2.4x, 1.8x and 1.7x.
+    (The embedded figure is open-limbed: a 20-camera sphere rig leaves nothing unseen on it.)"""
     res = around
     removed = res.removed[0]
     depth = depth_below_hull(human_frame)
-    assert 0.001 < removed.mean() < 0.05
+    assert 0 < removed.mean() < 0.01
     assert depth[removed].mean() > 1.5 * depth.mean()
     assert (depth[removed] > 5).mean() > 0.9
     # every removed point is inside an oriented-box region
@@ -104,12 +107,13 @@ def test_stage_rig_geometry(human_frame):
     np.testing.assert_allclose(horizontal, 1.5 * np.linalg.norm(hi - lo))
 
 
-def test_stage_rig_leaves_more_holes_than_a_surrounding_rig(human_frame, stage, around):
-    """A stage (2 rings, no camera above or below) misses the top of the head and the soles too."""
-    stage_removed, around_removed = stage.removed[0], around.removed[0]
-    assert stage_removed.sum() > around_removed.sum()
+def test_stage_rig_misses_the_top_of_the_head(human_frame, stage, around):
+    """A stage (2 rings at 30 % and 80 % of the height, none above) sees the top of the head only
+    at grazing angles (measured on the tiny human: 8 of the 18 removed points are the crown); the
+    sphere rig, which has a camera above, removes none there."""
     top = human_frame[:, 1] > human_frame[:, 1].max() - 3
-    assert stage_removed[top].mean() > around_removed[top].mean() + 0.3
+    assert stage.removed[0][top].any()
+    assert not around.removed[0][top].any()
 
 
 def test_random_azimuth_depends_on_the_seed_only(human_frame):
