@@ -185,7 +185,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         n = len(truth.frames)
         shown = sorted(set(np.linspace(0, n - 1, min(4, n)).round().astype(int).tolist()))
         regions = content0["regions"]
-        zoom = [regions[f][0] for f in shown if regions[f]][:1]
+        zoom = [regions[f][0] for f in shown if regions[f]]  # the first hole, followed over the frames
         rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                 ("With holes", [content0["damaged"][f] for f in shown])]
         for name, label, _ in PAPER_METHODS:
@@ -208,7 +208,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         content0 = read_run_folder(folder0)
         detected = content0["detected"] or [[] for _ in content0["damaged"]]
         shown = list(range(len(content0["damaged"])))
-        zoom = [detected[f][0] for f in shown if detected[f]][:1]
+        zoom = [detected[f][0] for f in shown if detected[f]][:1]  # detections are not tracked over frames
         if protocol.standins:
             rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                     ("Acquisition holes", content0["damaged"])]
