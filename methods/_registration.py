@@ -35,18 +35,22 @@ def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int = 10, trim: float = 0.9,
-                     max_points: int = 256, source_tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     max_points: int = 256, source_tree: cKDTree | None = None,
+                     start: tuple[np.ndarray, np.ndarray] | None = None, tol: float = 1e-4
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Rigid (R, t) that moves the complete ``source`` (S, 3) onto the ``partial`` target (T, 3).
 
     Each iteration pairs every target point q_j with its nearest source point under the current
     inverse transform, keeps the ``trim`` fraction of closest pairs (robust to the target's rim and
-    to the source's extra surface), and solves `kabsch` for the pairs. At most ``max_points`` target
+    to the source's extra surface), and solves `kabsch` for the pairs. ``start`` = (R, t) resumes
+    from an earlier alignment. At most ``max_points`` target
     points are paired (an evenly spaced, deterministic subset of the rows): six unknowns need far
     fewer pairs than a cube holds. Starts from the identity
-    (callers translate the source into place first). Stops early when the update is below 1e-6.
+    (callers translate the source into place first). Stops early when the largest change of
+    an entry of R or t is below ``tol`` (1e-4: a hundredth of a percent of a voxel at 10 bits).
     Returns (R, t) such that ``source @ R.T + t`` lies on the partial target.
     """
-    rotation, translation = np.eye(3), np.zeros(3)
+    rotation, translation = (np.eye(3), np.zeros(3)) if start is None else start
     if len(source) < 3 or len(partial) < 3 or iterations <= 0:
         return rotation, translation
     tree = source_tree if source_tree is not None else cKDTree(source)
@@ -65,6 +69,16 @@ def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int
         new_rotation, new_translation = kabsch(source[idx[keep]], partial[keep])
         change = np.abs(new_rotation - rotation).max() + np.abs(new_translation - translation).max()
         rotation, translation = new_rotation, new_translation
-        if change < 1e-6:
+        if change < tol:
             break
     return rotation, translation
+
+
+def alignment_residual(source_tree: cKDTree, partial: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
+                       trim: float = 0.9) -> float:
+    """Trimmed mean distance from the ``partial`` points to the source moved by (R, t): the mean of
+    the ``trim`` fraction of smallest nearest-neighbour distances (``source_tree`` is on the
+    unmoved source)."""
+    dist, _ = source_tree.query((np.asarray(partial) - translation) @ rotation)
+    keep = max(1, int(np.ceil(trim * len(dist))))
+    return float(np.partition(dist, keep - 1)[:keep].mean())

@@ -64,6 +64,7 @@ Decisions by measurement: see the `TemporalGraph` docstring.
 
 from __future__ import annotations
 
+import itertools
 import warnings
 
 import numpy as np
@@ -71,7 +72,7 @@ from scipy.spatial import cKDTree
 
 from methods._cubes import CellGrid, best_window, block_sums, in_box, point_spacing
 from methods._graph import knn_laplacian, solve_cube
-from methods._registration import align_to_partial
+from methods._registration import align_to_partial, alignment_residual
 from methods.base import InpaintingMethod
 
 _KNOWN_MODES = ("fixed", "free")
@@ -400,8 +401,11 @@ class _CubeGraphInpainting(InpaintingMethod):
             sums[key] = np.zeros(tuple(n_anchor), dtype=np.int64)
         refresh(np.zeros(3, dtype=np.int64), n_anchor)
         tried = np.zeros(tuple(n_anchor), dtype=bool)  # each cube is a target at most once
+        # a cube whose pending cells are all away from its points is put off until points come
+        # nearer (its known count grows): the missing surface cannot be reached from it yet
+        deferred = np.full(tuple(n_anchor), -1, dtype=np.int64)
         while True:
-            enough = (sums["known"] >= self.min_known_points) & ~tried
+            enough = (sums["known"] >= self.min_known_points) & ~tried & (sums["known"] > deferred)
             eligible = (sums["central"] > 0) & enough
             if not eligible.any():
                 # no known-rich cube is centred on the hole any more: any cube touching it
@@ -411,6 +415,9 @@ class _CubeGraphInpainting(InpaintingMethod):
             # the target cube with the most known data first: holes fill from the rim inward
             pick = np.array(np.unravel_index(np.argmax(np.where(eligible, sums["known"], -1)), eligible.shape))
             lower = grid.cube_lower(a0 + pick)
+            if not self._reaches_pending(pending, local_counts, pick):
+                deferred[tuple(pick)] = sums["known"][tuple(pick)]
+                continue
             new = self._fill_cube(lower, regions, pending, a0, local, ctx, fix_known)
             tried[tuple(pick)] = True
             if len(new):
@@ -431,6 +438,19 @@ class _CubeGraphInpainting(InpaintingMethod):
             moved = list(zip(local["index"][original], local["points"][original]))
         return moved, (np.vstack(added) if added else np.empty((0, 3)))
 
+    def _reaches_pending(self, pending, counts, pick) -> bool:
+        """True when, inside the cube anchored at local cell ``pick``, a cell holding points is a
+        pending cell or touches one (26-neighbourhood): the surface reaches the missing part."""
+        per = self.cells_per_cube
+        block = tuple(slice(p, p + per) for p in pick)
+        hole = pending[block]
+        if not hole.any():
+            return False
+        near = np.zeros((per + 2,) * 3, dtype=bool)
+        for dx, dy, dz in itertools.product(range(3), repeat=3):
+            near[dx:dx + per, dy:dy + per, dz:dz + per] |= hole
+        return bool((near[1:-1, 1:-1, 1:-1] & (counts[block] > 0)).any())
+
     def _fill_cube(self, lower, regions, pending, a0, local, ctx, fix_known) -> np.ndarray:
         """Inpaint the target cube at ``lower``; returns its new points (P, 3) (known points moved
         in place in ``local`` when known_points='free')."""
@@ -444,8 +464,25 @@ class _CubeGraphInpainting(InpaintingMethod):
         dc_t = local["normals"][in_cube][has_normal].mean(axis=0)
         agtv_t = local["agtv"][in_cube][has_normal].mean()
 
+        # inter-source cubes first (they need only the target's known points)
+        beta = self._beta()
+        inter = []
+        if beta > 0:
+            for neighbour in ctx["neighbours"]:
+                found = self._inter_source(target, lower, neighbour, ctx)
+                if found is not None:
+                    inter.append(found)
+
         # intra-source cube: most similar DC/AGTV among hole-free cubes holding >= m points
-        source = self._intra_source(lower, target, dc_t, agtv_t, ctx)
+        found = self._intra_source(lower, target, dc_t, agtv_t, ctx)
+        source = None if found is None else found[0]
+        if self.temporal_source and inter:
+            # an inter-source cube that fits the target better than the intra-source cube and has
+            # no hole where the target's hole is becomes the source of the new points
+            best = np.inf if found is None else found[1]
+            for candidate in inter:
+                if candidate["complete"] and candidate["residual"] < best:
+                    source, best = candidate["aligned"], candidate["residual"]
         if source is None:
             return np.empty((0, 3))
 
@@ -465,13 +502,10 @@ class _CubeGraphInpainting(InpaintingMethod):
         known = np.zeros(len(rows), dtype=bool)
         known[:m] = True
         temporal, contradicted = [], []
-        beta = self._beta()
-        if beta > 0:
-            for neighbour in ctx["neighbours"]:
-                link = self._temporal_link(rows, target, lower, neighbour, ctx)
-                if link is not None:
-                    temporal.append(link[:2])
-                    contradicted.append(link[2])
+        for candidate in inter:
+            counterpart, linked, against = self._temporal_links(rows, candidate, unit)
+            temporal.append((counterpart, linked))
+            contradicted.append(against)
         k = self.k_neighbors if self.k_neighbors is not None else max(1, int(round(np.sqrt(m))))
         laplacian = knn_laplacian(rows, k, ctx["sigma"])
         result = solve_cube(rows, rows, known, laplacian, alpha=self.alpha, gamma=self.gamma, beta=beta,
@@ -487,7 +521,8 @@ class _CubeGraphInpainting(InpaintingMethod):
         return new
 
     def _intra_source(self, lower, target, dc_t, agtv_t, ctx):
-        """The aligned intra-source points (S, 3) for the target cube at ``lower``, or None.
+        """The aligned intra-source points (S, 3) and their residual for the target cube at
+        ``lower``, or None.
 
         Candidates: hole-free cubes with at least as many points as the target's known part,
         ranked by the Euclidean distance of (DC, agtv_weight * AGTV) (a 4D k-d tree over all
@@ -511,25 +546,35 @@ class _CubeGraphInpainting(InpaintingMethod):
             feats = np.column_stack([cand["dc"][big], self.agtv_weight * cand["agtv"][big]])
             order = big[np.argsort(np.linalg.norm(feats - query, axis=1), kind="stable")]
         half = cube / 2.0
+        choices = order[: self.intra_candidates]
+        # with several candidates: a short alignment of each screens them, the winner is refined
+        screen = self.icp_iterations if len(choices) == 1 else min(3, self.icp_iterations)
         best, best_residual = None, np.inf
-        for index in order[: self.intra_candidates]:
+        for index in choices:
             source_lower = cand["lower"][index]
             source_idx = ctx["tree"].query_ball_point(source_lower + half, half + cell, p=np.inf)
+            if len(source_idx) < 3:
+                continue
             source = ctx["points"][source_idx] + (lower - source_lower)
-            rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations)
-            source = source @ rotation.T + translation
-            if self.intra_candidates == 1:
-                return source
-            dist, _ = cKDTree(source).query(target)
-            keep = max(3, int(np.ceil(0.9 * len(dist))))
-            residual = np.sort(dist)[:keep].mean()
+            source_tree = cKDTree(source)
+            rotation, translation = align_to_partial(source, target, iterations=screen, source_tree=source_tree)
+            residual = 0.0 if len(choices) == 1 else alignment_residual(source_tree, target, rotation, translation)
             if residual < best_residual:
-                best, best_residual = source, residual
-        return best
+                best, best_residual = (source, source_tree, rotation, translation), residual
+        if best is None:
+            return None
+        source, source_tree, rotation, translation = best
+        if screen < self.icp_iterations:
+            rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations - screen,
+                                                     source_tree=source_tree, start=(rotation, translation))
+        residual = alignment_residual(source_tree, target, rotation, translation) if self.temporal_source else 0.0
+        return source @ rotation.T + translation, residual
 
-    def _temporal_link(self, rows, target, lower, neighbour, ctx):
-        """(counterpart (n, 3), linked (n,)) of the rows in the aligned inter-source cube of one
-        neighbouring frame, or None when the frame has no points near the target cube."""
+    def _inter_source(self, target, lower, neighbour, ctx):
+        """The aligned inter-source cube of one neighbouring frame for the target cube at ``lower``
+        (a dict: aligned points, tree, R, t, residual, complete, regions), or None when the frame has
+        no points near the target cube. complete: no hole region of that frame comes within one cube
+        of the target (so its points can fill the target's hole)."""
         cube, cell, unit = ctx["cube"], ctx["cell"], ctx["unit"]
         box = self.search_box * cube
         centre = lower + cube / 2.0
@@ -545,18 +590,29 @@ class _CubeGraphInpainting(InpaintingMethod):
         window_lower, _ = best_window(votes, box_lower, box, cube, unit)
         half = cube / 2.0
         window_idx = neighbour["tree"].query_ball_point(window_lower + half, half + cell, p=np.inf)
-        source = neighbour["points"][window_idx]
-        if len(source) < 3:
+        if len(window_idx) < 3:
             return None
-        rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations)
-        aligned = source @ rotation.T + translation
+        source = neighbour["points"][window_idx]
+        source_tree = cKDTree(source)
+        rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations,
+                                                 source_tree=source_tree)
+        residual = alignment_residual(source_tree, target, rotation, translation)
+        complete = all(np.linalg.norm(r.center - centre) > r.bounding_radius + cube for r in neighbour["regions"])
+        return dict(aligned=source @ rotation.T + translation, rotation=rotation, translation=translation,
+                    residual=residual, complete=complete, regions=neighbour["regions"])
+
+    def _temporal_links(self, rows, inter, unit):
+        """(counterpart (n, 3), linked (n,), contradicted (n,)) of the rows in one aligned
+        inter-source cube: nearest neighbour in relative location, linked when within
+        ``link_radius``; rows that map into a hole of that frame are neither linked nor contradicted."""
+        aligned = inter["aligned"]
         dist, idx = cKDTree(aligned).query(rows)
         linked = dist <= self.link_radius * unit
         in_hole = np.zeros(len(rows), dtype=bool)
-        if neighbour["regions"]:
+        if inter["regions"]:
             # rows that land in a hole of the (not yet inpainted) neighbour have no true counterpart
-            back = (rows - translation) @ rotation
-            for region in neighbour["regions"]:
+            back = (rows - inter["translation"]) @ inter["rotation"]
+            for region in inter["regions"]:
                 in_hole |= region.contains(back)
         linked &= ~in_hole
         # contradicted: the neighbour has data there but none of it near the row
@@ -586,7 +642,7 @@ class TemporalGraph(_CubeGraphInpainting):
     def __init__(self, cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5, gamma=0.5,
                  sigma=1.0, k_neighbors=None, spacing=None, known_points="fixed", min_known_points=16,
                  icp_iterations=10, link_radius=2.5, snap="auto", agtv_weight=1.0, intra_candidates=4,
-                 drop_contradicted=True, feature_fraction=0.25):
+                 drop_contradicted=True, feature_fraction=0.25, temporal_source=True):
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.search_box = search_box
@@ -605,6 +661,7 @@ class TemporalGraph(_CubeGraphInpainting):
         self.intra_candidates = intra_candidates
         self.feature_fraction = feature_fraction
         self.drop_contradicted = drop_contradicted
+        self.temporal_source = temporal_source
 
 
 class FuNonlocal(_CubeGraphInpainting):
@@ -634,5 +691,6 @@ class FuNonlocal(_CubeGraphInpainting):
         self.agtv_weight = agtv_weight
         self.intra_candidates = intra_candidates
         self.feature_fraction = feature_fraction
-        self.drop_contradicted = False  # not a parameter: no temporal evidence without neighbours
+        self.drop_contradicted = False  # not parameters: no temporal evidence without neighbours
+        self.temporal_source = False
         self.beta = 0.0  # not a parameter: the temporal terms are off by definition
