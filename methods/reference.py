@@ -73,9 +73,13 @@ def icp_align(source: np.ndarray, target: np.ndarray, max_distance: float, *,
     return transform[:3, :3].copy(), transform[:3, 3].copy()
 
 
-def point_spacing(points: np.ndarray, sample: int = 20000) -> float:
+def median_neighbour_distance(points: np.ndarray, sample: int = 20000) -> float:
     """Median nearest-neighbour distance of (N, 3) ``points`` (on an evenly strided subsample of
-    about ``sample`` points, so it is deterministic and cheap on 1M-point frames)."""
+    about ``sample`` points, so it is deterministic and cheap on 1M-point frames).
+
+    The distance to the closest sample, not a density-based spacing (`methods._cubes.point_spacing`,
+    `methods.lozes_pde.sampling_step`): temporal-copy uses it to tell a copied point that duplicates
+    an existing one (closer than half of it) from one that fills a gap."""
     if len(points) < 2:
         raise ValueError("need at least 2 points to estimate the point spacing")
     step = max(1, len(points) // sample)
@@ -144,14 +148,14 @@ class TemporalCopy(InpaintingMethod):
                           "returning it unchanged", RuntimeWarning, stacklevel=2)
             return [frames[0].copy()]
         if regions is None:
-            regions = _detect_regions(frames, self.name)
+            regions = detect_regions(frames, self.name)
         return [self._fill_frame(frames, f, regions[f]) for f in range(len(frames))]
 
     def _fill_frame(self, frames, f, frame_regions) -> np.ndarray:
         target = frames[f]
         if not frame_regions:
             return target.copy()
-        spacing = point_spacing(target)
+        spacing = median_neighbour_distance(target)
         target_tree = cKDTree(target)
         neighbours = [n for n in (f - 1, f + 1) if 0 <= n < len(frames)]
         fills = []
@@ -187,7 +191,7 @@ class TemporalCopy(InpaintingMethod):
         return np.concatenate([target, *fills], axis=0)
 
 
-def _detect_regions(frames, method: str) -> list:
+def detect_regions(frames, method: str) -> list:
     """Blind protocol: hole regions of every frame from `holes.detection.detect_holes`."""
     try:
         from holes.detection import detect_holes
@@ -197,4 +201,4 @@ def _detect_regions(frames, method: str) -> list:
     return [list(detect_holes(frame)) for frame in frames]
 
 
-__all__ = ["NoFill", "TemporalCopy", "icp_align", "point_spacing"]
+__all__ = ["NoFill", "TemporalCopy", "detect_regions", "icp_align", "median_neighbour_distance"]

@@ -13,7 +13,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from holes.regions import HoleRegion
-from methods.reference import NoFill, TemporalCopy, icp_align, point_spacing
+from methods.reference import NoFill, TemporalCopy, icp_align, median_neighbour_distance
 
 
 def rotation_about_z(angle: float) -> np.ndarray:
@@ -80,10 +80,10 @@ def test_icp_recovers_a_small_motion_of_an_asymmetric_surface():
     np.testing.assert_array_equal(t0, np.zeros(3))
 
 
-def test_point_spacing_of_a_regular_grid():
+def test_median_neighbour_distance_of_a_regular_grid():
     u = np.arange(10) * 0.5
     grid = np.stack(np.meshgrid(u, u, [0.0], indexing="ij"), axis=-1).reshape(-1, 3)
-    assert point_spacing(grid) == pytest.approx(0.5)
+    assert median_neighbour_distance(grid) == pytest.approx(0.5)
 
 
 # -- temporal-copy ---------------------------------------------------------------------------------
@@ -120,7 +120,7 @@ def test_temporal_copy_reproduces_a_hole_of_a_rigidly_moving_surface():
     filled = out[1][len(damaged[1]):]
     assert region.contains(filled).all()
     truth = intact[1][hole]
-    spacing = point_spacing(intact[1])
+    spacing = median_neighbour_distance(intact[1])
     # the copy lies near the true surface and covers the hole without gaps. Not exactly: the rim of
     # a nearly flat hole lets point-to-point ICP stop about half a spacing off (measured: mean 0.13,
     # max 0.55 spacings; without ICP mean 0.70, max 1.41)
@@ -140,7 +140,7 @@ def test_temporal_copy_takes_the_neighbour_with_more_points_in_the_hole():
     out = TemporalCopy().inpaint(damaged, [[region], [region], []])
     truth = intact[1][region.contains(intact[1])]
     filled = out[1][len(damaged[1]):]
-    spacing = point_spacing(intact[1])
+    spacing = median_neighbour_distance(intact[1])
     assert off_surface(filled, 1).mean() < 0.25 * spacing and off_surface(filled, 1).max() < 0.8 * spacing
     assert max(symmetric_coverage(filled, truth)) < 1.5 * spacing
     # frame 0 is filled from frame 1, whose region is empty too: left as it is
