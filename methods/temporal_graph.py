@@ -473,8 +473,10 @@ class _CubeGraphInpainting(InpaintingMethod):
                 if found is not None:
                     inter.append(found)
 
-        # intra-source cube: most similar DC/AGTV among hole-free cubes holding >= m points
-        found = self._intra_source(lower, target, dc_t, agtv_t, ctx)
+        # intra-source cube: most similar DC/AGTV among hole-free cubes holding >= m points; not
+        # searched when a complete inter-source cube already fits within half a unit (it would win)
+        fits = [c for c in inter if c["complete"] and c["residual"] <= 0.5 * unit]
+        found = None if (self.temporal_source and fits) else self._intra_source(lower, target, dc_t, agtv_t, ctx)
         source = None if found is None else found[0]
         if self.temporal_source and inter:
             # an inter-source cube that fits the target better than the intra-source cube and has
