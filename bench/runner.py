@@ -297,7 +297,10 @@ def _uses_peak(name: str) -> bool:
 
 
 def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) -> list[dict]:
-    """Every metric per frame and scope (and peak for PSNRs), plus temporal consistency at frame -1."""
+    """Every metric per frame and scope (and peak for PSNRs), plus temporal consistency at frame -1.
+
+    PSNRs are as `metrics.score_pair` returns them (capped at its ``max_psnr``, 200 dB by default,
+    when a result equals the reference)."""
     import metrics as metrics_pkg
 
     cfg = spec.metrics
@@ -305,6 +308,8 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) 
     peak_names = [n for n in names if _uses_peak(n)]
     rows: list[dict] = []
     for f, (cloud, result) in enumerate(zip(truth.frames, inpainted)):
+        # one CloudPair per frame: its KD-trees and neighbour queries serve every scope and peak
+        pair = metrics_pkg.make_pair(cloud.points, result, cloud.normals)
         for scope in cfg["scopes"]:
             frame_regions = regions[f] if scope == "holes" else None
             if scope == "holes" and not frame_regions:
@@ -313,9 +318,8 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) 
                 wanted = names if k == 0 else peak_names
                 if not wanted:
                     continue
-                values = metrics_pkg.score_frame(cloud.points, result, wanted, peak=peak,
-                                                 reference_normals=cloud.normals, regions=frame_regions,
-                                                 region_margin=cfg["region_margin"])
+                values, _capped = metrics_pkg.score_pair(pair, wanted, peak=peak, regions=frame_regions,
+                                                         region_margin=cfg["region_margin"])
                 for name, value in values.items():
                     rows.append({"frame": f, "metric": name, "scope": scope,
                                  "peak": _peak_label(peak) if name in peak_names else "", "value": value})

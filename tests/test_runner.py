@@ -74,6 +74,20 @@ def test_failures_are_recorded_while_others_finish(env):
     content = read_run_folder(folder)
     assert len(content["inpainted"]) == 3 and len(content["regions"]) == 3
     assert all(len(d) < 600 for d in content["damaged"])
+    # the stored scores are metrics.score_frame of the frames as written, against the ground truth
+    import metrics
+
+    from bench.sequences import load_sequence
+
+    truth = load_sequence(env["seq"]).points
+    run_id = done[done.status == "done"].iloc[0].run_id
+    stored = df[(df.run_id == run_id) & (df.metric == "gpsnr_d1")].set_index(["frame", "scope"])["value"]
+    for f in range(3):
+        whole = metrics.score_frame(truth[f], content["inpainted"][f], ["gpsnr_d1"], peak="intrinsic")["gpsnr_d1"]
+        holes = metrics.score_frame(truth[f], content["inpainted"][f], ["gpsnr_d1"], peak="intrinsic",
+                                    regions=content["regions"][f])["gpsnr_d1"]
+        assert stored[(f, "frame")] == pytest.approx(whole, rel=1e-12)
+        assert stored[(f, "holes")] == pytest.approx(holes, rel=1e-12)
 
     # rerun: everything cached (failures too), no new rows; --retry-failed redoes only the failures
     before = len(store.results_frame())
