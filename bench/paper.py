@@ -227,5 +227,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         notes["fig3_real_holes"] = (
             f"Like the paper's Fig. 3: {source}. The methods get the regions found by "
             f"`holes.detection.detect_holes` ({counts} regions per frame), not the true ones; consecutive "
-            "frames show temporal coherence; red = points inside the detected regions.")
+            "frames show temporal coherence; red = points inside the detected regions."
+            + (" No hole was detected in these frames, so every method returned them unchanged: the "
+               "detector's parameters (holes.detection) decide what this figure can show." if not any(counts) else ""))
     return notes
