@@ -11,14 +11,17 @@ Pipeline (pymeshlab filter names as in pymeshlab 2025.7):
    mesh), then ``meshing_close_holes`` with ``maxholesize = max_hole_size`` (boundary edges) and
    ``newfaceselected`` so that the faces it creates are known.
 4. Back to points:
-   - ``output="whole"`` (the paper's): the whole closed mesh resampled at the input's areal
-     density 1 / s^2 (s = `methods.lozes_pde.sampling_step`): area(mesh) / s^2 points. Every point
-     is new, which is why this scores low even where the surface was intact. (Not len(points) *
-     area(mesh) / area(reconstructed faces): ball pivoting leaves ~12% of the dfaust points
-     unreferenced, so the reconstructed area under-counts what the points cover; that gave 110k
-     points for a 100k frame, area / s^2 gives about 100k.)
+   - ``output="whole"`` (the paper's): the whole closed mesh resampled with as many points as the
+     input frame has (the "same point count" resampling), spread uniformly over its area, so the
+     density drops by the small fraction of area the closed holes add. Every point is new, which
+     is why this scores low even where the surface was intact. Not area(mesh) / s^2: on voxelized
+     frames the ball-pivoting mesh follows the voxel staircase and its area is inflated (measured:
+     about twice the input count on the embedded human, size small); not len(points) * area(mesh) /
+     area(reconstructed): ball pivoting leaves ~12% of the dfaust points unreferenced, closing
+     those gaps counts as new area (110k samples for a 99.6k-point dfaust frame).
    - ``output="holes-only"``: the input points are kept and points are added only on the hole
-     faces, at the same density.
+     faces, at the input's areal density 1 / s^2 (s = `methods.lozes_pde.sampling_step`; the
+     closing faces are flat, so their area is not inflated).
      Hole faces: those ``meshing_close_holes`` created; with Poisson reconstruction, which leaves
      no holes to close, also the faces whose centroid is farther than ``s`` from every input
      point (surface Poisson made where there was no data). With ``regions`` given, only samples
@@ -126,8 +129,7 @@ class MeshlabFill(PerFrameMethod):
 
         rng = np.random.default_rng(self.seed)
         if self.output == "whole":
-            count = int(round(float(areas.sum()) / step ** 2))
-            return sample_triangles(vertices, faces, count, rng, areas=areas)
+            return sample_triangles(vertices, faces, len(points), rng, areas=areas)
 
         count = int(round(float(areas[hole_faces].sum()) / step ** 2))
         if count == 0:
