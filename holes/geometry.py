@@ -134,18 +134,32 @@ def components_to_regions(
     return regions, labels
 
 
-def estimate_normals(points: np.ndarray, tree: cKDTree, k: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unoriented PCA normals from the k nearest neighbours (including the point itself).
+def estimate_normals(points: np.ndarray, k: int = 16) -> np.ndarray:
+    """Unoriented unit PCA normals (N, 3) from the k nearest neighbours (the point included).
 
-    Returns (normals (N, 3) unit, neighbour indices (N, k), tangent axes (N, 3, 2)): the normal is
-    the eigenvector of the smallest eigenvalue of the neighbourhood covariance; the tangent axes
-    are the other two eigenvectors.
+    open3d's multi-threaded estimate (eigenvector of the smallest eigenvalue of the neighbourhood
+    covariance); a numpy batch eigendecomposition took 17 s on a 1M-point frame, open3d ~1-2 s.
     """
-    _, nbr = tree.query(points, k=k, workers=-1)
-    local = points[nbr] - points[nbr].mean(axis=1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", local, local)
-    _, vecs = np.linalg.eigh(cov)
-    return vecs[:, :, 0], nbr, vecs[:, :, 1:]
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(int(k)))
+    normals = np.asarray(cloud.normals)
+    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def tangent_basis(normals: np.ndarray) -> np.ndarray:
+    """Two unit tangent axes per normal, (N, 3, 2), orthonormal and orthogonal to the normal.
+
+    The first axis is normal x e, with e the coordinate axis least aligned with the normal (so the
+    cross product never degenerates); the second is normal x first.
+    """
+    n = np.asarray(normals, dtype=np.float64)
+    helper = np.eye(3)[np.argmin(np.abs(n), axis=1)]
+    first = np.cross(n, helper)
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    second = np.cross(n, first)
+    return np.stack([first, second], axis=2)
 
 
 def regions_mask(regions: list[HoleRegion], points: np.ndarray, tree: cKDTree | None = None) -> np.ndarray:

@@ -203,7 +203,7 @@ class OcclusionHoles(HoleGenerator):
             if len(pts) < self.normal_k:
                 raise ValueError(f"occlusion holes: frame {f} has {len(pts)} points, fewer than normal_k={self.normal_k}")
             tree = cKDTree(pts)
-            normals, _, _ = estimate_normals(pts, tree, int(self.normal_k))
+            normals = estimate_normals(pts, int(self.normal_k))
             seen = visible_mask(pts, normals, self._cameras(pts, azimuth), self.min_cos)
             spacing = point_spacing(pts, tree)
             mask = ~seen

@@ -83,11 +83,11 @@ def test_intact_human_has_no_detected_holes(human):
 def test_detection_finds_synthetic_holes(human, preset):
     """Recall and precision of detection on region holes of the tiny embedded human, 3 frames.
 
-    Measured (scratch/measure_detection.py; 4 frames x seeds 0-2): tiny human, small preset
-    recall 1.00 / precision 1.00, medium 0.98 / 1.00, large 0.82 / 0.98; small human: small and
-    medium 1.00 / 1.00, large 0.73 / 1.00 (large holes that sever a limb leave two open rims that
-    look like the end of an open scan and are not reported). Thresholds below leave room for
-    other seeds: mean recall >= 0.9 and mean precision >= 0.9.
+    Measured (scratch/measure_detection2.py; 4 frames x seeds 0-2, default parameters): tiny
+    human, small preset recall 1.00 / precision 1.00, medium 0.98 / 1.00, large 0.87 / 0.97;
+    small human: small and medium 1.00 / 1.00, large 0.77 / 1.00 (large holes that sever a limb
+    leave two open rims that look like the end of an open scan and are not reported). Thresholds
+    below leave room for other seeds: mean recall >= 0.9 and mean precision >= 0.9.
     """
     res = get_generator("region", preset=preset).damage(human, 0)
     recall, precision = [], []
@@ -109,7 +109,7 @@ def test_real_capture_holes(shared_dir):
     diag = np.linalg.norm(np.ptp(points, axis=0))
     outline = every_rim[0]  # largest rim first
     assert outline.extra["inward"] < 0 and outline.radius > 0.25 * diag
-    holes = [r for r in every_rim if r.extra["inward"] >= 0.2 and r.radius <= 0.25 * diag]  # the defaults
+    holes = [r for r in every_rim if r.extra["inward"] >= 0.1 and r.radius <= 0.25 * diag]  # the defaults
     assert all(r is not outline for r in holes)
     assert 1 <= len(holes) <= 20
 
