@@ -704,6 +704,10 @@ class FuNonlocal(_CubeGraphInpainting):
     version = "1"
     uses_neighbour_frames = False
     _temporal = False
+    # not parameters: the temporal terms are off by definition, so there is no temporal evidence
+    beta = 0.0
+    drop_contradicted = False
+    temporal_source = False
 
     def __init__(self, cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0, k_neighbors=None,
                  spacing=None, known_points="fixed", min_known_points=16, icp_iterations=10, snap="auto",
@@ -722,6 +726,3 @@ class FuNonlocal(_CubeGraphInpainting):
         self.agtv_weight = agtv_weight
         self.intra_candidates = intra_candidates
         self.feature_fraction = feature_fraction
-        self.drop_contradicted = False  # not parameters: no temporal evidence without neighbours
-        self.temporal_source = False
-        self.beta = 0.0  # not a parameter: the temporal terms are off by definition
