@@ -364,7 +364,8 @@ main { max-width:1320px; margin:0 auto; padding:18px 32px 40px; }
 .card.bad { border-color:#fecaca; background:var(--badbg); } .card.bad .v { color:var(--bad); }
 .card.warn { border-color:#fde68a; background:#fffbeb; } .card.warn .v { color:#92400e; }
 .card.good { border-color:#a7f3d0; background:var(--goodbg); } .card.good .v { color:var(--good); }
-section { background:#fff; border:1px solid var(--line); border-radius:10px; padding:16px 20px; margin:16px 0; }
+section { background:#fff; border:1px solid var(--line); border-radius:10px; padding:16px 20px; margin:16px 0;
+          overflow-x:auto; }
 section h2 { margin:0 0 4px; font-size:17px; }
 section h3 { margin:16px 0 4px; font-size:14px; }
 .note { color:var(--muted); font-size:12.5px; margin:2px 0 10px; }
