@@ -41,7 +41,7 @@ def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, t
     points: (N, 3). k: neighbours (including the point itself). gap: angular gap threshold (radians).
     Returns (mask (N,) bool, largest gap (N,) radians, empty-side direction (N, 3)).
     """
-    tree = tree or cKDTree(points)
+    tree = tree if tree is not None else cKDTree(points)
     _, nbr = tree.query(points, k=k, workers=-1)
     tangent = tangent_basis(estimate_normals(points, k))
     offsets = points[nbr[:, 1:]] - points[:, None, :]  # (N, k-1, 3), self excluded

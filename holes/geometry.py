@@ -54,7 +54,7 @@ def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int =
     points = np.asarray(points, dtype=np.float64)
     if len(points) < 9:
         raise ValueError(f"need at least 9 points to estimate the point spacing, got {len(points)}")
-    tree = tree or cKDTree(points)
+    tree = tree if tree is not None else cKDTree(points)
     if len(points) > sample:
         query = points[np.random.default_rng(seed).choice(len(points), sample, replace=False)]
     else:
@@ -66,13 +66,15 @@ def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int =
     return spacing
 
 
-def cube_size(points: np.ndarray, spacing: float | None = None) -> float:
-    """The cube size M for sizing holes: min(20 * spacing, 20 * (largest bounding-box side) / 1024)."""
+def cube_size(points: np.ndarray, spacing: float | None = None, tree: cKDTree | None = None) -> float:
+    """The cube size M for sizing holes: min(20 * spacing, 20 * (largest bounding-box side) / 1024).
+
+    ``spacing`` (else estimated) and ``tree`` (a cKDTree of ``points``, reused) save work."""
     points = np.asarray(points, dtype=np.float64)
     extent = float((points.max(axis=0) - points.min(axis=0)).max())
     if not extent > 0:
         raise ValueError("the frame has zero extent (all points coincide); cannot size holes")
-    spacing = point_spacing(points) if spacing is None else spacing
+    spacing = point_spacing(points, tree) if spacing is None else spacing
     return PAPER_CUBE_SIZE * min(spacing, extent / PAPER_GRID)
 
 
@@ -166,7 +168,7 @@ def regions_mask(regions: list[HoleRegion], points: np.ndarray, tree: cKDTree | 
     """Mask (N,) of the points inside any region: exactly ``union_mask(regions, points)``, but each
     region is only tested on the KD-tree candidates within its bounding radius (thousands of small
     regions on a million points would otherwise cost regions x points)."""
-    tree = tree or cKDTree(points)
+    tree = tree if tree is not None else cKDTree(points)
     mask = np.zeros(len(points), dtype=bool)
     for region in regions:
         cand = np.asarray(tree.query_ball_point(region.center, region.bounding_radius * (1 + 1e-9) + 1e-12), dtype=np.int64)

@@ -214,9 +214,9 @@ class RegionHoles(HoleGenerator):
         frames, colors = check_sequence_input(frames, colors, "region holes")
         count, radius_m = self._resolved()
         rng = as_generator(seed)
-        m = self.cube_size if self.cube_size is not None else cube_size(frames[0])
-        size = radius_m * m
         trees = [cKDTree(pts) for pts in frames]
+        m = self.cube_size if self.cube_size is not None else cube_size(frames[0], tree=trees[0])
+        size = radius_m * m
         regions, removed = [], []
         centers = sizes = None
         for f, (pts, tree) in enumerate(zip(frames, trees)):
