@@ -166,7 +166,9 @@ def test_holes_do_not_overlap(human):
 
 def test_coherent_holes_overlap_far_more_than_independent(human):
     """Measure: IoU of the removed points of frame f+1 with the removed points of frame f carried
-    over by nearest neighbour, averaged over the frame pairs."""
+    over by nearest neighbour (`hole_overlap`), averaged over the frame pairs. Measured, seeds 0-2:
+    tiny human (3 frames) coherent 0.70 / 0.82 / 0.69, independent 0.03 / 0.00 / 0.01; Dynamic
+    FAUST punching (5 frames) coherent 0.74 / 0.69 / 0.71, independent 0.01 / 0.00 / 0.01."""
     frames, _ = human
     coherent = get_generator("region", coherent=True).damage(frames, 0)
     independent = get_generator("region", coherent=False).damage(frames, 0)
