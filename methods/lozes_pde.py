@@ -180,7 +180,7 @@ class LozesPDE(PerFrameMethod):
         tolerance = self.tolerance * spacing
         eps = self.epsilon * spacing
         linear = self.p == 2
-        for iteration in range(int(self.max_iterations)):
+        for _ in range(int(self.max_iterations)):
             gamma = edge_w * 2.0 if linear else self._gamma(positions, rows, cols, edge_w, eps)
             gamma_matrix = sp.csr_matrix((gamma, (rows, cols)), shape=weights.shape)
             if self.solver == "jacobi":

@@ -6,7 +6,9 @@ Run: ``.venv/bin/python -m pytest tests/benchmarks/test_bench_baselines.py --ben
 embedded human frames at bit_depth 11 and height 1040 voxels (~800k points a frame), damaged by
 the ``region`` generator (preset medium, seed 0). temporal-copy gets all three frames with regions
 only on the middle one, so it also does exactly one frame's filling. ``extra_info`` records the
-point count and how many points the method added.
+point count and how many points the method added. open3d and pymeshlab are imported before the
+timing: their import is a one-time cost (open3d took 15 s of a 31 s temporal-copy run when it was
+imported inside it).
 """
 
 from __future__ import annotations
@@ -28,6 +30,9 @@ CASES = {
 @pytest.fixture(scope="module")
 def big_frames():
     """(damaged frames, regions): 3 human frames of ~800k points with medium holes on frame 1."""
+    import open3d  # noqa: F401  one-time imports (open3d ~15 s on a loaded machine) are not per-frame cost
+    import pymeshlab  # noqa: F401
+
     from bench.datasets import load_dataset
     from holes.registry import get_generator
 
