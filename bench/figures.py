@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -70,6 +71,7 @@ def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_p
             if not curve.empty:
                 ax.plot(curve.index, curve.values, marker="o", ms=3, label=col)
         ax.set_title(seq, fontsize=9)
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
         ax.set_xlabel("frame")
         ax.set_ylabel(metric + (f" (peak {peak})" if peak else ""))
         ax.grid(alpha=0.3)
