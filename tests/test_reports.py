@@ -160,3 +160,13 @@ def test_subjective_grid_renders(tmp_path):
     out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region],
                           highlight_regions=[[region], [region]], title="test")
     assert out.stat().st_size > 1000
+
+
+def test_reproduce_paper_refuses_bad_input(tmp_path, capsys):
+    store = str(tmp_path / "s.sqlite")
+    assert cli_main(["reproduce-paper", "--quick", "--data-dir", str(tmp_path), "--store", store]) == 2
+    assert "none of the paper's sequences" in capsys.readouterr().err
+    assert cli_main(["reproduce-paper", "--quick", "--data-dir", str(tmp_path / "nope"), "--store", store]) == 2
+    assert "no such folder" in capsys.readouterr().err
+    assert cli_main(["reproduce-paper", "--quick", "--frames", "1", "--store", store]) == 2
+    assert "at least 2 frames" in capsys.readouterr().err
