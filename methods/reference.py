@@ -73,7 +73,7 @@ def icp_align(source: np.ndarray, target: np.ndarray, max_distance: float, *,
     return transform[:3, :3].copy(), transform[:3, 3].copy()
 
 
-def median_neighbour_distance(points: np.ndarray, sample: int = 20000) -> float:
+def median_neighbour_distance(points: np.ndarray, sample: int = 20000, tree: cKDTree | None = None) -> float:
     """Median nearest-neighbour distance of (N, 3) ``points`` (on an evenly strided subsample of
     about ``sample`` points, so it is deterministic and cheap on 1M-point frames).
 
@@ -84,7 +84,7 @@ def median_neighbour_distance(points: np.ndarray, sample: int = 20000) -> float:
         raise ValueError("need at least 2 points to estimate the point spacing")
     step = max(1, len(points) // sample)
     probe = points[::step]
-    dist, _ = cKDTree(points).query(probe, k=2)
+    dist, _ = (tree if tree is not None else cKDTree(points)).query(probe, k=2, workers=-1)
     spacing = float(np.median(dist[:, 1]))
     if spacing <= 0:  # duplicated points: fall back to the mean of the non-zero distances
         nonzero = dist[:, 1][dist[:, 1] > 0]
@@ -155,8 +155,8 @@ class TemporalCopy(InpaintingMethod):
         target = frames[f]
         if not frame_regions:
             return target.copy()
-        spacing = median_neighbour_distance(target)
         target_tree = cKDTree(target)
+        spacing = median_neighbour_distance(target, tree=target_tree)
         neighbours = [n for n in (f - 1, f + 1) if 0 <= n < len(frames)]
         fills = []
         for k, region in enumerate(frame_regions):
