@@ -10,6 +10,7 @@ grids), and the metrics with their options::
     regions = "given"               # what methods get: "given" (the generator's hole regions, the
                                     # synthetic-hole protocol), "detected" (holes.detection.detect_holes
                                     # on each damaged frame: the real-hole protocol) or "none" (blind)
+    detection = { min_points = 5 }  # with regions = "detected": keyword arguments of detect_holes
     data_dir = "/data/8i"           # where named paper sequences (longdress, ...) are found
 
     [[sequences]]
@@ -70,7 +71,7 @@ DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
-_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir"}
+_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection"}
 REGION_MODES = ("given", "detected", "none")
 _SEQUENCE_KEYS = {"name", "path", "params", "frames", "label"}
 _HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
@@ -118,7 +119,7 @@ class RunSpec:
     holes:    {"generator", "params", "seed", "label", "entry"}  (entry = "module:Class")
     method:   {"name", "params", "label", "entry"}
     metrics:  {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
-    protocol: {"regions": "given" | "detected" | "none"}
+    protocol: {"regions": "given" | "detected" | "none", "detection": {...} (only when given)}
     versions: {"method", "generator", "metrics", "data"} (data = fingerprint)
     """
 
@@ -199,10 +200,11 @@ def _expand_params(params: dict, where: str) -> list[dict]:
 
 
 def _check_param_types(cls, params: dict, where: str) -> None:
-    """Parameter names must exist in ``cls.__init__``; a numeric default requires numbers."""
+    """Parameter names must exist in ``cls.__init__`` (or the function ``cls``); a numeric default
+    requires numbers."""
     import inspect
 
-    sig = inspect.signature(cls.__init__)
+    sig = inspect.signature(cls.__init__ if isinstance(cls, type) else cls)
     known = {n: p for n, p in sig.parameters.items() if n != "self" and p.kind in
              (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)}
     accepts_any = any(p.kind == inspect.Parameter.VAR_KEYWORD for p in sig.parameters.values())
@@ -278,6 +280,7 @@ class ExperimentConfig:
     description: str = ""
     timeout_s: float = DEFAULT_TIMEOUT_S
     regions: str = "given"
+    detection: dict = field(default_factory=dict)
     data_dir: str | None = None
     sequences: list[dict] = field(default_factory=list)
     holes: list[dict] = field(default_factory=list)
@@ -356,6 +359,16 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         raise ConfigError(f"experiment.regions: expected one of {', '.join(REGION_MODES)}, got {regions!r}")
     cfg = ExperimentConfig(name=exp["name"], description=str(exp.get("description", "")), timeout_s=float(timeout),
                            regions=regions, data_dir=exp.get("data_dir"), source=source)
+    detection = exp.get("detection", {})
+    if detection:
+        if regions != "detected":
+            raise ConfigError("experiment.detection: only used with regions = \"detected\"; remove it or set regions")
+        if not isinstance(detection, dict) or not all(_is_scalar(v) for v in detection.values()):
+            raise ConfigError("experiment.detection: expected a table of detect_holes parameters (single values)")
+        from holes.detection import detect_holes
+
+        _check_param_types(detect_holes, detection, "experiment.detection")
+        cfg.detection = dict(detection)
 
     for i, seq in enumerate(_table_list(data, "sequences")):
         where = f"sequences[{i}]"
@@ -471,7 +484,8 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
                     holes={k: copy.deepcopy(v) for k, v in hole.items() if k != "version"},
                     method={k: copy.deepcopy(v) for k, v in meth.items() if k != "version"},
                     metrics=copy.deepcopy(cfg.metrics),
-                    protocol={"regions": cfg.regions},
+                    # detection parameters enter the ids only when given, so other ids stay as they were
+                    protocol={"regions": cfg.regions, **({"detection": cfg.detection} if cfg.detection else {})},
                     versions={"method": meth["version"], "generator": hole["version"], "data": fingerprint,
                               "metrics": metric_versions},
                     timeout_s=cfg.timeout_s,

@@ -219,7 +219,7 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
         from holes.detection import detect_holes
 
         t0 = time.perf_counter()
-        detected = [detect_holes(f) for f in damage.frames]
+        detected = [detect_holes(f, **spec.protocol.get("detection", {})) for f in damage.frames]
         detect_time = time.perf_counter() - t0
         regions = detected
     else:

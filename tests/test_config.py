@@ -149,3 +149,24 @@ names = ["gpsnr_d1"]
         load_config(path)
     with pytest.raises(ConfigError, match="no such config file"):
         load_config(tmp_path / "missing.toml")
+
+
+def test_detection_parameters(seq_dir):
+    base = _config(seq_dir)
+    base["experiment"]["regions"] = "detected"
+    plain = parse_config(base).expand()
+    assert plain[0].protocol == {"regions": "detected"}
+    tuned = copy.deepcopy(base)
+    tuned["experiment"]["detection"] = {"min_points": 5}
+    runs = parse_config(tuned).expand()
+    assert runs[0].protocol["detection"] == {"min_points": 5}
+    assert runs[0].run_id != plain[0].run_id
+    for bad, key in [({"min_pionts": 5}, "experiment.detection.min_pionts: unknown parameter"),
+                     ({"min_points": "many"}, "experiment.detection.min_points: expected a number")]:
+        tuned["experiment"]["detection"] = bad
+        with pytest.raises(ConfigError, match=key):
+            parse_config(tuned)
+    base["experiment"]["regions"] = "given"
+    base["experiment"]["detection"] = {"min_points": 5}
+    with pytest.raises(ConfigError, match="only used with regions"):
+        parse_config(base)
