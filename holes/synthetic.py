@@ -76,17 +76,21 @@ def _separated(shape: str, center: np.ndarray, size: float, centers: list, sizes
 
 def track_point(
     center: np.ndarray, source: np.ndarray, source_tree: cKDTree, target: np.ndarray, target_tree: cKDTree,
-    patch_radius: float, iterations: int = 20,
+    patch_radius: float, iterations: int = 20, max_patch: int = 2000,
 ) -> np.ndarray:
     """Carry a surface point from one frame to the next, following the local surface motion.
 
     The patch of ``source`` points within ``patch_radius`` of ``center`` is registered onto
     ``target`` by translation-only ICP (t <- mean over the patch of NN_target(p + t) - p, from t = 0,
-    at most ``iterations`` steps or until t moves less than 1e-6 of the patch radius); the result is
+    at most ``iterations`` steps or until t moves less than 1e-6 of the patch radius; patches of more
+    than ``max_patch`` points are regularly subsampled to that size); the result is
     the ``target`` point nearest to ``center + t`` (so it lies on the next frame's surface).
     Works without point correspondences (real captures shuffle point order).
     """
-    patch = source[source_tree.query_ball_point(center, patch_radius)]
+    patch = source[np.sort(np.asarray(source_tree.query_ball_point(center, patch_radius), dtype=np.int64))]
+    if len(patch) > max_patch:
+        # the shift is a mean: a regular subsample of the patch estimates it as well, much faster
+        patch = patch[:: int(np.ceil(len(patch) / max_patch))]
     shift = np.zeros(3)
     if len(patch):
         for _ in range(iterations):

@@ -9,7 +9,7 @@ Slow cases run one round (pedantic), the rest three.
 
 Measured once (2026-11-22, 2-core machine shared with other jobs, load average ~9: noisy; median s):
 region medium ball 3.8, region large cube 4.5, region fraction 3 % 5.2, dropout 2 % 3.5,
-region coherent 3 frames 25.0, occlusion sphere rig 8 cameras 71.5, occlusion stage 12 cameras
+region coherent 3 frames 25.0 (7.7 after subsampling the tracked patch to 2000 points, timed once by hand), occlusion sphere rig 8 cameras 71.5, occlusion stage 12 cameras
 146.3 (open3d HPR on 1M points, ~6-12 s per camera, dominates), detect_holes 33.5.
 """
 
