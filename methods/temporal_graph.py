@@ -182,9 +182,11 @@ class _CubeGraphInpainting(InpaintingMethod):
                 if f > 0:
                     # already inpainted: no holes left
                     prev_tree = output_tree if output_tree is not None else tree_of(f - 1)
-                    neighbours.append(dict(points=outputs[f - 1], tree=prev_tree, regions=[]))
+                    neighbours.append(dict(points=outputs[f - 1], tree=prev_tree, regions=[],
+                                           source_regions=regions[f - 1]))
                 if f + 1 < len(frames):
-                    neighbours.append(dict(points=frames[f + 1], tree=tree_of(f + 1), regions=regions[f + 1]))
+                    neighbours.append(dict(points=frames[f + 1], tree=tree_of(f + 1), regions=regions[f + 1],
+                                           source_regions=regions[f + 1]))
             outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], neighbours, unit, voxelized))
             output_tree = cKDTree(outputs[f]) if beta > 0 and f + 1 < len(frames) and regions[f + 1] else None
         return outputs
@@ -475,16 +477,16 @@ class _CubeGraphInpainting(InpaintingMethod):
                     inter.append(found)
 
         # intra-source cube: most similar DC/AGTV among hole-free cubes holding >= m points; not
-        # searched when a complete inter-source cube already fits within half a unit (it would win)
-        fits = [c for c in inter if c["complete"] and c["residual"] <= 0.5 * unit]
+        # searched when a raw inter-source cube already fits within half a unit (it would win)
+        fits = [c for c in inter if c["raw"] and c["residual"] <= 0.5 * unit]
         found = None if (self.temporal_source and fits) else self._intra_source(lower, target, dc_t, agtv_t, ctx)
         source = None if found is None else found[0]
         if self.temporal_source and inter:
-            # an inter-source cube that fits the target better than the intra-source cube and has
-            # no hole where the target's hole is becomes the source of the new points
+            # an inter-source cube of captured data (no hole of its input frame near the target)
+            # that fits the target better than the intra-source cube provides the new points
             best = np.inf if found is None else found[1]
             for candidate in inter:
-                if candidate["complete"] and candidate["residual"] < best:
+                if candidate["raw"] and candidate["residual"] < best:
                     source, best = candidate["aligned"], candidate["residual"]
         if source is None:
             return np.empty((0, 3))
@@ -575,9 +577,8 @@ class _CubeGraphInpainting(InpaintingMethod):
 
     def _inter_source(self, target, lower, neighbour, ctx):
         """The aligned inter-source cube of one neighbouring frame for the target cube at ``lower``
-        (a dict: aligned points, tree, R, t, residual, complete, regions), or None when the frame has
-        no points near the target cube. complete: no hole region of that frame comes within one cube
-        of the target (so its points can fill the target's hole)."""
+        (a dict: aligned points, R, t, residual, raw, regions), or None when the frame has no points
+        near the target cube."""
         cube, cell, unit = ctx["cube"], ctx["cell"], ctx["unit"]
         box = self.search_box * cube
         centre = lower + cube / 2.0
@@ -600,9 +601,12 @@ class _CubeGraphInpainting(InpaintingMethod):
         rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations,
                                                  source_tree=source_tree)
         residual = alignment_residual(source_tree, target, rotation, translation)
-        complete = all(np.linalg.norm(r.center - centre) > r.bounding_radius + cube for r in neighbour["regions"])
+        # raw: no hole of that frame's input comes within one cube of the target, so its points
+        # there are captured data (an inpainted f-1 would otherwise hand its own fill on, and a
+        # fill copied from frame to frame shrinks and drifts with the hole)
+        raw = all(np.linalg.norm(r.center - centre) > r.bounding_radius + cube for r in neighbour["source_regions"])
         return dict(aligned=source @ rotation.T + translation, rotation=rotation, translation=translation,
-                    residual=residual, complete=complete, regions=neighbour["regions"])
+                    residual=residual, raw=raw, regions=neighbour["regions"])
 
     def _temporal_links(self, rows, inter, unit):
         """(counterpart (n, 3), linked (n,), contradicted (n,)) of the rows in one aligned
@@ -636,8 +640,9 @@ class TemporalGraph(_CubeGraphInpainting):
       known_points "fixed" (known points never move; only new points are solved) or "free" (the
                    paper's literal replacement of the cube by c_r, known points move too).
       intra_candidates 4: DC/AGTV-nearest candidates screened by alignment residual (1 = paper).
-      temporal_source  True: a complete inter-source cube that fits the target better than the
-                   intra-source cube provides the new points (False = paper: always intra).
+      temporal_source  True: an inter-source cube of captured data (no hole of that frame's input
+                   near) that fits the target better than the intra-source cube provides the new
+                   points (False = paper: always intra).
       drop_contradicted True: drop new points contradicted by a neighbour frame (False = paper).
       link_radius  2.5: longest temporal link; min_known_points 16; icp_iterations 10;
       feature_fraction 0.25; agtv_weight 1; snap "auto" (voxelize fills of voxelized input).
