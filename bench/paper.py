@@ -213,7 +213,17 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         content0 = read_run_folder(folder0)
         detected = content0["detected"] or [[] for _ in content0["damaged"]]
         shown = list(range(len(content0["damaged"])))
-        zoom = [detected[f][0] for f in shown if detected[f]][:1]  # detections are not tracked over frames
+        # detections are not tracked over frames: follow the first one through each frame's nearest
+        # detection within 5% of the bounding-box diagonal
+        first = next((detected[f][0] for f in shown if detected[f]), None)
+        zoom = []
+        if first is not None:
+            pts = content0["damaged"][0]
+            reach = 0.05 * float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+            for f in shown:
+                near = [d for d in detected[f] if np.linalg.norm(d.center - first.center) <= reach]
+                if near:
+                    zoom.append(min(near, key=lambda d: np.linalg.norm(d.center - first.center)))
         if protocol.standins:
             rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                     ("Acquisition holes", content0["damaged"])]
