@@ -53,8 +53,9 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    neighbour and so uses beta once; a one-frame sequence has none (spatial terms only, with a
    warning). known_points="fixed" keeps the known rows at c_t and solves the new rows only;
    "free" is the paper's literal "replace the target cube with the resulting cube".
-9. drop_contradicted: a new point that an inter-source cube contradicts (no counterpart within
-   ``link_radius`` although that frame has data there) and none supports is dropped.
+9. drop_contradicted: a new point that an inter-source cube of captured data contradicts (no
+   counterpart within ``link_radius`` although that frame has data there) and none supports is
+   dropped.
 10. Voxelized input (all coordinates integers): the new points are turned into the grid voxels of
    the surface they sample (`_voxelize`: voxels within half a voxel of the local tangent plane),
    minus voxels already occupied.
@@ -622,8 +623,9 @@ class _CubeGraphInpainting(InpaintingMethod):
             for region in inter["regions"]:
                 in_hole |= region.contains(back)
         linked &= ~in_hole
-        # contradicted: the neighbour has data there but none of it near the row
-        contradicted = ~linked & ~in_hole
+        # contradicted: the neighbour has captured data there but none of it near the row (an
+        # inpainted neighbour's fill may have gaps: its absence is no evidence)
+        contradicted = ~linked & ~in_hole & inter["raw"]
         return aligned[idx], linked, contradicted
 
 
