@@ -34,6 +34,13 @@ pymeshlab's ``generate_sampling_montecarlo`` / ``_poisson_disk``: those are not 
 runs on the same mesh in one process gave different samples) and Poisson-disk with an exact count
 took 483 s for 100k samples (Monte Carlo 0.5 s).
 
+Known limitation (measured, scratch/diag_meshlab_human.py): on voxelized frames (the embedded human,
+size small, 93k points) ball pivoting with the automatic radius leaves a mesh with 54k boundary
+edges of 285k and non-manifold vertices, so the synthetic holes are not separate boundary loops
+and close-holes puts only 9-100 faces in them (with or without its self-intersection check,
+maxholesize 1000 or 5000): holes-only then adds ~100 points a frame. A larger ``ball_radius`` or
+``reconstruction="poisson"`` are the levers; not tuned yet.
+
 Every pymeshlab failure becomes a `MeshlabError` naming the filter and MeshLab's message.
 Choices not in the paper: ``max_hole_size=1000`` (MeshLab's default 30 edges does not close a
 medium synthetic hole: radius 30 on a 1023-unit body is ~190 boundary edges at 10-bit spacing).
