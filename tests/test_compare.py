@@ -330,9 +330,10 @@ def score_into_store(store_path, code_version, frames, damage, method, seconds):
 
 def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
     """Baseline: temporal-graph with its defaults on 2 small frames (~7k points) with a medium hole.
-    The normal setting run again passes; the same cell run with gamma = 1e4 (the graph smoothness
-    term 2e4 times its default 0.5: it flattens every filled cube), standing for a code change that
-    degrades the method, fails with a readable table."""
+    The normal setting run again passes; the same cell run with icp_iterations = 0 (structure
+    matching switched off: source cubes are copied in without the rotation/translation that fits them
+    to the target's known points; measured -3.9 dB whole-frame D1 on this case), standing for a code
+    change that degrades the method, fails with a readable table."""
     pytest.importorskip("methods.temporal_graph")
     pytest.importorskip("metrics.registry")
     import time
@@ -355,7 +356,7 @@ def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
     base_store = score_into_store(tmp_path / "base.sqlite", "base", frames, damage, normal, seconds)
     again, seconds_again = inpaint()
     normal_store = score_into_store(tmp_path / "normal.sqlite", "normal", frames, damage, again, seconds_again)
-    degraded, seconds_degraded = inpaint(gamma=1e4)
+    degraded, seconds_degraded = inpaint(icp_iterations=0)
     degraded_store = score_into_store(tmp_path / "degraded.sqlite", "degraded", frames, damage, degraded,
                                       seconds_degraded)
 
