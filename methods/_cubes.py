@@ -13,29 +13,6 @@ Per-cube sums of any per-point quantity are computed by binning the points into 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
-
-
-def point_spacing(points: np.ndarray, sample: int = 20000, seed: int = 0, tree: cKDTree | None = None) -> float:
-    """Typical distance between neighbouring samples: median 8th-NN distance / sqrt(2).
-
-    On a voxelized surface of step 1 the 8 nearest neighbours are the 4 edge and 4 diagonal
-    neighbours, so the estimate is exactly 1 (same definition as `holes.geometry.point_spacing`;
-    repeated here so that methods/ does not depend on a holes/ internal). At most ``sample`` points
-    (fixed-seed subset) are queried.
-    """
-    points = np.asarray(points, dtype=np.float64)
-    if len(points) < 9:
-        raise ValueError(f"need at least 9 points to estimate the point spacing, got {len(points)}")
-    tree = tree if tree is not None else cKDTree(points)
-    query = points
-    if len(points) > sample:
-        query = points[np.random.default_rng(seed).choice(len(points), sample, replace=False)]
-    dist, _ = tree.query(query, k=9, workers=-1)
-    spacing = float(np.median(dist[:, 8])) / np.sqrt(2.0)
-    if not spacing > 0:
-        raise ValueError("the points are (almost all) duplicates: cannot estimate a point spacing")
-    return spacing
 
 
 def block_sums(grid: np.ndarray, width: int) -> np.ndarray:

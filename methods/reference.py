@@ -77,7 +77,7 @@ def median_neighbour_distance(points: np.ndarray, sample: int = 20000, tree: cKD
     """Median nearest-neighbour distance of (N, 3) ``points`` (on an evenly strided subsample of
     about ``sample`` points, so it is deterministic and cheap on 1M-point frames).
 
-    The distance to the closest sample, not a density-based spacing (`methods._cubes.point_spacing`,
+    The distance to the closest sample, not a density-based spacing (`holes.geometry.point_spacing`,
     `methods.lozes_pde.sampling_step`): temporal-copy uses it to tell a copied point that duplicates
     an existing one (closer than half of it) from one that fills a gap."""
     if len(points) < 2:

@@ -10,7 +10,7 @@ import pytest
 import scipy.sparse as sp
 
 from holes.regions import HoleRegion
-from methods._cubes import CellGrid, best_window, block_sums, in_box, point_spacing
+from methods._cubes import CellGrid, best_window, block_sums, in_box
 from methods._graph import knn_laplacian, solve_cube
 from methods._registration import align_to_partial, kabsch
 from methods.registry import get_method
@@ -94,10 +94,6 @@ def test_best_window_matches_exhaustive_search():
         best = max(best, int(in_box(pts, np.array(a, float), 4.0).sum()))
     assert count == best
     assert in_box(pts, lower, 4.0).sum() == best
-
-
-def test_point_spacing_is_one_on_a_voxel_plane():
-    assert point_spacing(voxel_plane()) == pytest.approx(1.0)
 
 
 # -- registration ---------------------------------------------------------------------------------
