@@ -305,7 +305,8 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
         zoom_ax.set_title("zoom", fontsize=8, color="darkorange")
     if suptitle:
         fig.suptitle(suptitle)
-    fig.tight_layout()
+    # tight_layout ignores the suptitle: keep the top 0.4 inch (reserved in fig_h) for it
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - (0.4 / fig_h if suptitle else 0.0)))
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.stem}.tmp{os.getpid()}.png")
