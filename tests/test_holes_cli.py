@@ -88,3 +88,33 @@ def test_missing_input_is_a_clear_error(tmp_path, capsys):
 def test_detect_holes_bad_parameter(tmp_path, capsys):
     assert main(["detect-holes", "human", *TINY, "--param", "radius=3", "--out", str(tmp_path / "h.json")]) == 2
     assert "unknown detector parameter" in capsys.readouterr().err
+
+
+def _red_pixels(png) -> int:
+    import matplotlib.image
+
+    from bench.render import HIGHLIGHT_COLOR
+
+    rgb = (matplotlib.image.imread(png)[..., :3] * 255).round().astype(int)
+    return int((np.abs(rgb - np.asarray(HIGHLIGHT_COLOR)).sum(-1) <= 3).sum())
+
+
+def test_render_paints_the_holes(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    truth, out = tmp_path / "truth", tmp_path / "dmg"
+    assert main(["generate", "human", "--frames", "2", "--param", "size=tiny", "--out", str(truth)]) == 0
+    assert main(["damage", str(truth), "--holes", "region", "--param", "preset=large",
+                 "--seed", "0", "--out", str(out)]) == 0
+    plain, painted, rims = tmp_path / "plain.png", tmp_path / "holes.png", tmp_path / "rims.png"
+    assert main(["render", str(truth), "--frames", "0,1", "--out", str(plain)]) == 0
+    assert main(["render", str(truth), "--frames", "0,1", "--holes", str(out), "--out", str(painted)]) == 0
+    assert _red_pixels(plain) == 0 and _red_pixels(painted) > 100
+    # a holes.json paints the points inside the regions: on the ground truth, the removed ones
+    assert main(["render", str(truth), "--frames", "1", "--holes", str(out / "holes.json"), "--out", str(rims)]) == 0
+    assert _red_pixels(rims) > 50
+    # masks of the ground truth do not fit the damaged frames: a clear error, no picture
+    capsys.readouterr()
+    assert main(["render", str(out), "--holes", str(out), "--out", str(tmp_path / "bad.png")]) == 2
+    assert "render the ground truth" in capsys.readouterr().err
+    assert not (tmp_path / "bad.png").exists()
+    assert main(["render", str(truth), "--holes", str(tmp_path / "none"), "--out", str(tmp_path / "bad.png")]) == 2

@@ -1,9 +1,13 @@
 """`dpcbench render PATH_OR_NAME --out FILE.png`: frames side by side, coloured (or shaded by
-normals when the frames have no colours), with an optional magnified zoom box."""
+normals when the frames have no colours), with an optional magnified zoom box; `--holes` paints
+the holes red (the removed points of a `dpcbench damage` folder on its ground truth, or the points
+inside the regions of a holes.json)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+
+import numpy as np
 
 from bench.errors import UserError
 
@@ -22,6 +26,10 @@ def register(subparsers) -> None:
                         help="auto: colours when present, else normals; shaded: colours lit by the normals")
     parser.add_argument("--point-size", type=int, default=None, help="splat radius in pixels (default: automatic)")
     parser.add_argument("--height", type=int, default=480, help="panel height in pixels (default 480)")
+    parser.add_argument("--holes", default=None, metavar="DIR_OR_FILE",
+                        help="paint holes red: a `dpcbench damage` output folder or its masks.npz (render the "
+                             "ground truth it was made from: the removed points turn red), or a holes.json "
+                             "(the points inside its regions turn red, e.g. the rims found by detect-holes)")
     parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper's sequences")
     parser.set_defaults(func=run)
@@ -72,12 +80,51 @@ def run(args) -> int:
     seq = load_dataset(args.source, frames=frames, data_dir=args.data_dir, **parse_params(args.param))
     indices = seq.meta.get("frame_indices") or frames
     titles = [f"{seq.name} frame {i}" for i in indices]
+    highlight = _hole_masks(args.holes, seq.points, indices) if args.holes else None
     try:
         out = render_clouds(seq.frames, args.out, titles=titles, zoom=zoom, view=view, shading=args.shading,
-                            point_size=args.point_size, panel_height=args.height)
+                            point_size=args.point_size, panel_height=args.height, highlight=highlight)
     except ValueError as err:
         raise UserError(str(err)) from None
     except OSError as err:
         raise UserError(f"--out {args.out}: cannot write ({err})") from None
     print(f"wrote {out} ({len(seq.frames)} frames)")
     return 0
+
+
+def _hole_masks(source: str, points: list, indices: list[int]) -> list:
+    """Per rendered frame the mask of the points to paint red, from a damage folder / masks.npz
+    (the removed points: the rendered frames must be the ground truth) or a holes.json (the
+    points inside the regions)."""
+    from holes.regions import regions_from_json, union_mask
+
+    path = Path(source)
+    if path.is_dir():
+        path = path / "masks.npz" if (path / "masks.npz").is_file() else path / "holes.json"
+    if not path.is_file():
+        raise UserError(f"--holes {source}: no such file (give a `dpcbench damage` folder, its masks.npz, "
+                        "or a holes.json)")
+    if path.suffix == ".npz":
+        try:
+            with np.load(path) as data:
+                masks = {key: data[key] for key in data.files}
+        except (OSError, ValueError) as err:
+            raise UserError(f"--holes {path}: not a readable masks file ({err})") from None
+        out = []
+        for i, pts in zip(indices, points):
+            mask = masks.get(f"frame_{i:04d}")
+            if mask is None:
+                raise UserError(f"--holes {path}: has no mask for frame {i} (it has {len(masks)} frames)")
+            if mask.shape != (len(pts),):
+                raise UserError(f"--holes {path}: frame {i} has {len(pts)} points but its mask {mask.size}; "
+                                "render the ground truth the damage was made from, not the damaged frames")
+            out.append(mask.astype(bool))
+        return out
+    try:
+        regions = regions_from_json(path)
+    except (OSError, ValueError, KeyError) as err:
+        raise UserError(f"--holes {path}: not a readable holes.json ({err})") from None
+    for i in indices:
+        if i >= len(regions):
+            raise UserError(f"--holes {path}: has no regions for frame {i} (it has {len(regions)} frames)")
+    return [union_mask(regions[i], pts) for i, pts in zip(indices, points)]
