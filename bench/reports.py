@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from bench import figures, paper
-from bench.tables import ComparisonTable, comparison_table, runtime_table
+from bench.tables import ComparisonTable, comparison_table, config_labels, given_labels, method_labels, runtime_table
 
 
 def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, Path]:
@@ -66,6 +66,7 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
+    df = _label_rows_and_methods(df, runs)
     skip = {"time_s", "peak_mem_mb", "removed_fraction"}
     metrics = metrics or [m for m in dict.fromkeys(df["metric"]) if m not in skip and not m.startswith("temporal")]
     scopes = scopes or [s for s in ("frame", "holes") if s in set(df["scope"])]
@@ -97,6 +98,19 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
     report = out / "REPORT.md"
     report.write_text("\n".join(sections))
     return report
+
+
+def _label_rows_and_methods(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
+    """Methods take their config labels (or name + distinguishing parameters); with more than one
+    hole configuration in the experiment, a table row is a sequence and a hole configuration
+    (``Human · region (coherent=True)``), so that different damage is never averaged together."""
+    df = df.copy()
+    df["method"] = method_labels(df, given=given_labels(runs, "method"))
+    df["method_params"] = "{}"
+    holes = config_labels(df["holes"], df["holes_params"], given=given_labels(runs, "holes"))
+    if holes.nunique() > 1:
+        df["sequence"] = df["sequence"] + " · " + holes
+    return df
 
 
 # -- reproduce-paper ---------------------------------------------------------------------------

@@ -35,23 +35,42 @@ def higher_is_better(metric: str) -> bool:
     return metric not in LOWER_IS_BETTER and not metric.startswith("temporal")
 
 
-def method_labels(df: pd.DataFrame, names: dict[str, str] | None = None) -> pd.Series:
-    """A label per row: the method's display name, plus the parameters that differ between the
-    configurations of the same method in ``df`` (e.g. ``temporal-graph (beta=0.25)``)."""
-    names = names or {}
+def config_labels(names: pd.Series, params: pd.Series, display: dict[str, str] | None = None,
+                  given: dict | None = None) -> pd.Series:
+    """A label per row for (name, canonical params JSON) pairs: the ``given`` label of the pair when
+    the config named one, else the display name plus the parameters that this configuration sets
+    and that differ between the configurations of the same name (``temporal-graph (beta=0.25)``;
+    a configuration on the defaults keeps the bare name)."""
+    display, given = display or {}, given or {}
     labels = {}
-    for method, group in df.groupby("method"):
-        configs = sorted(group["method_params"].unique())
-        base = names.get(method, method)
-        if len(configs) == 1:
-            labels.update({(method, configs[0]): base})
-            continue
+    frame = pd.DataFrame({"name": names, "params": params})
+    for name, group in frame.groupby("name"):
+        configs = sorted(group["params"].unique())
         parsed = {c: json.loads(c) for c in configs}
         keys = sorted({k for p in parsed.values() for k in p})
         varying = [k for k in keys if len({json.dumps(p.get(k)) for p in parsed.values()}) > 1]
+        base = display.get(name, name)
         for c, p in parsed.items():
-            labels[(method, c)] = f"{base} ({', '.join(f'{k}={p.get(k)}' for k in varying)})"
-    return pd.Series([labels[(m, p)] for m, p in zip(df["method"], df["method_params"])], index=df.index)
+            shown = [f"{k}={p[k]}" for k in varying if k in p]
+            labels[(name, c)] = given.get((name, c)) or (f"{base} ({', '.join(shown)})" if shown else base)
+    return pd.Series([labels[(n, p)] for n, p in zip(names, params)], index=names.index)
+
+
+def method_labels(df: pd.DataFrame, names: dict[str, str] | None = None, given: dict | None = None) -> pd.Series:
+    """A label per row of ``df`` for its method (see `config_labels`)."""
+    return config_labels(df["method"], df["method_params"], names, given)
+
+
+def given_labels(runs: pd.DataFrame, part: str) -> dict:
+    """(name, params JSON) -> the label the experiment config gave to that ``part`` ("method" or
+    "holes"), read from the stored run specs."""
+    key, params = ("name", "method_params") if part == "method" else ("generator", "holes_params")
+    out = {}
+    for spec, name, p in zip(runs["spec"], runs[part], runs[params]):
+        label = (json.loads(spec).get(part) or {}).get("label") if spec else None
+        if label:
+            out[(name, p)] = label
+    return out
 
 
 @dataclass

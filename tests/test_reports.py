@@ -170,3 +170,30 @@ def test_reproduce_paper_refuses_bad_input(tmp_path, capsys):
     assert "no such folder" in capsys.readouterr().err
     assert cli_main(["reproduce-paper", "--quick", "--frames", "1", "--store", store]) == 2
     assert "at least 2 frames" in capsys.readouterr().err
+
+
+def test_report_keeps_hole_configurations_apart_and_uses_config_labels(tmp_path):
+    """Two hole configurations of one sequence are two rows (never averaged together); a method's
+    configured label names its column, and a configuration on the defaults keeps the bare name."""
+    store = ResultsStore(tmp_path / "s.sqlite")
+    for coherent in (False, True):
+        for label, params in ((None, {}), ("tg (paper)", {"intra_candidates": 1}), (None, {"beta": 0.25})):
+            value = 20.0 + 3 * coherent + params.get("beta", 0) * 4 + params.get("intra_candidates", 0)
+            rows = [{"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic", "value": value}
+                    for f in range(2)]
+            holes = {"preset": "medium", "coherent": coherent}
+            spec = {"method": {"name": "temporal-graph", "params": params, "label": label},
+                    "holes": {"generator": "region", "params": holes, "label": None}}
+            record = {"sequence": "Human", "holes": "region", "holes_params": holes, "seed": 0,
+                      "method": "temporal-graph", "method_params": params, "method_version": "1",
+                      "code_version": "abc", "spec": spec, "env": {"git_commit": "abc"}}
+            store.record_run(f"run-{coherent}-{label}-{params}", record, rows, ["exp"])
+    report = write_comparison_report(store.results_frame("exp"), store.runs_frame("exp"), tmp_path / "r", title="t")
+    lines = [line.strip("|").split(" | ") for line in report.read_text().splitlines() if line.startswith("| ")]
+    header, body = [c.strip() for c in lines[0]], lines[1:]
+    cells = {(r[0].strip(), col): r[i].strip("* ") for r in body for i, col in enumerate(header) if i}
+    assert sorted(header[1:]) == ["temporal-graph", "temporal-graph (beta=0.25)", "tg (paper)"]
+    assert cells[("Human · region (coherent=False)", "temporal-graph")] == "20.00 ± 0.00"
+    assert cells[("Human · region (coherent=False)", "tg (paper)")] == "21.00 ± 0.00"
+    assert cells[("Human · region (coherent=True)", "temporal-graph")] == "23.00 ± 0.00"
+    assert cells[("Human · region (coherent=True)", "temporal-graph (beta=0.25)")] == "24.00 ± 0.00"

@@ -313,3 +313,17 @@ def test_class_facts():
     assert TemporalGraph.detects_holes and FuNonlocal.detects_holes
     assert "beta" not in FuNonlocal().get_params()
     assert TemporalGraph().get_params()["beta"] == 0.5
+
+
+def test_temporal_links_are_measured_in_point_spacings():
+    from scipy.spatial import cKDTree
+
+    method = TemporalGraph()
+    # a float plane sampled every 3 units, 1023 units wide: the cube unit is 1, the spacing 3
+    grid = np.stack(np.meshgrid(np.arange(0, 1024, 3.0), np.arange(0, 1024, 3.0), indexing="ij"), -1).reshape(-1, 2)
+    plane = np.column_stack([grid + 0.25, np.full(len(grid), 0.5)])
+    assert method._link_distance(plane, cKDTree(plane), 1.0, integer=False) == pytest.approx(2.5 * 3.0, rel=0.01)
+    # the unit bounds it from below (a sampling finer than the unit), and voxels are one spacing
+    assert method._link_distance(plane, cKDTree(plane), 10.0, integer=False) == pytest.approx(25.0)
+    voxels = voxel_plane()
+    assert method._link_distance(voxels, cKDTree(voxels), 1.0, integer=True) == pytest.approx(2.5)
