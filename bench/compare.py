@@ -176,6 +176,19 @@ def _normalize_keys(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
+def newest_runs(results: pd.DataFrame) -> pd.DataFrame:
+    """The rows of the newest run of each cell (RUN_KEY: data, damage and seed, method and its
+    parameters), each run counted once. A store keeps the runs of older code versions (a method's
+    version changes its run ids), which must not be averaged with the current ones."""
+    # a run in two experiments appears once per experiment in the store's table: count it once
+    df = _normalize_keys(results.drop_duplicates(["run_id", "frame", "metric", "scope", "peak"]))
+    # the newest run per cell: its first created_at stands for the run
+    run_times = df.groupby("run_id", sort=False, dropna=False).agg(created=("created_at", "min"),
+                                                     **{k: (k, "first") for k in RUN_KEY})
+    newest = run_times.sort_values("created").groupby(RUN_KEY, sort=False, dropna=False).tail(1).index
+    return df[df["run_id"].isin(newest)]
+
+
 def _population_std(values: pd.Series) -> float:
     """sqrt(mean((v - mean(v))^2)) over the non-NaN values; NaN when none is left or one is infinite."""
     finite = values.dropna().to_numpy(dtype=float)
@@ -222,14 +235,7 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
         what = " and ".join(f"{k} {v!r}" for k, v in (("experiment", experiment), ("code version", code_version)) if v)
         raise ValueError(f"no results to summarize{' for ' + what if what else ''}; run the experiment first "
                          "(dpcbench run CONFIG)")
-    # a run in two experiments appears once per experiment in the store's table: count it once
-    df = df.drop_duplicates(["run_id", "frame", "metric", "scope", "peak"])
-    df = _normalize_keys(df)
-    # the newest run per cell: its first created_at stands for the run
-    run_times = df.groupby("run_id", sort=False, dropna=False).agg(created=("created_at", "min"),
-                                                     **{k: (k, "first") for k in RUN_KEY})
-    newest = run_times.sort_values("created").groupby(RUN_KEY, sort=False, dropna=False).tail(1).index
-    df = _frame_level_values(df[df["run_id"].isin(newest)])
+    df = _frame_level_values(newest_runs(df))
     grouped = df.groupby(KEY_COLUMNS, sort=True)["value"]
     summary = grouped.agg(mean="mean", std=_population_std, n_frames="count").reset_index()
     summary["n_frames"] = summary["n_frames"].astype(int)

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from bench import figures, paper
+from bench.compare import newest_runs
 from bench.tables import ComparisonTable, comparison_table, config_labels, given_labels, method_labels, runtime_table
 
 
@@ -62,11 +63,12 @@ def _pick_peak(df: pd.DataFrame, metric: str, preferred: str = "intrinsic") -> s
 
 def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path, *, title: str,
                             metrics: list[str] | None = None, scopes: list[str] | None = None) -> Path:
-    """Tables + bar charts + per-frame curves + REPORT.md for every metric/scope in ``df``."""
+    """Tables + bar charts + per-frame curves + REPORT.md for every metric/scope in ``df`` (the
+    newest run of each cell: runs of older code versions in the store are left out)."""
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    df = _label_rows_and_methods(df, runs)
+    df = _label_rows_and_methods(newest_runs(df), runs)
     skip = {"time_s", "peak_mem_mb", "removed_fraction"}
     metrics = metrics or [m for m in dict.fromkeys(df["metric"]) if m not in skip and not m.startswith("temporal")]
     scopes = scopes or [s for s in ("frame", "holes") if s in set(df["scope"])]
