@@ -174,8 +174,14 @@ def test_reproduce_paper_refuses_bad_input(tmp_path, capsys):
 
 def test_report_keeps_hole_configurations_apart_and_uses_config_labels(tmp_path):
     """Two hole configurations of one sequence are two rows (never averaged together); a method's
-    configured label names its column, and a configuration on the defaults keeps the bare name."""
+    configured label names its column, and a configuration on the defaults keeps the bare name;
+    an older run of a cell (e.g. an earlier method version) is left out."""
     store = ResultsStore(tmp_path / "s.sqlite")
+    old = {"sequence": "Human", "holes": "region", "holes_params": {"preset": "medium", "coherent": False},
+           "seed": 0, "method": "temporal-graph", "method_params": {}, "method_version": "0", "code_version": "old",
+           "spec": {}, "env": {}, "created_at": "2020-01-01T00:00:00+00:00", "finished_at": "2020-01-01T00:00:00+00:00"}
+    store.record_run("old-run", old, [{"frame": 0, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic",
+                                       "value": 99.0}], ["exp"])
     for coherent in (False, True):
         for label, params in ((None, {}), ("tg (paper)", {"intra_candidates": 1}), (None, {"beta": 0.25})):
             value = 20.0 + 3 * coherent + params.get("beta", 0) * 4 + params.get("intra_candidates", 0)
