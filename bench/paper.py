@@ -178,10 +178,14 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     fig_dir = Path(fig_dir)
     notes = {}
 
-    # Fig. 4: the first sequence and seed of the synthetic runs
+    # Fig. 4: the first sequence of the synthetic runs, with its first temporally coherent hole
+    # configuration when there is one (the magnified hole then follows the surface through the
+    # frames, as in the paper's figure; independent holes are elsewhere in every frame)
     first_seq = protocol.synthetic[0].sequence_label if protocol.synthetic else None
-    seed = protocol.synthetic[0].holes["seed"] if protocol.synthetic else None
-    specs = [s for s in protocol.synthetic if s.sequence_label == first_seq and s.holes["seed"] == seed]
+    on_first = [s.holes for s in protocol.synthetic if s.sequence_label == first_seq]
+    first_holes = next((h for h in on_first if h["params"].get("coherent")), on_first[0] if on_first else None)
+    seed = first_holes["seed"] if first_holes else None
+    specs = [s for s in protocol.synthetic if s.sequence_label == first_seq and s.holes == first_holes]
     done = _done_folders(store, specs)
     if done:
         spec0, folder0 = next(iter(done.values()))
@@ -198,10 +202,10 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
                 rows.append((label, [read_run_folder(done[name][1])["inpainted"][f] for f in shown]))
         subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig4_synthetic_holes.png", zoom_regions=zoom,
                         highlight_regions=[regions[f] for f in shown],
-                        title=f"Synthetic holes, {first_seq}")
+                        title=f"Synthetic holes ({first_holes.get('label') or first_holes['generator']}), {first_seq}")
         missing = [label for name, label, _ in PAPER_METHODS if name not in done]
         notes["fig4_synthetic_holes"] = (
-            f"Like the paper's Fig. 4: {first_seq}, seed {seed}; rows ground truth, with holes, then each method; "
+            f"Like the paper's Fig. 4: {first_seq}, {first_holes.get('label') or first_holes['generator']}, seed {seed}; rows ground truth, with holes, then each method; "
             f"columns frames {shown}; the orange box (first hole) is magnified under each row; points inside "
             "the hole regions are red in the method rows." + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))
 

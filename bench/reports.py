@@ -103,12 +103,18 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
 
 
 def _label_rows_and_methods(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
-    """Methods take their config labels (or name + distinguishing parameters); with more than one
-    hole configuration in the experiment, a table row is a sequence and a hole configuration
-    (``Human · region (coherent=True)``), so that different damage is never averaged together."""
-    df = df.copy()
+    """Methods take their config labels (or name + distinguishing parameters); rows as `hole_rows`."""
+    df = hole_rows(df, runs)
     df["method"] = method_labels(df, given=given_labels(runs, "method"))
     df["method_params"] = "{}"
+    return df
+
+
+def hole_rows(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
+    """With more than one hole configuration in ``df``, a table row is a sequence and a hole
+    configuration (``Human · coherent holes``: the config's label, else the generator and its
+    distinguishing parameters), so that different damage is never averaged together."""
+    df = df.copy()
     holes = config_labels(df["holes"], df["holes_params"], given=given_labels(runs, "holes"))
     if holes.nunique() > 1:
         df["sequence"] = df["sequence"] + " · " + holes
@@ -172,6 +178,7 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
     tables_dir.mkdir(parents=True, exist_ok=True)
     fig_dir.mkdir(parents=True, exist_ok=True)
     label = "STAND-IN DATA (embedded human and bunny, not the paper's sequences)" if standins else "the paper's sequences"
+    df = hole_rows(df, runs)
     t1, t2 = paper_tables(df, standins=standins)
     write_table(t1, tables_dir, "table1_gpsnr")
     write_table(t2, tables_dir, "table2_nshd")

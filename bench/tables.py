@@ -44,15 +44,22 @@ def config_labels(names: pd.Series, params: pd.Series, display: dict[str, str] |
     display, given = display or {}, given or {}
     labels = {}
     frame = pd.DataFrame({"name": names, "params": params})
+    pairs = set(zip(frame["name"], frame["params"]))
+    # a label given to a grid (several configurations) is shared: those configurations keep it and
+    # add their distinguishing parameters, so that they are never merged into one column or row
+    shared = {lab for lab in {given.get(pair) for pair in pairs} - {None}
+              if sum(given.get(pair) == lab for pair in pairs) > 1}
     for name, group in frame.groupby("name"):
         configs = sorted(group["params"].unique())
         parsed = {c: json.loads(c) for c in configs}
         keys = sorted({k for p in parsed.values() for k in p})
         varying = [k for k in keys if len({json.dumps(p.get(k)) for p in parsed.values()}) > 1]
-        base = display.get(name, name)
         for c, p in parsed.items():
-            shown = [f"{k}={p[k]}" for k in varying if k in p]
-            labels[(name, c)] = given.get((name, c)) or (f"{base} ({', '.join(shown)})" if shown else base)
+            shown = ", ".join(f"{k}={p[k]}" for k in varying if k in p)
+            base = given.get((name, c)) or display.get(name, name)
+            if given.get((name, c)) in shared or not given.get((name, c)):
+                base = f"{base} ({shown})" if shown else base
+            labels[(name, c)] = base
     return pd.Series([labels[(n, p)] for n, p in zip(names, params)], index=names.index)
 
 
