@@ -203,3 +203,14 @@ def test_report_keeps_hole_configurations_apart_and_uses_config_labels(tmp_path)
     assert cells[("Human · region (coherent=False)", "tg (paper)")] == "21.00 ± 0.00"
     assert cells[("Human · region (coherent=True)", "temporal-graph")] == "23.00 ± 0.00"
     assert cells[("Human · region (coherent=True)", "temporal-graph (beta=0.25)")] == "24.00 ± 0.00"
+
+
+def test_a_label_given_to_a_grid_keeps_its_configurations_apart():
+    from bench.tables import config_labels
+
+    names = pd.Series(["tg", "tg", "tg", "fu"])
+    params = pd.Series(['{"beta":0.25}', '{"beta":0.5}', '{"beta":0.25}', "{}"])
+    given = {("tg", '{"beta":0.25}'): "ours", ("tg", '{"beta":0.5}'): "ours"}
+    labels = config_labels(names, params, given=given).tolist()
+    assert labels == ["ours (beta=0.25)", "ours (beta=0.5)", "ours (beta=0.25)", "fu"]
+    assert config_labels(names, params, {"fu": "Hu"}).tolist() == ["tg (beta=0.25)", "tg (beta=0.5)", "tg (beta=0.25)", "Hu"]
