@@ -170,3 +170,13 @@ def test_detection_parameters(seq_dir):
     base["experiment"]["detection"] = {"min_points": 5}
     with pytest.raises(ConfigError, match="only used with regions"):
         parse_config(base)
+
+
+@pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods"])
+def test_shipped_presets_expand(preset):
+    """Every preset under bench/presets parses and expands into runs with distinct ids."""
+    from bench.paper import PRESETS_DIR
+
+    specs = load_config(PRESETS_DIR / f"{preset}.toml").expand()
+    assert specs and len({s.run_id for s in specs}) == len(specs)
+    assert {s.method["name"] for s in specs} >= {"fu-nonlocal", "temporal-graph"}
