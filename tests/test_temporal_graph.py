@@ -283,6 +283,8 @@ def test_blind_mode_detects_and_fills_a_sphere_hole():
     (dict(beta=-1.0), "beta"),
     (dict(cells_per_cube=2.5), "cells_per_cube"),
     (dict(feature_fraction=0.0), "feature_fraction"),
+    (dict(off_surface=-0.5), "off_surface"),
+    (dict(off_surface="far"), "off_surface"),
 ])
 def test_bad_parameters_are_refused(params, match):
     damaged, hole, _ = plane_sequence()
@@ -327,3 +329,19 @@ def test_temporal_links_are_measured_in_point_spacings():
     assert method._link_distance(plane, cKDTree(plane), 10.0, integer=False) == pytest.approx(25.0)
     voxels = voxel_plane()
     assert method._link_distance(voxels, cKDTree(voxels), 1.0, integer=True) == pytest.approx(2.5)
+
+
+def test_a_gap_in_the_neighbour_does_not_contradict_a_row_on_its_surface():
+    grid = np.stack(np.meshgrid(np.arange(-15, 16.0), np.arange(-15, 16.0), indexing="ij"), -1).reshape(-1, 2)
+    grid = grid[np.linalg.norm(grid, axis=1) > 5]  # a plane z = 0 with a gap of radius 5 at the origin
+    inter = dict(aligned=np.column_stack([grid, np.zeros(len(grid))]), rotation=np.eye(3),
+                 translation=np.zeros(3), regions=[])
+    rows = np.array([[0.0, 0.0, 0.0],     # in the gap, on the plane: no counterpart, no contradiction
+                     [10.0, 10.0, 4.0],   # above the plane: contradicted
+                     [10.0, 10.0, 0.0]])  # on a plane point: linked
+    _, linked, against = TemporalGraph(off_surface=0.4)._temporal_links(rows, inter, 2.5)
+    assert linked.tolist() == [False, False, True]
+    assert against.tolist() == [False, True, False]
+    # off_surface=None: any row without a counterpart is contradicted
+    _, _, against = TemporalGraph(off_surface=None)._temporal_links(rows, inter, 2.5)
+    assert against.tolist() == [True, True, False]
