@@ -71,7 +71,7 @@ def method_labels(df: pd.DataFrame, names: dict[str, str] | None = None, given: 
 def given_labels(runs: pd.DataFrame, part: str) -> dict:
     """(name, params JSON) -> the label the experiment config gave to that ``part`` ("method" or
     "holes"), read from the stored run specs."""
-    key, params = ("name", "method_params") if part == "method" else ("generator", "holes_params")
+    params = "method_params" if part == "method" else "holes_params"  # both canonical JSON in the store
     out = {}
     for spec, name, p in zip(runs["spec"], runs[part], runs[params]):
         label = (json.loads(spec).get(part) or {}).get("label") if spec else None
