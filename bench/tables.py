@@ -4,7 +4,7 @@
 A cell is the mean ± standard deviation over frames (every frame of every run of that sequence and
 method: several seeds pool their frames) of one metric in one scope with one PSNR peak, read from the
 results store's tidy table (`bench.store.ResultsStore.results_frame`). Standard deviation is the
-sample one (ddof=1; 0 for a single frame). The best mean of each row is bold (highest for
+sample one (ddof=1; a cell of a single value shows the value alone). The best mean of each row is bold (highest for
 higher-is-better metrics, lowest otherwise). The paper's published values, when given, are printed
 as extra rows "<sequence> (paper)" with their own best in bold. The conventions (metric, peak,
 scope, scale, frames) are printed under every table.
@@ -111,7 +111,8 @@ class ComparisonTable:
         if (row, col) not in self.mean:
             return "–"
         m, s = self.mean[(row, col)] * self.scale, self.std[(row, col)] * self.scale
-        text = f"{self._fmt(m)} ± {self._fmt(s)}"
+        # one value (e.g. a sequence-level metric of one run) has no spread to show
+        text = self._fmt(m) if self.n[(row, col)] < 2 else f"{self._fmt(m)} ± {self._fmt(s)}"
         return fmt_bold(text) if bold else text
 
     def _fmt(self, x: float) -> str:

@@ -214,3 +214,11 @@ def test_a_label_given_to_a_grid_keeps_its_configurations_apart():
     labels = config_labels(names, params, given=given).tolist()
     assert labels == ["ours (beta=0.25)", "ours (beta=0.5)", "ours (beta=0.25)", "fu"]
     assert config_labels(names, params, {"fu": "Hu"}).tolist() == ["tg (beta=0.25)", "tg (beta=0.5)", "tg (beta=0.25)", "Hu"]
+
+
+def test_a_single_value_cell_shows_no_spread():
+    df = pd.DataFrame({"sequence": ["S", "S", "S"], "method": ["a", "b", "b"], "method_params": ["{}"] * 3,
+                       "metric": ["gpsnr_d1"] * 3, "scope": ["frame"] * 3, "peak": ["intrinsic"] * 3,
+                       "frame": [0, 0, 1], "value": [30.0, 20.0, 22.0]})
+    md = comparison_table(df, "gpsnr_d1", "frame", "intrinsic").markdown()
+    assert "| S | **30.00** | 21.00 ± 1.41 |" in md
