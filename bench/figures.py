@@ -87,11 +87,12 @@ def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_p
 
 def facing_view(points: np.ndarray, center: np.ndarray) -> tuple[float, float]:
     """(azimuth, elevation) of a `bench.render` view that faces ``center`` from outside the cloud:
-    the direction from the cloud's centroid to ``center`` (y is up; elevation clipped to ±30° so the
-    figure stays recognisable)."""
+    the direction from the cloud's centroid to ``center`` (y is up; elevation clipped to ±60°: a
+    hole on the crown or the shoulders faces the viewer (at ±30° the crown hole of Fig. 3 was seen
+    edge-on) and the figure stays recognisable)."""
     d = np.asarray(center, float) - points.mean(axis=0)
     azimuth = -float(np.degrees(np.arctan2(d[0], d[2])))
-    elevation = float(np.clip(np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))), -30.0, 30.0))
+    elevation = float(np.clip(np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))), -60.0, 60.0))
     return (azimuth, elevation)
 
 

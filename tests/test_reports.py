@@ -222,3 +222,13 @@ def test_a_single_value_cell_shows_no_spread():
                        "frame": [0, 0, 1], "value": [30.0, 20.0, 22.0]})
     md = comparison_table(df, "gpsnr_d1", "frame", "intrinsic").markdown()
     assert "| S | **30.00** | 21.00 ± 1.41 |" in md
+
+
+def test_facing_view_looks_at_the_hole_from_outside():
+    from bench.figures import facing_view
+
+    body = np.array([[0.0, 0.0, 0.0], [0.0, 100.0, 0.0]])  # centroid (0, 50, 0)
+    assert facing_view(body, [0.0, 50.0, 30.0]) == pytest.approx((0.0, 0.0))      # in front: front view
+    assert facing_view(body, [30.0, 50.0, 0.0])[0] == pytest.approx(-90.0)         # a side
+    assert facing_view(body, [0.0, 100.0, 0.0])[1] == pytest.approx(60.0)          # the crown: from above, clipped
+    assert facing_view(body, [0.0, 50.0 - 10.0, 10.0])[1] == pytest.approx(-45.0)  # below the centroid
