@@ -311,7 +311,11 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
     sessions = benchmarks.drop_duplicates(["datetime", "commit"]).sort_values("datetime")
     session_labels = [f"{short_version(c)}\n{str(d)[5:16]}" for c, d in zip(sessions["commit"], sessions["datetime"])]
     x_of = {(d, c): i for i, (d, c) in enumerate(zip(sessions["datetime"], sessions["commit"]))}
-    groups = list(benchmarks.assign(group=benchmarks["group"].replace("", "other")).groupby("group", sort=True))
+    # a benchmark without a group joins the others of its test function (test_bench_size[...]), so
+    # that no panel gathers dozens of lines and an unreadable legend
+    function = benchmarks["fullname"].str.split("::").str[-1].str.split("[").str[0]
+    group = benchmarks["group"].fillna("").where(benchmarks["group"].fillna("") != "", function)
+    groups = list(benchmarks.assign(group=group).groupby("group", sort=True))
     if len(sessions) == 1:
         latest = benchmarks.sort_values("median")
         fig, ax = plt.subplots(figsize=(9, 0.28 * len(latest) + 1.0))
@@ -324,9 +328,9 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
         ax.set_title(f"benchmark session {session_labels[0].replace(chr(10), ' ')}", loc="left")
         fig.tight_layout()
         return _svg(fig)
-    ncols = min(3, len(groups))
+    ncols = min(2, len(groups))
     nrows = math.ceil(len(groups) / ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.0 * nrows), squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(7.0 * ncols, 3.0 * nrows), squeeze=False)
     for ax, (group, rows) in zip(axes.flat, groups):
         for i, (name, line) in enumerate(rows.groupby("fullname", sort=True)):
             xs = [x_of[(d, c)] for d, c in zip(line["datetime"], line["commit"])]
@@ -337,7 +341,7 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
         ax.set_xticks(range(len(sessions)))
         ax.set_xticklabels(session_labels, fontsize=6.5)
         ax.set_title(f"{group}: median s", loc="left")
-        ax.legend(fontsize=6.5, frameon=False, loc="best")
+        ax.legend(fontsize=6.5, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes
     for ax in list(axes.flat)[len(groups):]:
         ax.set_visible(False)
     fig.tight_layout()
