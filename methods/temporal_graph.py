@@ -634,7 +634,8 @@ class _CubeGraphInpainting(InpaintingMethod):
         inter-source cube: nearest neighbour in relative location, linked when within
         ``link_distance``; rows that map into a hole of that frame are neither linked nor contradicted."""
         aligned = inter["aligned"]
-        dist, idx = cKDTree(aligned).query(rows)
+        aligned_tree = cKDTree(aligned)
+        dist, idx = aligned_tree.query(rows)
         linked = dist <= link_distance
         in_hole = np.zeros(len(rows), dtype=bool)
         if inter["regions"]:
@@ -651,7 +652,7 @@ class _CubeGraphInpainting(InpaintingMethod):
             # a gap in the neighbour (an inpainted fill may have one) is no evidence against a row
             # that lies on the neighbour's surface continued; only a row off that surface is
             cand = np.flatnonzero(contradicted)
-            _, nb = cKDTree(aligned).query(rows[cand], k=min(8, len(aligned)))
+            _, nb = aligned_tree.query(rows[cand], k=min(8, len(aligned)))
             patch = aligned[nb]
             centre = patch.mean(axis=1)
             spread = patch - centre[:, None, :]
