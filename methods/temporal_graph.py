@@ -5,6 +5,12 @@ Sec. 3, built on Hu, Fu, Guo [Fu18TIP] (non-local self-similarity on graphs). On
 `FuNonlocal` is `TemporalGraph` with the temporal terms switched off (beta = 0, no inter-source
 cubes), so the two differ only by the temporal terms (tested: beta = 0 gives identical output).
 
+Variants. ``variant="tuned"`` (the default) is ours; ``variant="paper"`` is the paper configuration
+(every step as the paper writes it, every addition of ours off). The pipeline below is the tuned
+variant; each addition of ours names in [brackets] the switch that turns it off. The
+`TemporalGraph` docstring lists every switch, the paper configuration step by step with the
+paper's lines, each "paper silent" choice, and the precedence (explicit keyword > variant).
+
 Units. Every length parameter is given in *units* u of the data's point spacing (``spacing``; by
 default median 8th-NN distance / sqrt(2) of the largest frame, exactly 1 on a voxelized surface).
 So the paper's 10-bit values (M = 20 voxels, sigma = 1 voxel) carry over to any bit depth or to
@@ -19,20 +25,21 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    (regions=None) those of `holes.detection.detect_holes` per frame.
 3. Target cubes and holes larger than a cube, from the boundary inward: per group of nearby holes,
    repeatedly take, among the cubes not yet tried with >= ``min_known_points`` known points and a
-   pending cell in their central 2x2x2 cells (a cube centred on the rim: half known for the
-   matching, half missing), the one with the most known points (filled points count as known);
+   pending cell in their central 2x2x2 cells [rim_centred] (a cube centred on the rim: half known
+   for the matching, half missing), the one with the most known points (filled points count as known);
    fill it and mark its pending cells done. When no such cube is left, any cube with a pending
-   cell may be taken; the group ends when none is left.
-4. Intra-source cube: cubes of the frame that touch no hole and hold at least as many points as the
+   cell may be taken; the group ends when none is left. A cube whose points do not reach its
+   pending cells is put off until fills come near [defer_unreachable].
+4. Intra-source cube: cubes of the frame that touch no hole [hole_free_candidates] and hold at least as many points as the
    target's known part, ranked by the Euclidean distance between the 4-vectors
    (DC, agtv_weight * AGTV), DC = mean normal, AGTV = mean per-point anisotropic graph total
    variation a_i = sum_{j in 8-NN(i)} exp(-||p_i - p_j||^2 / 2 sigma^2) ||n_i - s_ij n_j||_1
    (s_ij = sign(n_i . n_j), so an unoriented normal flip is no variation). Normals and a_i are
-   computed once per frame on a fixed ``feature_fraction`` sample of the points (candidate
+   computed once per frame on a fixed ``feature_fraction`` sample [feature_fraction=1] of the points (candidate
    averages over ~100+ points per cube do not need every point; 4x less work). The best
-   ``intra_candidates`` are aligned (step 5) and the one with the smallest trimmed mean residual
+   ``intra_candidates`` [intra_candidates=1] are aligned (step 5) and the one with the smallest trimmed mean residual
    to the target's known points wins (1 = the paper: the most similar by DC/AGTV alone).
-5. Structure matching: the candidate's points (cube grown by one cell, so that it still covers the
+5. Structure matching: the candidate's points (cube grown by one cell [grow_source], so that it still covers the
    target after a rotation) are translated to the target cube and aligned by trimmed point-to-point
    ICP (closed-form Kabsch on pairs from the target's known points to the source: the partial
    side pairs into the complete one; `methods._registration`).
@@ -40,26 +47,28 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    co-located cube; each known point of the target votes for its nearest neighbour in that frame
    when it lies in the box; a window of side M slides with stride 1 u over the box and the window
    holding most votes wins (a summed-volume table over a 1 u histogram: O(H^3), not O(H^3 M^3)).
-   Its points (grown by one cell) are aligned onto the target's known points as in step 5.
+   Its points (grown by one cell) are aligned onto the target's known points as in step 5. An
+   inter-source cube of captured data that fits the target better than the intra-source cube
+   provides the new points instead [temporal_source].
 7. Rows of c_r: the target's m known points, then the *new points*: the aligned intra-source
-   points inside the target cube, inside a hole region and in a pending cell. Spatial graph: K-NN
-   (K = round(sqrt(m))) on the initial estimate Omega_bar c_t + Omega c_s_hat, weights
+   points inside the target cube, inside a hole region and in a pending cell [new_points]. Spatial
+   graph: K-NN (K = round(sqrt(m))) on the initial estimate Omega_bar c_t + Omega c_s_hat [graph_on], weights
    exp(-d^2 / 2 sigma^2), symmetrised. Temporal links: each row to its nearest neighbour in each
-   aligned inter-source cube, weight 1, unless farther than ``link_radius`` point spacings
+   aligned inter-source cube, weight 1, unless farther than ``link_radius`` point spacings [link_cutoff]
    (the larger of u and the median point spacing) or unless the row
    falls into a hole region of the (not yet inpainted) frame f+1 (a counterpart there would be
-   the hole's rim, not the surface).
+   the hole's rim, not the surface) [skip_hole_links].
 8. Solve Eq. (6) as one sparse SPD system for the three coordinates (`methods._graph.solve_cube`,
    scipy's sparse LU), with per-row link counts in place of 2I: a first/last frame has one
    neighbour and so uses beta once; a one-frame sequence has none (spatial terms only, with a
    warning). known_points="fixed" keeps the known rows at c_t and solves the new rows only;
    "free" is the paper's literal "replace the target cube with the resulting cube".
-9. drop_contradicted: a new point that an inter-source cube contradicts and none supports is
+9. drop_contradicted [drop_contradicted]: a new point that an inter-source cube contradicts and none supports is
    dropped. Contradicted: no counterpart within ``link_radius`` although that frame has data there,
    and the point lies off that frame's surface (farther than ``off_surface`` link radii from the
    plane of its 8 nearest points there): a gap in a neighbour, e.g. in an inpainted f-1's own
    fill, is no evidence against a point on the surface continued.
-10. Voxelized input (all coordinates integers): the new points are turned into the grid voxels of
+10. Voxelized input (all coordinates integers) [snap]: the new points are turned into the grid voxels of
    the surface they sample (`_voxelize`: voxels within half a voxel of the local tangent plane),
    minus voxels already occupied.
 
@@ -68,6 +77,7 @@ Decisions by measurement: see the `TemporalGraph` docstring.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import warnings
 
@@ -81,6 +91,22 @@ from methods._registration import align_to_partial, alignment_residual
 from methods.base import InpaintingMethod
 
 _KNOWN_MODES = ("fixed", "free")
+_NEW_POINT_MODES = ("pending-cells", "empty-slots")
+_GRAPH_MODES = ("estimate", "source")
+
+#: The values that each variant gives to the switches (parameters left at None). "tuned" is ours
+#: (the defaults); "paper" follows the paper step by step, every addition of ours off (see the
+#: `TemporalGraph` docstring, "The paper configuration", for each switch and the paper's text).
+VARIANTS: dict[str, dict] = {
+    "tuned": dict(intra_candidates=4, temporal_source=True, drop_contradicted=True, known_points="fixed",
+                  link_cutoff=True, skip_hole_links=True, rim_centred=True, defer_unreachable=True,
+                  hole_free_candidates=True, grow_source=True, new_points="pending-cells", snap="auto",
+                  graph_on="estimate", feature_fraction=0.25),
+    "paper": dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="free",
+                  link_cutoff=False, skip_hole_links=False, rim_centred=False, defer_unreachable=False,
+                  hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap=False,
+                  graph_on="source", feature_fraction=1.0),
+}
 
 
 class _CubeGraphInpainting(InpaintingMethod):
@@ -93,6 +119,25 @@ class _CubeGraphInpainting(InpaintingMethod):
     # -- parameters -------------------------------------------------------------------------
     def _beta(self) -> float:
         return float(self.beta) if self._temporal else 0.0
+
+    # -- variant ----------------------------------------------------------------------------
+    def get_params(self) -> dict:
+        """The constructor parameters with every switch left at None replaced by the variant's value
+        (so a stored record names each switch as it ran). An unknown variant leaves them at None
+        (`inpaint` refuses it)."""
+        params = super().get_params()
+        for name, value in VARIANTS.get(params.get("variant"), {}).items():
+            if name in params and params[name] is None:
+                params[name] = value
+        return params
+
+    def _configured(self) -> "_CubeGraphInpainting":
+        """A copy whose switches hold their resolved values (explicit ones win over the variant's)."""
+        if self.variant not in VARIANTS:
+            raise ValueError(f"{self.name}: variant must be one of {tuple(VARIANTS)}, got {self.variant!r}")
+        run = copy.copy(self)
+        run.__dict__.update(self.get_params())
+        return run
 
     def _validate(self) -> None:
         def positive(name):
@@ -137,10 +182,22 @@ class _CubeGraphInpainting(InpaintingMethod):
             raise ValueError(f"{self.name}: off_surface must be None or a number >= 0, got {self.off_surface!r}")
         if not isinstance(self.icp_iterations, int) or self.icp_iterations < 0:
             raise ValueError(f"{self.name}: icp_iterations must be an integer >= 0, got {self.icp_iterations!r}")
+        for name in ("link_cutoff", "skip_hole_links", "rim_centred", "defer_unreachable", "hole_free_candidates",
+                     "grow_source", "temporal_source", "drop_contradicted"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{self.name}: {name} must be true or false (or left out: the variant's "
+                                 f"value), got {getattr(self, name)!r}")
+        if self.new_points not in _NEW_POINT_MODES:
+            raise ValueError(f"{self.name}: new_points must be one of {_NEW_POINT_MODES}, got {self.new_points!r}")
+        if self.graph_on not in _GRAPH_MODES:
+            raise ValueError(f"{self.name}: graph_on must be one of {_GRAPH_MODES}, got {self.graph_on!r}")
 
     # -- sequence ---------------------------------------------------------------------------
     def inpaint(self, frames, regions=None):
         frames, regions = self._check_inputs(frames, regions)
+        return self._configured()._inpaint_sequence(frames, regions)
+
+    def _inpaint_sequence(self, frames, regions):
         self._validate()
         trees: dict = {}  # k-d tree of each input frame, built once, dropped once behind
 
@@ -174,6 +231,10 @@ class _CubeGraphInpainting(InpaintingMethod):
                 self._check_regions(f, frames[f], regions[f], unit, tree_of(f))
         beta = self._beta()
         link_distance = self._link_distance(frames[largest], tree_of(largest), unit, integer) if beta > 0 else None
+        # a slot of the paper's M^3 grid of a cube: one voxel; on unvoxelized data one point spacing
+        slot = None
+        if self.new_points == "empty-slots":
+            slot = unit if integer else max(unit, point_spacing(frames[largest], tree=tree_of(largest)))
         if beta > 0 and len(frames) == 1:
             warnings.warn(f"{self.name}: a one-frame sequence has no neighbouring frames; "
                           "using the spatial terms only (as fu-nonlocal)", stacklevel=2)
@@ -197,7 +258,7 @@ class _CubeGraphInpainting(InpaintingMethod):
                     neighbours.append(dict(points=frames[f + 1], tree=tree_of(f + 1), regions=regions[f + 1],
                                            source_regions=regions[f + 1]))
             outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], neighbours, unit, voxelized,
-                                               link_distance))
+                                               link_distance, slot))
             output_tree = cKDTree(outputs[f]) if beta > 0 and f + 1 < len(frames) and regions[f + 1] else None
         return outputs
 
@@ -268,7 +329,7 @@ class _CubeGraphInpainting(InpaintingMethod):
         agtv[sample] = sample_agtv
         return normals, agtv
 
-    def _inpaint_frame(self, points, tree, regions, neighbours, unit, voxelized, link_distance):
+    def _inpaint_frame(self, points, tree, regions, neighbours, unit, voxelized, link_distance, slot=None):
         cube = self.cube_size * unit
         per = self.cells_per_cube
         cell = cube / per
@@ -281,7 +342,9 @@ class _CubeGraphInpainting(InpaintingMethod):
         hole_cells = self._hole_cells(grid, regions)
         cube_counts = grid.cube_sums(counts)
         cube_holes = grid.cube_sums(hole_cells.astype(np.int64))
-        ok = (cube_holes == 0) & (cube_counts >= self.min_known_points)
+        ok = cube_counts >= self.min_known_points
+        if self.hole_free_candidates:
+            ok &= cube_holes == 0
         sampled = ~np.isnan(agtv)
         sample_counts = grid.cube_sums(grid.bin(points[sampled]))
         ok &= sample_counts > 0
@@ -294,7 +357,7 @@ class _CubeGraphInpainting(InpaintingMethod):
                           tree=cKDTree(np.column_stack([cand_dc, self.agtv_weight * cand_agtv])) if len(anchors) else None)
 
         context = dict(points=points, tree=tree, grid=grid, cube=cube, cell=cell, unit=unit, sigma=sigma,
-                       candidates=candidates, neighbours=neighbours, link=link_distance)
+                       candidates=candidates, neighbours=neighbours, link=link_distance, slot=slot)
         out = points.copy()
         new_points = []
         for group in self._region_groups(regions, cube + cell):
@@ -400,7 +463,6 @@ class _CubeGraphInpainting(InpaintingMethod):
                      index=local_index.copy())
         local_counts = grid.bin(points[local_index])[window].copy()
         fix_known = self.known_points == "fixed"
-        added: list[np.ndarray] = []
         # Per-cube sums over the local window, kept up to date around each filled cube only.
         # central: pending cells in the cube's central (per/2)^3 block; a target cube is centred on
         # the hole's rim, so about half of it is known (for the matching) and half missing.
@@ -430,22 +492,22 @@ class _CubeGraphInpainting(InpaintingMethod):
         deferred = np.full(tuple(n_anchor), -1, dtype=np.int64)
         while True:
             enough = (sums["known"] >= self.min_known_points) & ~tried & (sums["known"] > deferred)
-            eligible = (sums["central"] > 0) & enough
+            eligible = (sums["central"] > 0) & enough if self.rim_centred else np.zeros_like(enough)
             if not eligible.any():
-                # no known-rich cube is centred on the hole any more: any cube touching it
+                # no known-rich cube is centred on the hole any more (or rim_centred is off): any
+                # cube with missing data
                 eligible = (sums["pending"] > 0) & enough
                 if not eligible.any():
                     break
             # the target cube with the most known data first: holes fill from the rim inward
             pick = np.array(np.unravel_index(np.argmax(np.where(eligible, sums["known"], -1)), eligible.shape))
             lower = grid.cube_lower(a0 + pick)
-            if not self._reaches_pending(pending, local_counts, pick):
+            if self.defer_unreachable and not self._reaches_pending(pending, local_counts, pick):
                 deferred[tuple(pick)] = sums["known"][tuple(pick)]
                 continue
             new = self._fill_cube(lower, regions, pending, a0, local, ctx, fix_known)
             tried[tuple(pick)] = True
             if len(new):
-                added.append(new)
                 cells = grid.cell_of(new) - a0
                 keep = ((cells >= 0) & (cells < local_counts.shape)).all(axis=1)
                 np.add.at(local_counts, tuple(cells[keep].T), 1)
@@ -456,11 +518,12 @@ class _CubeGraphInpainting(InpaintingMethod):
                 local["index"] = np.concatenate([local["index"], np.full(len(new), -1)])
             pending[tuple(slice(p, p + per) for p in pick)] = False
             refresh(pick - per + 1, pick + per)
-        moved = []
-        if not fix_known:
-            original = local["index"] >= 0
-            moved = list(zip(local["index"][original], local["points"][original]))
-        return moved, (np.vstack(added) if added else np.empty((0, 3)))
+        original = local["index"] >= 0
+        moved = [] if fix_known else list(zip(local["index"][original], local["points"][original]))
+        # the new points as they are now: with known_points="free" a later target cube that holds
+        # a point filled earlier solves it as a known row and may move it (local["points"] is kept
+        # up to date; the positions at the time of filling would be stale)
+        return moved, local["points"][~original].copy()
 
     def _reaches_pending(self, pending, counts, pick) -> bool:
         """True when, inside the cube anchored at local cell ``pick``, a cell holding points is a
@@ -520,20 +583,40 @@ class _CubeGraphInpainting(InpaintingMethod):
         inside = np.zeros(len(source), dtype=bool)
         for region in regions:
             inside |= region.contains(source)
-        new = source[in_pending & inside & in_box(source, lower, cube)]
+        inside &= in_box(source, lower, cube)
+        if self.new_points == "pending-cells":
+            new = source[in_pending & inside]
+        else:
+            # "empty-slots" (the other reading of Omega, the missing slots of the M^3 grid): a
+            # source point in a hole region whose slot (voxel of side ``slot``, by rounding) holds
+            # no point of the frame yet, captured or filled by an earlier target cube; one per slot
+            new = source[inside]
+            if len(new):
+                slots = np.floor(new / ctx["slot"] + 0.5).astype(np.int64)
+                taken = {tuple(key) for key in np.floor(target / ctx["slot"] + 0.5).astype(np.int64)}
+                _, first = np.unique(slots, axis=0, return_index=True)
+                new = new[[i for i in np.sort(first) if tuple(slots[i]) not in taken]].reshape(-1, 3)
         if not len(new):
             return new
 
         rows = np.vstack([target, new])
         known = np.zeros(len(rows), dtype=bool)
         known[:m] = True
-        temporal, contradicted = [], []
+        temporal, contradicted, support = [], [], []
         for candidate in inter:
-            counterpart, linked, against = self._temporal_links(rows, candidate, ctx["link"])
+            counterpart, linked, against, near = self._temporal_links(rows, candidate, ctx["link"])
             temporal.append((counterpart, linked))
             contradicted.append(against)
+            support.append(near)
         k = self.k_neighbors if self.k_neighbors is not None else max(1, int(round(np.sqrt(m))))
-        laplacian = knn_laplacian(rows, k, ctx["sigma"])
+        if self.graph_on == "source":
+            # the paper: the spatial graph is the K-NN graph of the intra-source cube c_s_hat; a
+            # known row sits at its counterpart there (nearest in relative location), a new row
+            # is a source point itself
+            _, nearest = cKDTree(source).query(target)
+            laplacian = knn_laplacian(np.vstack([source[nearest], new]), k, ctx["sigma"])
+        else:
+            laplacian = knn_laplacian(rows, k, ctx["sigma"])
         result = solve_cube(rows, rows, known, laplacian, alpha=self.alpha, gamma=self.gamma, beta=beta,
                             temporal=temporal, fix_known=fix_known)
         if not fix_known:
@@ -541,7 +624,7 @@ class _CubeGraphInpainting(InpaintingMethod):
         new = result[m:]
         if self.drop_contradicted and temporal:
             # a new point that a neighbouring frame contradicts and none supports is dropped
-            supported = np.any([linked[m:] for _, linked in temporal], axis=0)
+            supported = np.any([near[m:] for near in support], axis=0)
             against = np.any([c[m:] for c in contradicted], axis=0)
             new = new[supported | ~against]
         return new
@@ -560,25 +643,33 @@ class _CubeGraphInpainting(InpaintingMethod):
         if not len(cand["count"]):
             return None
         query = np.concatenate([dc_t, [self.agtv_weight * agtv_t]])
-        k = min(len(cand["count"]), 64)
+        usable = cand["count"] >= m
+        if not self.hole_free_candidates:
+            # candidates may hold holes, but not the target cube itself nor a cube overlapping it
+            # (up to (2 per - 1)^3 of them): they share its hole, and the target is trivially the
+            # most similar to itself (paper silent)
+            usable &= (np.abs(cand["lower"] - lower) >= cube - 0.5 * cell).any(axis=1)
+        k = min(len(cand["count"]), 64 if self.hole_free_candidates else 64 + (2 * self.cells_per_cube - 1) ** 3)
         _, order = cand["tree"].query(query, k=k)
         order = np.atleast_1d(order)
-        order = order[cand["count"][order] >= m]
+        order = order[usable[order]]
         if len(order) < self.intra_candidates:
             # rare: few big-enough cubes among the nearest features; rank all of them
-            big = np.flatnonzero(cand["count"] >= m)
+            big = np.flatnonzero(usable)
             if not len(big):
                 return None
             feats = np.column_stack([cand["dc"][big], self.agtv_weight * cand["agtv"][big]])
             order = big[np.argsort(np.linalg.norm(feats - query, axis=1), kind="stable")]
         half = cube / 2.0
+        # grown by one cell: the source still covers the target cube after the alignment rotates it
+        grow = cell if self.grow_source else 0.0
         choices = order[: self.intra_candidates]
         # with several candidates: a short alignment of each screens them, the winner is refined
         screen = self.icp_iterations if len(choices) == 1 else min(3, self.icp_iterations)
         best, best_residual = None, np.inf
         for index in choices:
             source_lower = cand["lower"][index]
-            source_idx = ctx["tree"].query_ball_point(source_lower + half, half + cell, p=np.inf)
+            source_idx = ctx["tree"].query_ball_point(source_lower + half, half + grow, p=np.inf)
             if len(source_idx) < 3:
                 continue
             source = ctx["points"][source_idx] + (lower - source_lower)
@@ -614,7 +705,8 @@ class _CubeGraphInpainting(InpaintingMethod):
             return None
         window_lower, _ = best_window(votes, box_lower, box, cube, unit)
         half = cube / 2.0
-        window_idx = neighbour["tree"].query_ball_point(window_lower + half, half + cell, p=np.inf)
+        window_idx = neighbour["tree"].query_ball_point(window_lower + half, half + (cell if self.grow_source else 0.0),
+                                                        p=np.inf)
         if len(window_idx) < 3:
             return None
         source = neighbour["points"][window_idx]
@@ -630,24 +722,31 @@ class _CubeGraphInpainting(InpaintingMethod):
                     residual=residual, raw=raw, regions=neighbour["regions"])
 
     def _temporal_links(self, rows, inter, link_distance):
-        """(counterpart (n, 3), linked (n,), contradicted (n,)) of the rows in one aligned
-        inter-source cube: nearest neighbour in relative location, linked when within
-        ``link_distance``; rows that map into a hole of that frame are neither linked nor contradicted."""
+        """(counterpart (n, 3), linked (n,), contradicted (n,), supported (n,)) of the rows in one
+        aligned inter-source cube: the nearest neighbour in relative location. supported: within
+        ``link_distance`` and not mapped into a hole region of that frame; contradicted: neither
+        within ``link_distance`` nor mapped into a hole. linked: every row (the paper), or with
+        link_cutoff only rows within ``link_distance``, and with skip_hole_links not rows mapped
+        into a hole of that frame."""
         aligned = inter["aligned"]
         aligned_tree = cKDTree(aligned)
         dist, idx = aligned_tree.query(rows)
-        linked = dist <= link_distance
+        near = dist <= link_distance
         in_hole = np.zeros(len(rows), dtype=bool)
         if inter["regions"]:
             # rows that land in a hole of the (not yet inpainted) neighbour have no true counterpart
             back = (rows - inter["translation"]) @ inter["rotation"]
             for region in inter["regions"]:
                 in_hole |= region.contains(back)
-        linked &= ~in_hole
+        # the paper links every row to its nearest neighbour (link_cutoff=False, skip_hole_links=False)
+        linked = near.copy() if self.link_cutoff else np.ones(len(rows), dtype=bool)
+        if self.skip_hole_links:
+            linked &= ~in_hole
+        near &= ~in_hole  # a counterpart that supports the row (drop_contradicted)
         # contradicted: the neighbour has data there but none of it near the row. Also an inpainted
         # f-1: letting only captured data contradict was measured worse (human, 10 frames, D1
         # 24.83 -> 23.92 dB independent holes, 19.51 -> 16.39 dB coherent holes)
-        contradicted = ~linked & ~in_hole
+        contradicted = ~near & ~in_hole
         if self.off_surface is not None and contradicted.any() and len(aligned) >= 3:
             # a gap in the neighbour (an inpainted fill may have one) is no evidence against a row
             # that lies on the neighbour's surface continued; only a row off that surface is
@@ -659,34 +758,112 @@ class _CubeGraphInpainting(InpaintingMethod):
             normal = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))[1][:, :, 0]
             off = np.abs(np.einsum("ij,ij->i", rows[cand] - centre, normal))
             contradicted[cand] = off > self.off_surface * link_distance
-        return aligned[idx], linked, contradicted
+        return aligned[idx], linked, contradicted, near
 
 
 class TemporalGraph(_CubeGraphInpainting):
     """The proposed method (Fu, Hu, Guo, ICME 2020): see the module docstring for every step.
 
+    Two variants. ``variant="tuned"`` (the default) is ours: the paper's method plus additions that
+    measured better (below). ``variant="paper"`` is the *paper configuration*: every step as the
+    paper writes it, every addition of ours off. Each addition is a switch (a keyword parameter);
+    a switch left at None takes the variant's value (`VARIANTS`), and a switch given explicitly
+    overrides the variant (``TemporalGraph(variant="paper", known_points="fixed")`` is the paper
+    configuration with that one change, and is no longer the paper configuration). `get_params`
+    returns every switch resolved, so a run's record names each value it ran with.
+
     Parameters (lengths in units u, see the module docstring; the paper's values as defaults where
     the paper gives one): cube_size M = 20, cells_per_cube = 4 (step M/4), search_box H/M = 2.5,
     alpha = 1, beta = 0.5, gamma = 0.5, sigma = 1, k_neighbors = None (K = round(sqrt(m))).
-    Where the paper is silent:
-      spacing      None: 1 voxel for voxelized input (integer coordinates), else 1/1024 of the
-                   largest bounding-box side (the paper: M "set according to the coordinate range");
-                   "points": median 8th-NN distance / sqrt(2); or a number.
-      known_points "fixed" (known points never move; only new points are solved) or "free" (the
-                   paper's literal replacement of the cube by c_r, known points move too).
-      intra_candidates 4: DC/AGTV-nearest candidates screened by alignment residual (1 = paper).
-      temporal_source  True: an inter-source cube of captured data (no hole of that frame's input
-                   near) that fits the target better than the intra-source cube provides the new
-                   points (False = paper: always intra).
-      drop_contradicted True: drop new points contradicted by a neighbour frame (False = paper).
-      off_surface  0.4: a point without counterpart is contradicted only when it lies farther than
-                   this many link radii off the neighbour's local plane (None, or 0 in a config:
-                   any point without counterpart, as in version 2).
-      link_radius  2.5: longest temporal link, in point spacings (at least one unit each);
-                   min_known_points 16; icp_iterations 10;
-      feature_fraction 0.25; agtv_weight 1; snap "auto" (voxelize fills of voxelized input).
-    The paper-faithful variant: intra_candidates=1, temporal_source=False, drop_contradicted=False,
-    known_points="free", link_radius=5.
+    Switches, tuned / paper value:
+      intra_candidates     4 / 1: the DC/AGTV-nearest candidates screened by alignment residual;
+                           the paper takes the most similar cube (1).
+      temporal_source      True / False: an inter-source cube of captured data that fits the target
+                           better than the intra-source cube provides the new points; the paper's
+                           new points always come from c_s_hat (Eq. 5, alpha term).
+      drop_contradicted    True / False: drop new points a neighbour frame contradicts (off_surface,
+                           link_radius tune it); the paper keeps every row of c_r.
+      known_points         "fixed" / "free": "fixed" solves only the new rows; "free" is the paper's
+                           "replace the target cube with the resulting cube" (known rows move too).
+      link_cutoff          True / False: a temporal link only within link_radius point spacings; the
+                           paper links every point to its nearest neighbour (Eq. 4, weight 1).
+      skip_hole_links      True / False: no temporal link for a row that maps into a hole region of
+                           the (not yet inpainted) f+1; the paper links every row.
+      rim_centred          True / False: prefer target cubes whose central 2x2x2 cells hold missing
+                           data (centred on the rim); the paper: "choose the cube with missing data".
+      defer_unreachable    True / False: put off a target cube whose points do not reach its missing
+                           cells until fills come near; the paper has no deferral.
+      hole_free_candidates True / False: intra-source candidates only among cubes touching no hole;
+                           the paper: "the most similar cube ... in P_f" (any cube; the target and
+                           the cubes overlapping it excepted, see below).
+      grow_source          True / False: source and inter-source cubes grown by one cell (so that
+                           they still cover the target after a rotation); the paper's cubes have
+                           side M.
+      new_points           "pending-cells" in both: the new points are the aligned source points in
+                           the target cube that lie in a hole region (the paper's missing data) and
+                           in a cell no earlier target cube of the frame covered: cubes are unions of
+                           cells, and a cube replaced by c_r (the whole cube, l.364) holds no missing
+                           slot any more, so this is what the paper's Omega implies, no mask beyond
+                           it. "empty-slots" is the other reading (a source point in a hole region
+                           whose voxel, by rounding, holds no point yet, one per voxel; a cell of
+                           one point spacing on unvoxelized data): overlapping cubes whose sources
+                           sit half a voxel apart then fill the same hole in layers (the test
+                           sphere, radius 9 hole, 359 points removed: 888 new points against 259
+                           with "pending-cells", radial error 0.43 against 0.24 voxel).
+      graph_on             "estimate" / "source": the K-NN graph on the initial estimate
+                           Omega_bar c_t + Omega c_s_hat, or, as the paper (Sec. 3.3, "we
+                           approximate the connectivities via the similarities in its
+                           intra-source cube"), on c_s_hat: a known row sits at its nearest
+                           source point, a new row is a source point.
+      snap                 "auto" / False: voxelized input gets its new points turned into grid
+                           voxels (`_voxelize`) and, with known_points="free", moved known points
+                           rounded; the paper says nothing of quantizing the output (False).
+      feature_fraction     0.25 / 1.0: normals and AGTV on a fixed sample of the points (speed);
+                           the paper computes them for every point.
+    Other parameters (the same in both variants): spacing None (1 voxel for voxelized input,
+    else 1/1024 of the largest bounding-box side: the paper sets M "according to the coordinate
+    range"; "points": median 8th-NN distance / sqrt(2); or a number); link_radius 2.5 point
+    spacings and off_surface 0.4 (used only by link_cutoff and drop_contradicted);
+    min_known_points 16; icp_iterations 10; agtv_weight 1.
+
+    The paper configuration, step by step (tex = /work/shared/paper/dynamic-pc-inpainting-icme2020.tex):
+      - Cubes of side M = 20, step M/4 (tex l.143, a %-commented line), target cubes = cubes with
+        missing data (l.144).
+      - Holes larger than a cube are filled "in the inward order" (tex l.145, %-commented:
+        "divide the hole into several small holes, and then inpaint the small holes in the inward
+        order"): the target cube with the most known points (filled points count) goes first.
+        How the inward order is realised is paper silent: this rule needs no hole geometry.
+      - Filled points are known to the later target cubes and to frame f+1, whose f-1 is the
+        inpainted output (tex l.364, %-commented: "the information of new points will be
+        considered in the inpainting of the subsequent holes and subsequent frames").
+      - Intra-source cube by DC and AGTV of the normals (l.146), structure matching by a
+        simplified ICP (l.147); inter-source cubes by the box H = 2.5 M (l.373, %-commented) and
+        the stride-1 sliding window (l.172); spatial graph on c_s_hat (l.189); K = sqrt(m)
+        (l.373, %-commented), sigma = 1 (l.203), alpha = 1, beta = 0.5, gamma = 0.5 (l.341);
+        Eq. (6) solved as a sparse system; the target cube replaced by c_r (l.364).
+    Paper silent, and the choice made (the same as the tuned variant's unless said):
+      - which cells are missing: the given hole regions, or in blind mode `holes.detection`
+        (the paper's [Fu18TIP] detects holes automatically; the ICME paper does not say how);
+      - min_known_points 16: a target cube needs known points to match (DC/AGTV, ICP) and to
+        anchor the graph; each cube is a target at most once; nearby holes form one group;
+      - DC/AGTV distance: Euclidean on (DC, AGTV) 4-vectors, PCA normals on 10 neighbours
+        oriented away from the centroid, AGTV over 8 neighbours ([Fu18TIP] gives no formula for
+        the distance);
+      - an intra-source candidate must hold at least the target's m known points (it must cover
+        the known part to supply the missing one) and must not overlap the target cube (the
+        target is trivially most similar to itself, and overlapping cubes share its hole);
+      - structure matching: translation to the target cube, then 10 iterations of trimmed
+        point-to-point ICP from the target's known points ("simplified ICP");
+      - inter-source votes: each known point's nearest neighbour in the frame, counted when it lies
+        in the box (the same as the nearest neighbour within the box whenever the frame has a
+        point within 0.75 M of the target point, i.e. on any continued surface);
+      - rows of c_r: the known points, then the new points (slots: voxels; see new_points);
+        the K-NN graph symmetrised by max(W, W^T);
+      - first and last frame: one inter-source cube, beta counted once (per-row link counts in
+        place of 2I); a one-frame sequence: spatial terms only, with a warning;
+      - output: new points as solved, no quantization (snap False).
+    Precedence: an explicit keyword > the variant's value. `FuNonlocal` has the same variants (its
+    paper configuration is this one without the temporal terms: beta = 0, [Fu18TIP] frame by frame).
 
     Decisions by measurement (scratch runs; embedded human, size "small" (~96k points a frame,
     10-bit voxels), 4 frames, medium region holes (holes.synthetic preset, seed 0), metrics with
@@ -715,7 +892,8 @@ class TemporalGraph(_CubeGraphInpainting):
     temporal consistency in the holes (lower = steadier); defaults, version 3):
       human small, independent holes   none 7.48/25.52/6.98e-9/0.80   fu 13.40/13.82/4.81e-9/0.72
                                        temporal-graph 24.92/27.85/5.55e-10/0.23
-                                       paper-faithful: fu 12.11/12.78/5.26e-9, tg 14.00/14.82/5.09e-9
+                                       version 3 paper-like (intra_candidates=1, free, no temporal_source /
+                                       dropping, link 5): fu 12.11/12.78/5.26e-9, tg 14.00/14.82/5.09e-9
       human small, coherent holes      none 8.01/26.63/6.98e-9/0.41   fu 16.25/16.68/4.17e-9/0.62
                                        temporal-graph 18.66/19.21/3.15e-9/0.50
       dfaust, independent holes        none 15.88/38.13/5.58e-9/1.35  fu 26.08/29.94/1.57e-9/1.49
@@ -735,14 +913,17 @@ class TemporalGraph(_CubeGraphInpainting):
 
     name = "temporal-graph"
     summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
-    version = "3"  # 2: link_radius in point spacings; 3: off_surface
+    version = "4"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix
     uses_neighbour_frames = True
     _temporal = True
 
-    def __init__(self, cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5, gamma=0.5,
-                 sigma=1.0, k_neighbors=None, spacing=None, known_points="fixed", min_known_points=16,
-                 icp_iterations=10, link_radius=2.5, snap="auto", agtv_weight=1.0, intra_candidates=4,
-                 drop_contradicted=True, feature_fraction=0.25, temporal_source=True, off_surface=0.4):
+    def __init__(self, variant="tuned", cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5,
+                 gamma=0.5, sigma=1.0, k_neighbors=None, spacing=None, known_points=None, min_known_points=16,
+                 icp_iterations=10, link_radius=2.5, snap=None, agtv_weight=1.0, intra_candidates=None,
+                 drop_contradicted=None, feature_fraction=None, temporal_source=None, off_surface=0.4,
+                 link_cutoff=None, skip_hole_links=None, rim_centred=None, defer_unreachable=None,
+                 hole_free_candidates=None, grow_source=None, new_points=None, graph_on=None):
+        self.variant = variant
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.search_box = search_box
@@ -763,15 +944,25 @@ class TemporalGraph(_CubeGraphInpainting):
         self.drop_contradicted = drop_contradicted
         self.temporal_source = temporal_source
         self.off_surface = off_surface
+        self.link_cutoff = link_cutoff
+        self.skip_hole_links = skip_hole_links
+        self.rim_centred = rim_centred
+        self.defer_unreachable = defer_unreachable
+        self.hole_free_candidates = hole_free_candidates
+        self.grow_source = grow_source
+        self.new_points = new_points
+        self.graph_on = graph_on
 
 
 class FuNonlocal(_CubeGraphInpainting):
     """Hu, Fu, Guo [Fu18TIP] frame by frame: `TemporalGraph` without the temporal terms (beta = 0,
-    no inter-source cubes). Same parameters otherwise, same defaults."""
+    no inter-source cubes). Same parameters otherwise, same defaults, same variants:
+    ``variant="paper"`` is the paper configuration of Hu et al. as the ICME paper describes it
+    (steps 1-3, the spatial part of 5, Eq. 6 with beta = 0), every addition of ours off."""
 
     name = "fu-nonlocal"
     summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
-    version = "1"
+    version = "2"  # 2: variants and switches, free-mode fix
     uses_neighbour_frames = False
     _temporal = False
     # not parameters: the temporal terms are off by definition, so there is no temporal evidence
@@ -779,10 +970,15 @@ class FuNonlocal(_CubeGraphInpainting):
     drop_contradicted = False
     temporal_source = False
     off_surface = None
+    link_cutoff = False
+    skip_hole_links = False
 
-    def __init__(self, cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0, k_neighbors=None,
-                 spacing=None, known_points="fixed", min_known_points=16, icp_iterations=10, snap="auto",
-                 agtv_weight=1.0, intra_candidates=4, feature_fraction=0.25):
+    def __init__(self, variant="tuned", cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0,
+                 k_neighbors=None, spacing=None, known_points=None, min_known_points=16, icp_iterations=10,
+                 snap=None, agtv_weight=1.0, intra_candidates=None, feature_fraction=None, rim_centred=None,
+                 defer_unreachable=None, hole_free_candidates=None, grow_source=None, new_points=None,
+                 graph_on=None):
+        self.variant = variant
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
         self.alpha = alpha
@@ -797,3 +993,9 @@ class FuNonlocal(_CubeGraphInpainting):
         self.agtv_weight = agtv_weight
         self.intra_candidates = intra_candidates
         self.feature_fraction = feature_fraction
+        self.rim_centred = rim_centred
+        self.defer_unreachable = defer_unreachable
+        self.hole_free_candidates = hole_free_candidates
+        self.grow_source = grow_source
+        self.new_points = new_points
+        self.graph_on = graph_on

@@ -252,10 +252,56 @@ def test_one_frame_sequence_warns_and_uses_the_spatial_terms():
 
 
 def test_paper_variant_moves_known_points():
-    damaged, hole, _ = plane_sequence()
-    out = TemporalGraph(known_points="free", **FAST).inpaint(damaged, hole)
-    assert len(out[1]) > len(damaged[1])
-    assert np.abs(out[1][:, 2] - 20.0).max() <= 1.0
+    damaged, regions = switch_case()
+    n = len(damaged[1])
+    paper = TemporalGraph(variant="paper", **FAST).inpaint(damaged, regions)
+    moved = np.linalg.norm(paper[1][:n] - damaged[1], axis=1)
+    assert len(paper[1]) > n
+    assert (moved > 1e-6).sum() >= 10  # the target cube is replaced: its known points move
+    # near the holes only: points of no target cube stay where they were
+    far = np.ones(n, dtype=bool)
+    for region in regions[1]:
+        far &= np.linalg.norm(damaged[1] - region.center, axis=1) > region.bounding_radius + 2 * FAST["cube_size"]
+    assert far.any() and moved[far].max() == 0.0
+    # on the sphere, still (a step of the smoothing, not a scatter)
+    radial = np.linalg.norm(paper[1][:n] - np.array([2.0, 0, 0]), axis=1)
+    assert np.abs(radial - 20.0).max() < 3.0
+    fixed = TemporalGraph(variant="paper", known_points="fixed", **FAST).inpaint(damaged, regions)
+    np.testing.assert_array_equal(fixed[1][:n], damaged[1])
+
+
+def test_free_known_points_output_the_final_position_of_a_point_filled_earlier():
+    """known_points="free": a point filled by one target cube and moved when a later target cube
+    (which holds it as a known row) is solved appears in the output where it was moved to."""
+    damaged, regions = switch_case()
+    regions = [[], regions[1], []]  # only frame 1: every group below belongs to it
+    damaged = [damaged[0], damaged[1], damaged[2]]
+    first_position, groups = {}, []
+    original = TemporalGraph._fill_cube
+
+    def recording(self, lower, regions_, pending, a0, local, ctx, fix_known):
+        new = original(self, lower, regions_, pending, a0, local, ctx, fix_known)
+        if not groups or groups[-1] is not local:
+            groups.append(local)
+        for row, point in enumerate(new):  # keyed by (group, row among its filled points)
+            first_position[(len(groups) - 1, int((local["index"] < 0).sum()) + row)] = point.copy()
+        return new
+
+    method = TemporalGraph(variant="paper", **FAST)
+    try:
+        TemporalGraph._fill_cube = recording
+        out = method.inpaint(damaged, regions)
+    finally:
+        TemporalGraph._fill_cube = original
+    finals = [g["points"][g["index"] < 0] for g in groups]
+    first = [np.array([first_position[(gi, r)] for r in range(len(f))]).reshape(-1, 3) for gi, f in enumerate(finals)]
+    shift = np.concatenate([np.linalg.norm(a - b, axis=1) for a, b in zip(finals, first)])
+    assert (shift > 1e-6).sum() >= 5  # the case moves filled points in later cubes
+    n = len(damaged[1])
+    np.testing.assert_array_equal(out[1][n:], np.vstack(finals))  # the output holds the moved positions
+    moved_rows = np.flatnonzero(shift > 1e-6)
+    stale = np.vstack(first)[moved_rows]
+    assert not any((np.abs(out[1] - p).max(axis=1) == 0).any() for p in stale)  # no stale position left
 
 
 def test_blind_mode_detects_and_fills_a_sphere_hole():
@@ -339,9 +385,136 @@ def test_a_gap_in_the_neighbour_does_not_contradict_a_row_on_its_surface():
     rows = np.array([[0.0, 0.0, 0.0],     # in the gap, on the plane: no counterpart, no contradiction
                      [10.0, 10.0, 4.0],   # above the plane: contradicted
                      [10.0, 10.0, 0.0]])  # on a plane point: linked
-    _, linked, against = TemporalGraph(off_surface=0.4)._temporal_links(rows, inter, 2.5)
+    _, linked, against, supported = TemporalGraph(off_surface=0.4)._configured()._temporal_links(rows, inter, 2.5)
     assert linked.tolist() == [False, False, True]
     assert against.tolist() == [False, True, False]
+    assert supported.tolist() == [False, False, True]
     # off_surface=None: any row without a counterpart is contradicted
-    _, _, against = TemporalGraph(off_surface=None)._temporal_links(rows, inter, 2.5)
+    _, _, against, _ = TemporalGraph(off_surface=None)._configured()._temporal_links(rows, inter, 2.5)
     assert against.tolist() == [True, True, False]
+    # the paper links every row to its nearest neighbour; contradiction and support do not change
+    _, linked, against, supported = TemporalGraph(variant="paper", off_surface=0.4)._configured()._temporal_links(
+        rows, inter, 2.5)
+    assert linked.tolist() == [True, True, True]
+    assert against.tolist() == [False, True, False] and supported.tolist() == [False, False, True]
+
+
+# -- variants: the paper configuration and the switches of ours -----------------------------------
+
+PAPER_OFF = dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="free",
+                 link_cutoff=False, skip_hole_links=False, rim_centred=False, defer_unreachable=False,
+                 hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap=False,
+                 graph_on="source", feature_fraction=1.0)
+
+
+def test_paper_configuration_has_every_addition_off():
+    params = TemporalGraph(variant="paper").get_params()
+    assert params["variant"] == "paper"
+    assert {k: params[k] for k in PAPER_OFF} == PAPER_OFF
+    # the paper's numbers
+    assert (params["cube_size"], params["cells_per_cube"], params["search_box"]) == (20.0, 4, 2.5)
+    assert (params["alpha"], params["beta"], params["gamma"], params["sigma"], params["k_neighbors"]) == \
+        (1.0, 0.5, 0.5, 1.0, None)
+    fu = FuNonlocal(variant="paper").get_params()
+    assert {k: fu[k] for k in PAPER_OFF if k in fu} == {k: v for k, v in PAPER_OFF.items() if k in fu}
+    assert "beta" not in fu and "temporal_source" not in fu
+    # every switch is recorded (get_params resolves it) and the tuned variant is the default
+    tuned = TemporalGraph().get_params()
+    assert tuned["variant"] == "tuned" and None not in [tuned[k] for k in PAPER_OFF]
+    assert tuned["intra_candidates"] == 4 and tuned["known_points"] == "fixed" and tuned["link_cutoff"] is True
+
+
+def test_explicit_parameters_override_the_variant_and_unknown_variants_are_refused():
+    params = TemporalGraph(variant="paper", known_points="fixed", intra_candidates=3).get_params()
+    assert params["known_points"] == "fixed" and params["intra_candidates"] == 3
+    assert params["link_cutoff"] is False  # the rest stays the paper's
+    # a resolved record rebuilds the same configuration
+    assert TemporalGraph(**params).get_params() == params
+    # the CLI / TOML path: the registry with --param variant=paper
+    assert get_method("fu-nonlocal", variant="paper").get_params()["known_points"] == "free"
+    damaged, hole, _ = plane_sequence()
+    with pytest.raises(ValueError, match="variant must be one of"):
+        TemporalGraph(variant="faithful").inpaint(damaged, hole)
+    with pytest.raises(ValueError, match="link_cutoff must be true or false"):
+        TemporalGraph(link_cutoff="yes").inpaint(damaged, hole)
+
+
+def switch_case():
+    """A voxelized sphere moving 2 voxels a frame; frame 1 has a large hole (larger than a cube of
+    12) and a small one; frame 2 (its f+1) has the large hole again but not the small one."""
+    shifts = [0.0, 2.0, 4.0]
+    frames = [np.unique(np.round(fibonacci_sphere(radius=20.0, spacing=0.8, center=(s, 0, 0))), axis=0)
+              for s in shifts]
+    regions = [[], [HoleRegion.ball([2.0, 0.0, 20.0], 8.0), HoleRegion.ball([22.0, 0.0, 0.0], 5.0)],
+               [HoleRegion.ball([4.0, 0.0, 20.0], 8.0)]]
+    damaged, _ = punch(frames, regions)
+    return damaged, regions
+
+
+def big_hole_sphere_case():
+    """A voxelized sphere (radius 25) with holes of radius 13 and 9, larger than a cube of 12: some
+    cubes richest in known points hold missing cells that none of their points reaches."""
+    frames = [np.round(fibonacci_sphere(center=(c, 0, 0))) for c in (0.0, 0.7, 1.4)]
+    regions = [[HoleRegion.ball([c, 0.0, 25.0], 13.0), HoleRegion.ball([25.0, 0.0, 0.0], 9.0)] for c in (0.0, 0.7, 1.4)]
+    damaged, _ = punch(frames, regions)
+    return damaged, regions
+
+
+def dome_case():
+    """Frame 1 is the plane z = 20 with a hole; its neighbours bulge there (a cap 6 voxels high):
+    the flat fill has no counterpart near it in either neighbour and lies off their surface."""
+    plane = voxel_plane()
+    r = np.linalg.norm(plane[:, :2] - 24.0, axis=1)
+    dome = plane.copy()
+    dome[:, 2] += np.round(np.clip(6.0 * (1 - (r / 8.0) ** 2), 0, None))
+    regions = [[], [HoleRegion.ball([24.0, 24.0, 20.0], 6.0)], []]
+    damaged, _ = punch([dome, plane, dome], regions)
+    return damaged, regions
+
+
+# switch -> the value that is not the paper's, and the case built for it
+SWITCH_CASES = {
+    "intra_candidates": (4, switch_case),
+    "temporal_source": (True, switch_case),       # the small hole: f+1 captured there
+    "drop_contradicted": (True, dome_case),
+    "known_points": ("fixed", switch_case),
+    "link_cutoff": (True, switch_case),           # 2 voxels a frame: far counterparts across holes
+    "skip_hole_links": (True, switch_case),       # the large hole is in f+1 too
+    "rim_centred": (True, switch_case),           # a hole larger than a cube
+    "defer_unreachable": (True, big_hole_sphere_case),
+    "hole_free_candidates": (True, switch_case),
+    "grow_source": (True, switch_case),
+    "new_points": ("empty-slots", switch_case),
+    "snap": ("auto", switch_case),                # voxelized input
+    "graph_on": ("estimate", switch_case),
+    "feature_fraction": (0.25, switch_case),
+}
+
+
+def test_every_switch_has_a_case():
+    assert set(SWITCH_CASES) == set(PAPER_OFF)
+
+
+_PAPER_RUNS: dict = {}
+
+
+def paper_run(case):
+    """The case and the paper configuration's output on it, computed once per case."""
+    if case not in _PAPER_RUNS:
+        damaged, regions = case()
+        _PAPER_RUNS[case] = damaged, regions, TemporalGraph(variant="paper", **FAST).inpaint(damaged, regions)
+    return _PAPER_RUNS[case]
+
+
+@pytest.mark.parametrize("switch", sorted(SWITCH_CASES))
+def test_each_switch_changes_the_output_of_the_paper_configuration(switch):
+    value, case = SWITCH_CASES[switch]
+    damaged, regions, paper = paper_run(case)
+    changed = TemporalGraph(variant="paper", **{switch: value}, **FAST).inpaint(damaged, regions)
+    assert len(paper[1]) > len(damaged[1])  # the case fills
+    assert any(not np.array_equal(a, b) for a, b in zip(paper, changed)), f"{switch}={value!r} changed nothing"
+    if switch == "snap":
+        assert not np.array_equal(paper[1], np.round(paper[1]))  # the paper: no quantization
+        assert np.array_equal(changed[1], np.round(changed[1]))  # ours: fills on the voxel grid
+    if switch == "drop_contradicted":
+        assert len(changed[1]) < len(paper[1])  # contradicted fill points are dropped
