@@ -8,15 +8,84 @@ of each sequence with synthetic holes (copied from /work/shared/SPEC.md section 
 
 from __future__ import annotations
 
-#: (registry name, column label in the paper, parameters) in the paper's column order
-PAPER_METHODS: list[tuple[str, str, dict]] = [
-    ("meshlab", "Meshlab", {"output": "whole"}),
-    ("lozes-pde", "Lozes", {}),
-    ("fu-nonlocal", "Hu", {}),
-    ("temporal-graph", "Proposed", {}),
+#: The columns of reproduce-paper's Tables 1-2, in order: (registry name, column label, parameters,
+#: role). role "paper": the paper's four columns, each run in its paper configuration (MeshLab's
+#: whole-frame resampling as the paper describes it; Lozes et al. as `lozes-pde` implements them;
+#: Hu et al. and the proposed method with variant="paper"). "ours": our improvements, "reference":
+#: reference methods; both are printed beside the paper's columns, never inside them. Adding a
+#: column is one line here (reproduce-paper runs exactly these; tests/test_reports.py checks that
+#: the paper presets list the same methods for `dpcbench run paper-quick`).
+TABLE_COLUMNS: list[tuple[str, str, dict, str]] = [
+    ("meshlab", "Meshlab", {"output": "whole"}, "paper"),
+    ("lozes-pde", "Lozes", {}, "paper"),
+    ("fu-nonlocal", "Hu", {"variant": "paper"}, "paper"),
+    ("temporal-graph", "Proposed", {"variant": "paper"}, "paper"),
+    ("temporal-graph", "temporal-graph tuned (ours)", {}, "ours"),
+    ("temporal-copy", "temporal-copy (reference)", {}, "reference"),
 ]
-METHOD_LABELS = {name: label for name, label, _ in PAPER_METHODS}
+ROLES = {"paper": "the paper's column, in the paper configuration", "ours": "ours (not in the paper)",
+         "reference": "reference (not in the paper)"}
+
+#: (registry name, column label in the paper, parameters) of the paper's four columns, in its order
+PAPER_METHODS: list[tuple[str, str, dict]] = [(n, label, p) for n, label, p, role in TABLE_COLUMNS if role == "paper"]
+#: the paper's column labels (its Tables 1-2) and every column of ours (paper's first)
 COLUMNS = [label for _, label, _ in PAPER_METHODS]
+ALL_COLUMNS = [label for _, label, _, _ in TABLE_COLUMNS]
+
+
+def _params_key(params) -> str:
+    """Canonical JSON of a parameter dict (or of its JSON text), as the results store keeps it."""
+    import json
+
+    value = json.loads(params) if isinstance(params, str) and params else (params or {})
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+
+
+#: (registry name, canonical parameters JSON) -> column label
+COLUMN_OF = {(name, _params_key(params)): label for name, label, params, _ in TABLE_COLUMNS}
+
+
+def column_label(method: str, params) -> str:
+    """The table column of a method configuration: its label in `TABLE_COLUMNS`, else the registry
+    name with its parameters (a configuration that is not a column never joins one)."""
+    key = _params_key(params)
+    return COLUMN_OF.get((method, key), method if key == "{}" else f"{method} {key}")
+
+
+def table_methods() -> list[dict]:
+    """`TABLE_COLUMNS` as experiment-config [[methods]] tables."""
+    return [{"name": name, "params": dict(params), "label": label} for name, label, params, _ in TABLE_COLUMNS]
+
+
+def column_descriptions(with_all_params: bool = False) -> list[dict]:
+    """Per column: label, role, registry method, the parameters given, the method's version and,
+    with ``with_all_params``, every parameter as the method resolves it (`get_params`, switches of
+    a variant included) at this code version."""
+    from methods.registry import method_class
+
+    out = []
+    for name, label, params, role in TABLE_COLUMNS:
+        entry = {"label": label, "role": role, "method": name, "params": dict(params)}
+        try:
+            cls = method_class(name)
+            entry["version"] = str(getattr(cls, "version", "1"))
+            if with_all_params:
+                entry["all_params"] = cls(**params).get_params()
+        except ImportError as err:  # an optional dependency missing here: say so, keep the rest
+            entry["version"] = f"unavailable ({err})"
+        out.append(entry)
+    return out
+
+
+def columns_caption() -> str:
+    """One sentence naming, for each column, the registry method and its exact parameters."""
+    parts = []
+    for d in column_descriptions():
+        given = ", ".join(f"{k}={v}" for k, v in sorted(d["params"].items())) or "defaults"
+        parts.append(f"{d['label']} = `{d['method']}` ({given}; version {d['version']})")
+    return ("Columns: " + "; ".join(parts) + ". Meshlab, Lozes, Hu and Proposed are the paper's columns, run "
+            "in the paper configuration (variant=paper: every addition of ours off); '(ours)' and '(reference)' "
+            "columns are not in the paper. Every parameter value: REPORT.md, 'Columns'.")
 
 #: dataset names (bench.datasets) -> the paper's row label
 PAPER_SEQUENCES = {"longdress": "Longdress", "loot": "Loot", "redandblack": "Redandblack",
@@ -97,8 +166,10 @@ def available_paper_sequences(data_dir) -> list[str]:
     return [name for name in PAPER_SEQUENCES if find_paper_folder(PAPER[name], root) is not None]
 
 
-def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frames: int | None = None) -> PaperProtocol:
-    """Expand the preset (paper-quick.toml or paper.toml) into runs.
+def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frames: int | None = None,
+                   seeds: list[int] | None = None) -> PaperProtocol:
+    """Expand the preset (paper-quick.toml or paper.toml) into runs: the methods of `TABLE_COLUMNS`,
+    the preset's sequences and holes (``seeds`` replaces the synthetic holes' seeds).
 
     Synthetic holes: the preset's sequences (stand-ins) or, with ``data_dir``, every paper sequence
     found there with the preset's frame count. Real holes (Fig. 3): on the stand-in human, acquisition
@@ -113,6 +184,12 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
 
     preset = "paper-quick" if quick else "paper"
     base = tomllib.loads((PRESETS_DIR / f"{preset}.toml").read_text())
+    base["methods"] = table_methods()  # the table's columns, whatever the preset lists
+    if seeds is not None:
+        if not seeds or any(not isinstance(x, int) or isinstance(x, bool) or x < 0 for x in seeds):
+            raise ValueError(f"--seeds: give non-negative integers, e.g. --seeds 0,1,2 (got {seeds!r})")
+        for hole in base["holes"]:
+            hole["seeds"] = list(seeds)
     if frames is not None and frames < 2:
         raise ValueError("--frames: the temporal method needs at least 2 frames")
     for seq in base["sequences"]:
@@ -152,14 +229,16 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
 
 
 def _done_folders(store, specs) -> dict:
-    """method name -> (spec, run folder) of the done runs among ``specs`` (first per method)."""
+    """column label (`column_label`) -> (spec, run folder) of the done runs among ``specs`` (first
+    per column: temporal-graph's paper configuration and ours are different columns)."""
     from pathlib import Path
 
     runs = store.runs_frame().drop_duplicates("run_id").set_index("run_id")
     out = {}
     for spec in specs:
-        if spec.run_id in runs.index and runs.loc[spec.run_id, "status"] == "done" and spec.method["name"] not in out:
-            out[spec.method["name"]] = (spec, Path(runs.loc[spec.run_id, "output_dir"]))
+        column = column_label(spec.method["name"], spec.method["params"])
+        if spec.run_id in runs.index and runs.loc[spec.run_id, "status"] == "done" and column not in out:
+            out[column] = (spec, Path(runs.loc[spec.run_id, "output_dir"]))
     return out
 
 
@@ -197,15 +276,15 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         zoom = [regions[f][0] for f in shown if regions[f]]  # the first hole, followed over the frames
         rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                 ("With holes", [content0["damaged"][f] for f in shown])]
-        for name, label, _ in PAPER_METHODS:
-            if name in done:
-                rows.append((label, [read_run_folder(done[name][1])["inpainted"][f] for f in shown]))
+        for _, label, _ in PAPER_METHODS:
+            if label in done:
+                rows.append((label, [read_run_folder(done[label][1])["inpainted"][f] for f in shown]))
         subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig4_synthetic_holes.png", zoom_regions=zoom,
                         highlight_regions=[regions[f] for f in shown],
                         title=f"Synthetic holes ({first_holes.get('label') or first_holes['generator']}), {first_seq}")
-        missing = [label for name, label, _ in PAPER_METHODS if name not in done]
+        missing = [label for _, label, _ in PAPER_METHODS if label not in done]
         notes["fig4_synthetic_holes"] = (
-            f"Like the paper's Fig. 4: {first_seq}, {first_holes.get('label') or first_holes['generator']}, seed {seed}; rows ground truth, with holes, then each method; "
+            f"Like the paper's Fig. 4: {first_seq}, {first_holes.get('label') or first_holes['generator']}, seed {seed}; rows ground truth, with holes, then each of the paper's methods in its paper configuration; "
             f"columns frames {shown}; the orange box (first hole) is magnified under each row; points inside "
             "the hole regions are red in the method rows." + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))
 
@@ -233,9 +312,9 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
                     ("Acquisition holes", content0["damaged"])]
         else:
             rows = [("Captured", content0["damaged"]), ("Captured (detected holes)", content0["damaged"])]
-        for name, label, _ in PAPER_METHODS:
-            if name in done:
-                rows.append((label, read_run_folder(done[name][1])["inpainted"]))
+        for _, label, _ in PAPER_METHODS:
+            if label in done:
+                rows.append((label, read_run_folder(done[label][1])["inpainted"]))
         subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig3_real_holes.png", zoom_regions=zoom,
                         highlight_regions=[detected[f] for f in shown],
                         title=f"Detected holes, {spec0.sequence_label}")

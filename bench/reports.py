@@ -123,11 +123,14 @@ def hole_rows(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
 
 # -- reproduce-paper ---------------------------------------------------------------------------
 def paper_column(df: pd.DataFrame) -> pd.Series:
-    return df["method"].map(lambda m: paper.METHOD_LABELS.get(m, m))
+    """The table column of each row: `bench.paper.column_label` of its method and parameters (so the
+    paper configuration of temporal-graph is "Proposed" and our tuned one its own column)."""
+    params = df["method_params"] if "method_params" in df else pd.Series("{}", index=df.index)
+    return pd.Series([paper.column_label(m, p) for m, p in zip(df["method"], params)], index=df.index, dtype=object)
 
 
-def _rank_line(table: ComparisonTable, row: str) -> str:
-    values = {c: table.mean[(row, c)] for c in table.columns if (row, c) in table.mean}
+def _rank_line(table: ComparisonTable, row: str, columns: list[str] | None = None) -> str:
+    values = {c: table.mean[(row, c)] for c in (columns or table.columns) if (row, c) in table.mean}
     order = sorted(values, key=values.get, reverse=table.higher_is_better)
     text = order[0] if order else "–"
     for prev, cur in zip(order, order[1:]):  # equal means (to 1e-9 relative) are ties, written "="
@@ -139,9 +142,12 @@ def _rank_line(table: ComparisonTable, row: str) -> str:
 def ranking_markdown(gpsnr: ComparisonTable, nshd: ComparisonTable) -> str:
     """Our ranking per row against the paper's (Proposed > Hu > Lozes > Meshlab in both tables), and
     our mean GPSNR gains of Proposed beside the paper's headline gains."""
-    lines = ["| Sequence | GPSNR ranking (best first) | NSHD ranking (best first) |", "|---|---|---|"]
+    cols = paper.COLUMNS
+    lines = ["The paper's four columns (paper configurations) only:", "",
+             "| Sequence | GPSNR ranking (best first) | NSHD ranking (best first) |", "|---|---|---|"]
     for row in gpsnr.rows:
-        lines.append(f"| {row} | {_rank_line(gpsnr, row)} | {_rank_line(nshd, row) if row in nshd.rows else '–'} |")
+        lines.append(f"| {row} | {_rank_line(gpsnr, row, cols)} | "
+                     f"{_rank_line(nshd, row, cols) if row in nshd.rows else '–'} |")
     lines.append("| *paper, every sequence* | Proposed > Hu > Lozes > Meshlab | Proposed > Hu > Lozes > Meshlab |")
     lines += ["", "| Proposed minus | our mean gain (dB) | paper's mean gain (dB) |", "|---|---|---|"]
     for col, paper_gain in paper.HEADLINE_GAIN_DB.items():
@@ -149,6 +155,33 @@ def ranking_markdown(gpsnr: ComparisonTable, nshd: ComparisonTable) -> str:
                  if (r, "Proposed") in gpsnr.mean and (r, col) in gpsnr.mean]
         ours = f"{np.mean(gains):+.2f}" if gains else "–"
         lines.append(f"| {col} | {ours} | {paper_gain:+.2f} |")
+    extra = [c for c in gpsnr.columns if c not in cols]
+    if extra:
+        lines += ["", "Columns beyond the paper's, against its Proposed and Hu (paper configurations), mean over rows:", "",
+                  "| Column | GPSNR minus Proposed (dB) | GPSNR minus Hu (dB) | NSHD / Proposed's |", "|---|---|---|---|"]
+        for col in extra:
+            cells = []
+            for ref in ("Proposed", "Hu"):
+                gains = [gpsnr.mean[(r, col)] - gpsnr.mean[(r, ref)] for r in gpsnr.rows
+                         if (r, col) in gpsnr.mean and (r, ref) in gpsnr.mean]
+                cells.append(f"{np.mean(gains):+.2f}" if gains else "–")
+            ratios = [nshd.mean[(r, col)] / nshd.mean[(r, "Proposed")] for r in nshd.rows
+                      if (r, col) in nshd.mean and nshd.mean.get((r, "Proposed"), 0) > 0]
+            cells.append(f"x{np.mean(ratios):.2f}" if ratios else "–")
+            lines.append(f"| {col} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def columns_markdown() -> str:
+    """REPORT.md's "Columns" section: for each column its role, registry method, the parameters
+    given, the method version, and every parameter value as the method resolves it (`get_params`)."""
+    lines = ["| Column | Role | Registry method | Parameters given | Version | Every parameter (get_params) |",
+             "|---|---|---|---|---|---|"]
+    for d in paper.column_descriptions(with_all_params=True):
+        given = ", ".join(f"{k}={v}" for k, v in sorted(d["params"].items())) or "(defaults)"
+        every = ", ".join(f"{k}={v!r}" for k, v in d.get("all_params", {}).items()) or "–"
+        lines.append(f"| {d['label']} | {paper.ROLES[d['role']]} | `{d['method']}` | {given} | {d['version']} | "
+                     f"{every.replace('|', '/')} |")
     return "\n".join(lines) + "\n"
 
 
@@ -160,12 +193,13 @@ def paper_tables(df: pd.DataFrame, *, standins: bool, peak: str = "intrinsic", s
             "Rows are the paper's sequences (local copies); frames and holes follow this run's preset.")
     where = " (embedded stand-ins)" if standins else ""
     gp_label = {"gpsnr_d1": "D1 point-to-point", "gpsnr_d2": "D2 point-to-plane"}.get(gpsnr_metric, gpsnr_metric)
+    columns = paper.ALL_COLUMNS
     t1 = comparison_table(df, gpsnr_metric, scope, peak, title=f"Table 1: GPSNR ({gp_label}, dB){where}",
-                          column_of=paper_column, columns=paper.COLUMNS, paper=paper.paper_table("gpsnr"),
-                          notes=[note])
+                          column_of=paper_column, columns=columns, paper=paper.paper_table("gpsnr"),
+                          notes=[note, paper.columns_caption()])
     t2 = comparison_table(df, "nshd", scope, "", title=f"Table 2: NSHD (x1e-7){where}", column_of=paper_column,
-                          columns=paper.COLUMNS, scale=1e7, decimals=4, paper=paper.paper_table("nshd"),
-                          notes=[note])
+                          columns=columns, scale=1e7, decimals=4, paper=paper.paper_table("nshd"),
+                          notes=[note, paper.columns_caption()])
     return t1, t2
 
 
@@ -186,28 +220,30 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
     figures.bar_chart(t1, fig_dir / "table1_gpsnr.png")  # the titles say "(embedded stand-ins)"
     figures.bar_chart(t2, fig_dir / "table2_nshd.png")
     figures.per_frame_curves(df, "gpsnr_d1", "frame", "intrinsic", fig_dir / "per_frame_gpsnr.png",
-                             column_of=paper_column, columns=paper.COLUMNS,
+                             column_of=paper_column, columns=paper.ALL_COLUMNS,
                              title="GPSNR D1 (intrinsic peak, whole frame) per frame" + (f" – {subtitle}" if subtitle else ""))
     figures.per_frame_curves(df, "nshd", "frame", "", fig_dir / "per_frame_nshd.png", column_of=paper_column,
-                             columns=paper.COLUMNS, title="NSHD per frame" + (f" – {subtitle}" if subtitle else ""))
+                             columns=paper.ALL_COLUMNS, title="NSHD per frame" + (f" – {subtitle}" if subtitle else ""))
     variants = []
     for metric, scope, peak in [("gpsnr_d2", "frame", "intrinsic"), ("gpsnr_d1", "holes", "intrinsic"),
                                 ("gpsnr_d1", "frame", "1023"), ("nshd", "holes", "")]:
         if frame_has(df, metric, scope, peak):
             if metric == "nshd":
                 tv = comparison_table(df, metric, scope, peak, title=f"Table 2 variant: NSHD (x1e-7), scope {scope}",
-                                      column_of=paper_column, columns=paper.COLUMNS, scale=1e7, decimals=4)
+                                      column_of=paper_column, columns=paper.ALL_COLUMNS, scale=1e7, decimals=4,
+                                      notes=[paper.columns_caption()])
             else:
                 tv = comparison_table(df, metric, scope, peak,
                                       title=f"Table 1 variant: {metric}, scope {scope}, peak {peak}",
-                                      column_of=paper_column, columns=paper.COLUMNS)
+                                      column_of=paper_column, columns=paper.ALL_COLUMNS,
+                                      notes=[paper.columns_caption()])
             stem = f"variant_{metric}_{scope}" + (f"_peak{peak}" if peak else "")
             write_table(tv, tables_dir, stem)
             variants.append(tv)
     if real_df is not None and not real_df.empty and frame_has(real_df, "gpsnr_d1", "frame", "intrinsic"):
         tr = comparison_table(real_df, "gpsnr_d1", "frame", "intrinsic",
                               title="Acquisition (occlusion) holes, detected regions: GPSNR D1 (dB)",
-                              column_of=paper_column, columns=paper.COLUMNS)
+                              column_of=paper_column, columns=paper.ALL_COLUMNS, notes=[paper.columns_caption()])
         write_table(tr, tables_dir, "real_holes_gpsnr")
         variants.append(tr)
 
@@ -225,7 +261,14 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
              f"Holes: {', '.join(sorted(set(seqs['holes'])))} with parameters "
              f"{', '.join(sorted(set(seqs['holes_params'])))}, seeds {sorted(set(seqs['seed']))}; the methods get the "
              "hole regions (synthetic-hole protocol).", ""]
-    text += ["## Table 1 — GPSNR", "", t1.markdown(), f"![Table 1](figures/table1_gpsnr.png)", "",
+    text += ["## Columns", "", "Meshlab, Lozes, Hu and Proposed are the paper's four columns, each run in the paper "
+             "configuration: Hu et al. and the proposed method with `variant=\"paper\"` (every step as the paper "
+             "writes it, every addition of ours off; `methods/temporal_graph.py` lists each step, each switch and "
+             "each choice where the paper is silent). The further columns are not in the paper: "
+             "'(ours)' is our tuned method, '(reference)' a reference method. Parameters as given in the "
+             "experiment, and every parameter value as the method resolves it at this code version:", "",
+             columns_markdown(), "",
+             "## Table 1 — GPSNR", "", t1.markdown(), f"![Table 1](figures/table1_gpsnr.png)", "",
              "## Table 2 — NSHD", "", t2.markdown(), f"![Table 2](figures/table2_nshd.png)", "",
              "## Ranking against the paper", "", ranking_markdown(t1, t2), "",
              "## Per-frame curves", "", "![GPSNR per frame](figures/per_frame_gpsnr.png)", "",
@@ -233,7 +276,7 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
              "## Subjective results", ""]
     for name, note in figure_notes.items():
         text += [f"![{name}](figures/{name}.png)", "", note, ""]
-    text += ["## Runtime per method", "", _runtime_markdown(df, paper_column, paper.COLUMNS), ""]
+    text += ["## Runtime per method", "", _runtime_markdown(df, paper_column, paper.ALL_COLUMNS), ""]
     if variants:
         text += ["## Other conventions", "", "The same runs scored under other conventions (where a metric is "
                  "computed changes it by tens of dB):", ""]
