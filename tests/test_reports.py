@@ -18,6 +18,8 @@ from bench.store import ResultsStore
 from bench.tables import comparison_table
 
 METHODS = ["meshlab", "lozes-pde", "fu-nonlocal", "temporal-graph"]
+#: each of the paper's columns as reproduce-paper runs it (the paper configurations)
+PAPER_PARAMS = {name: params for name, _, params in paper.PAPER_METHODS}
 
 
 def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)"), frames=3, experiment="exp"):
@@ -35,7 +37,7 @@ def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)")
             rows.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "", "value": 0.5 * (k + 1) * frames})
             rows.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "", "value": 100.0 + k})
             record = {"sequence": seq, "holes": "region", "holes_params": {"preset": "medium"}, "seed": 0,
-                      "method": method, "method_params": {}, "method_version": "1", "code_version": "abc",
+                      "method": method, "method_params": PAPER_PARAMS[method], "method_version": "1", "code_version": "abc",
                       "spec": {}, "env": {"git_commit": "abc", "python": "3.11", "packages": {}, "machine": {}}}
             store.record_run(f"{seq[:3]}-{method}", record, rows, [experiment])
     store.record_failure("bad-run", {"sequence": sequences[0], "method": "meshlab", "spec": {}}, "MeshlabError: boom",
@@ -127,8 +129,16 @@ def test_paper_report_labels_stand_ins_everywhere(tmp_path):
 def test_paper_protocol_stand_ins_and_data_dir(tmp_path):
     proto = paper.paper_protocol(quick=True, size="tiny", frames=2)
     assert proto.standins
-    assert [s.method["name"] for s in proto.synthetic[:4]] == METHODS
-    assert proto.synthetic[0].method["params"] == {"output": "whole"}
+    columns = [(s.method["name"], s.method["params"]) for s in proto.synthetic[:len(paper.TABLE_COLUMNS)]]
+    assert columns == [(name, params) for name, _, params, _ in paper.TABLE_COLUMNS]
+    assert columns[:4] == [("meshlab", {"output": "whole"}), ("lozes-pde", {}), ("fu-nonlocal", {"variant": "paper"}),
+                           ("temporal-graph", {"variant": "paper"})]
+    assert {s.holes["seed"] for s in proto.synthetic} == {0}
+    seeded = paper.paper_protocol(quick=True, size="tiny", frames=2, seeds=[0, 1, 2])
+    assert {s.holes["seed"] for s in seeded.synthetic} == {0, 1, 2}
+    assert len(seeded.synthetic) == 3 * len(proto.synthetic)
+    with pytest.raises(ValueError, match="--seeds"):
+        paper.paper_protocol(quick=True, seeds=[-1])
     assert all("stand-in" in s.sequence_label for s in proto.synthetic + proto.real)
     assert {s.protocol["regions"] for s in proto.real} == {"detected"}
     assert {s.holes["generator"] for s in proto.real} == {"occlusion"}
@@ -232,3 +242,56 @@ def test_facing_view_looks_at_the_hole_from_outside():
     assert facing_view(body, [30.0, 50.0, 0.0])[0] == pytest.approx(-90.0)         # a side
     assert facing_view(body, [0.0, 100.0, 0.0])[1] == pytest.approx(60.0)          # the crown: from above, clipped
     assert facing_view(body, [0.0, 50.0 - 10.0, 10.0])[1] == pytest.approx(-45.0)  # below the centroid
+
+
+def test_paper_presets_list_the_table_columns():
+    from bench.config import tomllib
+
+    for preset in ("paper-quick", "paper"):
+        data = tomllib.loads((paper.PRESETS_DIR / f"{preset}.toml").read_text())
+        listed = [(m["name"], m.get("params", {}), m.get("label")) for m in data["methods"]]
+        assert listed == [(m["name"], m["params"], m["label"]) for m in paper.table_methods()], preset
+
+
+def test_paper_configuration_and_ours_are_separate_columns(tmp_path):
+    """temporal-graph in the paper configuration is "Proposed"; our tuned one, and any other
+    configuration, are columns of their own, never merged into the paper's."""
+    store = _store_with_results(tmp_path / "s.sqlite")
+    extra = [("temporal-graph", {}, 40.0), ("temporal-copy", {}, 45.0), ("temporal-graph", {"beta": 0.25}, 50.0),
+             ("fu-nonlocal", {}, 55.0)]
+    for i, (method, params, value) in enumerate(extra):
+        rows = [{"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic", "value": value} for f in range(3)]
+        rows += [{"frame": f, "metric": "nshd", "scope": "frame", "peak": "", "value": 1e-8} for f in range(3)]
+        record = {"sequence": "Human (stand-in)", "holes": "region", "holes_params": {"preset": "medium"}, "seed": 0,
+                  "method": method, "method_params": params, "method_version": "4", "code_version": "abc", "spec": {},
+                  "env": {}}
+        store.record_run(f"extra-{i}", record, rows, ["exp"])
+    df = store.results_frame("exp")
+    t1, t2 = paper_tables(df, standins=True)
+    assert t1.columns == paper.ALL_COLUMNS
+    assert t1.mean[("Human (stand-in)", "Proposed")] == pytest.approx(26.0)  # only variant=paper
+    assert t1.mean[("Human (stand-in)", "Hu")] == pytest.approx(21.0)
+    assert t1.mean[("Human (stand-in)", "temporal-graph tuned (ours)")] == pytest.approx(40.0)
+    assert t1.mean[("Human (stand-in)", "temporal-copy (reference)")] == pytest.approx(45.0)
+    # other configurations keep their own labels and are not columns of the table
+    assert t1.mean[("Human (stand-in)", 'temporal-graph {"beta":0.25}')] == pytest.approx(50.0)
+    assert t1.mean[("Human (stand-in)", "fu-nonlocal")] == pytest.approx(55.0)
+    md = t1.markdown()
+    assert "50.00" not in md and "55.00" not in md
+    assert "Proposed = `temporal-graph` (variant=paper" in md and "Hu = `fu-nonlocal` (variant=paper" in md
+    assert "temporal-graph tuned (ours) = `temporal-graph` (defaults" in md and "Meshlab = `meshlab` (output=whole" in md
+    assert "Proposed = `temporal-graph` (variant=paper" in t2.latex()
+    # the ranking against the paper is over the paper's columns; ours is set beside them
+    report = write_paper_report(df, store.runs_frame("exp"), tmp_path / "paper", standins=True, preset="paper-quick",
+                                command="dpcbench reproduce-paper --quick", elapsed_s=1.0, figure_notes={})
+    text = report.read_text()
+    assert "Proposed > Hu > Lozes > Meshlab" in text
+    assert "| temporal-graph tuned (ours) | +14.00 | +19.00 |" in text  # 40 - 26, 40 - 21
+    # the Columns section names every parameter as run: the paper configuration's switches are off
+    columns = text.split("## Columns", 1)[1].split("## Table 1", 1)[0]
+    proposed = next(line for line in columns.splitlines() if line.startswith("| Proposed |"))
+    for switch in ("link_cutoff=False", "known_points='free'", "intra_candidates=1", "temporal_source=False",
+                   "variant='paper'"):
+        assert switch in proposed
+    ours = next(line for line in columns.splitlines() if line.startswith("| temporal-graph tuned (ours) |"))
+    assert "variant='tuned'" in ours and "link_cutoff=True" in ours
