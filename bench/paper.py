@@ -80,12 +80,17 @@ def column_descriptions(with_all_params: bool = False) -> list[dict]:
 def columns_caption() -> str:
     """One sentence naming, for each column, the registry method and its exact parameters."""
     parts = []
-    for d in column_descriptions():
+    for d in column_descriptions(with_all_params=True):
         given = ", ".join(f"{k}={v}" for k, v in sorted(d["params"].items())) or "defaults"
+        variant = d.get("all_params", {}).get("variant")
+        if variant and "variant" not in d["params"]:
+            given += f": variant={variant}"
         parts.append(f"{d['label']} = `{d['method']}` ({given}; version {d['version']})")
-    return ("Columns: " + "; ".join(parts) + ". Meshlab, Lozes, Hu and Proposed are the paper's columns, run "
-            "in the paper configuration (variant=paper: every addition of ours off); '(ours)' and '(reference)' "
-            "columns are not in the paper. Every parameter value: REPORT.md, 'Columns'.")
+    return ("Columns: " + "; ".join(parts) + ". Meshlab, Lozes, Hu and Proposed are the paper's columns: Hu and "
+            "Proposed in the paper configuration (variant=paper: every step as the paper writes it, every addition "
+            "of ours off), MeshLab resampling the whole frame as the paper describes, Lozes as lozes-pde implements "
+            "Lozes et al.; '(ours)' and '(reference)' columns are not in the paper. Every parameter value: "
+            "REPORT.md, 'Columns'.")
 
 #: dataset names (bench.datasets) -> the paper's row label
 PAPER_SEQUENCES = {"longdress": "Longdress", "loot": "Loot", "redandblack": "Redandblack",

@@ -246,7 +246,9 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
         manifest = {"inpaint_key": spec.inpaint_key, "spec": spec.identity(), "frames": len(frames),
                     "points": [len(f) for f in frames], "per_frame": per_frame, "total": total,
                     "removed_fraction": [float(m.mean()) for m in damage.removed], "regions_mode": mode,
-                    "detect_time_s": detect_time, "created_by_pid": os.getpid()}
+                    "detect_time_s": detect_time, "created_by_pid": os.getpid(),
+                    # every parameter as the method resolved it (a variant's switches included)
+                    "method_params_resolved": method.get_params()}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1, default=str))
         if run_dir.exists():  # --force, or another worker finished the same frames first: replace
             trash = run_dir.parent / f".tmp-old-{run_dir.name}-{uuid.uuid4().hex[:8]}"

@@ -118,6 +118,8 @@ def test_new_metric_reuses_frames_and_force_redoes(env):
     assert more[0].run_id != specs[0].run_id and more[0].inpaint_key == specs[0].inpaint_key
     folder = Path(store.runs_frame().iloc[0].output_dir)
     stamp = (folder / "manifest.json").stat().st_mtime_ns
+    manifest = json.loads((folder / "manifest.json").read_text())
+    assert manifest["method_params_resolved"] == {"shift": 0.0}  # every parameter, defaults included
     run_experiment(more, store, executor="serial", quiet=True)
     runs = store.runs_frame().set_index("run_id")
     assert json.loads(runs.loc[more[0].run_id, "env"])["frames_reused"] is True
