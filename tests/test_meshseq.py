@@ -370,3 +370,14 @@ def test_samba(shared_dir):
     assert flow.max() <= moved.max() + 1e-9 and flow.max() > 0.5 * moved.max() and moved.max() > 1
     idx = seq.motion.indices(0, 1)
     assert np.array_equal(seq.frames[1].points[idx], np.rint(seq.motion.positions(0, 1)))
+
+
+def test_reproduce_paper_has_a_real_motion_row(shared_dir, monkeypatch):
+    from bench import paper
+
+    monkeypatch.setenv("DPCBENCH_DATA_DIR", str(shared_dir / "data"))
+    proto = paper.paper_protocol(quick=True, frames=2)
+    samba = [s for s in proto.synthetic if s.sequence["name"] == "samba"]
+    assert samba and {s.sequence_label for s in samba} == {paper.REAL_MOTION["samba"]}
+    assert "not one of the paper's sequences" in samba[0].sequence_label
+    assert samba[0].sequence["params"] == {"points": 20_000} and proto.standins
