@@ -269,6 +269,22 @@ def voxelize_samples(positions: np.ndarray, bit_depth: int) -> tuple[np.ndarray,
     return voxels, anchor
 
 
+def frame_from_samples(vertices: np.ndarray, triangles: np.ndarray, faces: np.ndarray, bary: np.ndarray,
+                       bit_depth: int | None) -> dict[str, np.ndarray]:
+    """One frame from surface samples on its (placed) mesh: {"points": (N, 3) uint16 voxels (or float64
+    samples when bit_depth is None), "normals": (N, 3) float32 normals of the anchors' faces, "faces": (N,)
+    int32 and "bary": (N, 3) the anchors}."""
+    positions = evaluate(vertices, triangles, faces, bary)
+    if bit_depth is None:
+        points, anchor = positions, np.arange(len(faces))
+    else:
+        points, anchor = voxelize_samples(positions, bit_depth)
+        points = points.astype(np.uint16)
+    _, face_normals = face_areas_normals(vertices, triangles)
+    return {"points": points, "normals": face_normals[faces[anchor]].astype(np.float32),
+            "faces": faces[anchor].astype(np.int32), "bary": bary[anchor]}
+
+
 # -- the sequence -----------------------------------------------------------------------------------
 @dataclass
 class MeshMotion:
@@ -497,15 +513,7 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
                 count = place.samples if bit_depth is None else int(np.ceil(
                     oversampling * place.scale ** 2 * areas_i.sum()))
                 faces, bary = sample_barycentric(areas_i, count, np.random.default_rng((int(seed), int(i))))
-            positions = evaluate(v_out, t, faces, bary)
-            if bit_depth is None:
-                pts, anchor = positions, np.arange(len(faces))
-            else:
-                pts, anchor = voxelize_samples(positions, bit_depth)
-            _, face_normals = face_areas_normals(v_out, t)
-            arrays = {"points": pts.astype(np.uint16) if bit_depth is not None else pts,
-                      "normals": face_normals[faces[anchor]].astype(np.float32),
-                      "faces": faces[anchor].astype(np.int32), "bary": bary[anchor]}
+            arrays = frame_from_samples(v_out, t, faces, bary, bit_depth)
             if cache:
                 store_cached(fkey, "mesh", arrays)
         normals = arrays["normals"].astype(np.float64)
