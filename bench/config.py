@@ -14,8 +14,9 @@ grids), and the metrics with their options::
     data_dir = "/data/8i"           # where named paper sequences (longdress, ...) are found
 
     [[sequences]]
-    name = "human"                  # an embedded dataset name (bench.datasets), or ...
-    # path = "/data/longdress/Ply"  # ... a folder of PLY frames
+    name = "human"                  # an embedded, paper or mesh (samba) dataset name (bench.datasets), or ...
+    # path = "/data/longdress/Ply"  # ... a folder of PLY frames (or of OBJ/OFF/PLY meshes, sampled
+                                    # with params such as points, bit_depth: bench.meshseq)
     params = { size = "small" }     # passed to bench.datasets.load_dataset
     frames = 4                      # the first N frames, or [start, stop) as [0, 8]
     label = "Human (stand-in)"      # how reports name it (default: name)

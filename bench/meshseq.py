@@ -428,8 +428,6 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
     for i in range(len(files)):
         v, t = mesh(i)
         bad = degenerate_faces(v, t)
-        if shared and i > 0:
-            bad = bad | degenerate_faces(v, t0)
         if bad.any():
             first = int(np.flatnonzero(bad)[0])
             if not drop_degenerate:
