@@ -14,11 +14,14 @@ grids), and the metrics with their options::
     data_dir = "/data/8i"           # where named paper sequences (longdress, ...) are found
 
     [[sequences]]
-    name = "human"                  # an embedded dataset name (bench.datasets), or ...
-    # path = "/data/longdress/Ply"  # ... a folder of PLY frames
+    name = "human"                  # an embedded, paper or mesh (samba) dataset name (bench.datasets), or ...
+    # path = "/data/longdress/Ply"  # ... a folder of PLY frames (or of OBJ/OFF/PLY meshes, sampled
+                                    # with params such as points, bit_depth: bench.meshseq)
     params = { size = "small" }     # passed to bench.datasets.load_dataset
     frames = 4                      # the first N frames, or [start, stop) as [0, 8]
     label = "Human (stand-in)"      # how reports name it (default: name)
+    optional = true                 # data that may be absent (a mesh or paper sequence): skipped, with
+                                    # a message, when not found, instead of failing the whole config
 
     [[holes]]
     generator = "region"            # holes.registry name; "none" = the data's own (real) holes:
@@ -73,7 +76,7 @@ SCOPES = ("frame", "holes")
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
 _EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection"}
 REGION_MODES = ("given", "detected", "none")
-_SEQUENCE_KEYS = {"name", "path", "params", "frames", "label"}
+_SEQUENCE_KEYS = {"name", "path", "params", "frames", "label", "optional"}
 _HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
 _METHOD_KEYS = {"name", "params", "label"}
 _METRICS_KEYS = {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
@@ -239,6 +242,14 @@ def _table_list(data: dict, key: str) -> list[dict]:
 
 
 # -- data fingerprints -----------------------------------------------------------------------
+def _mesh_fingerprint(files: list[Path], sequence: dict) -> dict:
+    from bench.meshseq import GENERATOR_VERSION
+
+    stats = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
+    return {"folder": files[0].parent.name, "files": len(files), "stat_hash": stable_hash(stats),
+            "mesh": {"params": sequence.get("params", {}), "version": GENERATOR_VERSION}}
+
+
 def _folder_fingerprint(folder: Path) -> dict:
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".ply")
     stats = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
@@ -252,8 +263,24 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         path = Path(sequence["path"]).expanduser()
         if not path.exists():
             raise ConfigError(f"{where}.path: {path} does not exist; give a folder of PLY frames")
+        from bench.meshseq import list_mesh_files
+
+        mesh_files = list_mesh_files(path)
+        if mesh_files is not None:
+            return _mesh_fingerprint(mesh_files, sequence)
         return _folder_fingerprint(path if path.is_dir() else path.parent)
     name = sequence["name"]
+    from bench.datasets import MESHES, find_mesh_folder
+
+    if name.lower() in MESHES:
+        info = MESHES[name.lower()]
+        folder = find_mesh_folder(info, sequence.get("data_dir"))
+        if folder is None:
+            raise ConfigError(f"{where}.name: no {info.folder}/{info.pattern.format(0)} found (under experiment.data_dir, "
+                              f"--data-dir, $DPCBENCH_DATA_DIR or ../shared/data); {info.title} is published as: "
+                              f"{info.source}")
+        files = [folder / info.pattern.format(i) for i in range(info.count)]
+        return _mesh_fingerprint([p for p in files if p.is_file()], sequence)
     if name.lower() in PAPER_SEQUENCES:
         from bench.datasets import PAPER, data_dir_from, find_paper_folder
 
@@ -287,6 +314,8 @@ class ExperimentConfig:
     methods: list[dict] = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
     source: str = "<config>"
+    #: messages for the optional sequences whose data was not found (filled by `expand`)
+    skipped: list[str] = field(default_factory=list)
 
     def expand(self) -> list[RunSpec]:
         """Every run of the grid, in order sequences x holes x methods; ids computed."""
@@ -385,10 +414,14 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         path = None
         if seq.get("path"):  # relative paths are relative to the config file's folder
             path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())
+        optional = seq.get("optional", False)
+        if not isinstance(optional, bool):
+            raise ConfigError(f"{where}.optional: expected true or false, got {optional!r}")
         entry = {"name": seq.get("name") or Path(seq["path"]).name, "path": path,
                  "params": seq.get("params", {}), "frames": frames, "label": seq.get("label")}
         for j, params in enumerate(_expand_params(entry["params"], f"{where}.params")):
-            cfg.sequences.append({**entry, "params": params, "_where": where})
+            # "_optional" is not part of the run's identity (expand_config drops it)
+            cfg.sequences.append({**entry, "params": params, "_where": where, "_optional": optional})
 
     from holes.registry import GENERATORS, generator_class
 
@@ -464,6 +497,9 @@ def merge_config(base: dict, overrides: dict) -> dict:
 
 
 def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
+    """Every run; optional sequences whose data is missing are left out and noted in ``cfg.skipped``
+    (also printed to stderr)."""
+    cfg.skipped = []
     metric_versions = {}
     registry = _metric_registry()
     if registry is not None:
@@ -473,9 +509,15 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
     runs: list[RunSpec] = []
     seen: set[str] = set()
     for seq in cfg.sequences:
-        sequence = {k: v for k, v in seq.items() if k != "_where"}
+        sequence = {k: v for k, v in seq.items() if k not in ("_where", "_optional")}
         sequence["data_dir"] = cfg.data_dir
-        fingerprint = data_fingerprint(sequence, seq["_where"])
+        try:
+            fingerprint = data_fingerprint(sequence, seq["_where"])
+        except ConfigError as err:
+            if not seq.get("_optional"):
+                raise
+            cfg.skipped.append(f"{seq['_where']} ({sequence.get('label') or sequence['name']}) skipped: {err}")
+            continue
         for hole in cfg.holes:
             for meth in cfg.methods:
                 spec = RunSpec(
@@ -494,4 +536,6 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
                 if spec.run_id not in seen:  # the same run listed twice in a grid runs once
                     seen.add(spec.run_id)
                     runs.append(spec)
+    for message in cfg.skipped:
+        print(f"{cfg.source}: optional {message}", file=sys.stderr)
     return runs

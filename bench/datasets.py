@@ -7,7 +7,11 @@
 - a paper sequence name (``PAPER``: longdress, loot, redandblack, soldier, ulliwegner) reads the
   user's local copy from ``data_dir`` or ``$DPCBENCH_DATA_DIR``, after checking that the expected
   files are there; these data are licensed and cannot ship with dpcbench;
-- anything else is a path: a folder of PLY frames, a glob, or one PLY file.
+- a mesh sequence name (``MESHES``: "samba") samples the mesh frames found under ``data_dir``,
+  ``$DPCBENCH_DATA_DIR`` or the repository's ``../shared/data`` (see `bench.meshseq`);
+- anything else is a path: a folder of PLY frames, a glob, or one PLY file; a folder (or glob) of mesh
+  frames (OBJ, OFF, PLY with faces) is sampled into point clouds by `bench.meshseq` and takes its
+  parameters (points, density, bit_depth, seed, oversampling, drop_degenerate, cache).
 
 ``frames``: None (embedded: ``default_frames``; files: all), a count N (the first N), or an iterable
 of frame indices (0 = the first frame of the sequence).
@@ -117,6 +121,87 @@ PAPER: dict[str, PaperDataset] = {
         "it may not be redistributed with dpcbench",
         "ulliwegner", None, None, 0, None, 10),
 }
+
+@dataclass(frozen=True)
+class MeshDataset:
+    """A known mesh sequence read at run time: ``<data dir>/<folder>/<pattern.format(i)>``, i in
+    0..count-1. ``params``: its default sampling parameters (`bench.meshseq.load_mesh_sequence`)."""
+
+    name: str
+    title: str
+    summary: str
+    source: str
+    terms: str
+    folder: str
+    pattern: str
+    count: int
+    params: dict
+
+
+MESHES: dict[str, MeshDataset] = {
+    "samba": MeshDataset(
+        "samba", "Samba (MIT)",
+        "real captured motion (a dancer in a skirt), 20 OBJ frames of 9,971 vertices / 19,938 faces with shared "
+        "connectivity: sampled with exact point correspondence; not one of the paper's sequences",
+        "D. Vlasic, I. Baran, W. Matusik, J. Popovic, 'Articulated Mesh Animation from Multi-view Silhouettes', "
+        "ACM SIGGRAPH 2008; 'samba' mesh sequence from the authors' page "
+        "http://people.csail.mit.edu/drdaniel/mesh_animation/",
+        "research data under its owners' terms: read at run time, never redistributed with dpcbench",
+        "mit_samba", "samba_{:04d}.obj", 20, {"bit_depth": 10}),
+}
+
+
+def default_data_dirs() -> list[Path]:
+    """Where data is looked for when no folder is given: ``../shared/data`` beside the repository."""
+    repo = Path(__file__).resolve().parents[1]
+    return [repo.parent / "shared" / "data"]
+
+
+def find_mesh_folder(info: MeshDataset, data_dir=None) -> Path | None:
+    """The folder holding ``info``'s first frame: under the given data folder (or $DPCBENCH_DATA_DIR), as
+    ``<dir>/<folder>``, ``<dir>/data/<folder>`` or ``<dir>`` itself, else under `default_data_dirs`."""
+    roots = [r for r in [data_dir_from(data_dir)] if r is not None] + default_data_dirs()
+    first = info.pattern.format(0)
+    for root in roots:
+        for folder in (root / info.folder, root / "data" / info.folder, root):
+            if (folder / first).is_file():
+                return folder
+    return None
+
+
+def load_mesh_dataset(name: str, frames=None, data_dir=None, *, progress: bool = True, **params) -> Sequence:
+    """A registered mesh sequence (``MESHES``), sampled by `bench.meshseq.load_mesh_sequence`."""
+    info = MESHES[name]
+    folder = find_mesh_folder(info, data_dir)
+    if folder is None:
+        looked = ", ".join(str(p) for p in ([data_dir_from(data_dir)] if data_dir_from(data_dir) else [])
+                           + default_data_dirs())
+        raise UserError(f"{info.title}: no {info.folder}/{info.pattern.format(0)} found under {looked}. It is "
+                        f"published as: {info.source}. Terms: {info.terms}. Put the frames in <data dir>/{info.folder}/ "
+                        f"and pass --data-dir <data dir> (or set {DATA_DIR_ENV}).")
+    files = [folder / info.pattern.format(i) for i in range(info.count)]
+    missing = [p.name for p in files if not p.is_file()]
+    if missing:
+        raise UserError(f"{info.title}: {len(missing)} of {info.count} frame files missing from {folder} "
+                        f"(first: {missing[0]}); re-copy the sequence")
+    indices = _frame_indices(frames, len(files), info.title)
+    seq = _mesh_sequence(files, indices, info.name, progress, {**info.params, **params})
+    seq.meta.update({"dataset": info.name, "source": info.source, "terms": info.terms, "folder": str(folder)})
+    return seq
+
+
+def _mesh_sequence(files, indices, name, progress, params) -> Sequence:
+    import inspect
+
+    from bench.meshseq import load_mesh_sequence
+
+    known = [n for n, p in inspect.signature(load_mesh_sequence).parameters.items()
+             if p.kind is inspect.Parameter.KEYWORD_ONLY and n not in ("name", "progress")]
+    unknown = sorted(set(params) - set(known))
+    if unknown:
+        raise UserError(f"{name}: unknown mesh sequence parameter(s) {', '.join(unknown)}; accepted: {', '.join(known)}")
+    return load_mesh_sequence(files, indices, name=name, progress=progress, **params)
+
 
 def _datasets_version() -> str:
     from bench.standins import bunny, human
@@ -340,15 +425,27 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
     if key in EMBEDDED and not Path(text).exists():
         cache = params.pop("cache", True)
         return generate_embedded(key, frames, cache=cache, progress=progress, **params)
+    if key in MESHES and not Path(text).exists():
+        return load_mesh_dataset(key, frames, data_dir, progress=progress, **params)
+    from bench.meshseq import list_mesh_files
+
+    mesh_files = list_mesh_files(text)
+    if mesh_files is not None:
+        p = Path(text)
+        indices = _frame_indices(frames, len(mesh_files), text)
+        seq = _mesh_sequence(mesh_files, indices, p.name if p.is_dir() else p.stem, progress, params)
+        seq.meta["source"] = text
+        return seq
     if params:
         raise UserError(f"{text}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
-                        f"sequences ({', '.join(EMBEDDED)})")
+                        f"sequences ({', '.join(EMBEDDED)}) and to mesh sequences ({', '.join(MESHES)}, or a folder "
+                        "of OBJ/OFF/PLY meshes)")
     if key in PAPER and not Path(text).exists():
         return load_paper(key, frames, data_dir, progress=progress)
     if not Path(text).exists() and not any(ch in text for ch in "*?["):
         raise UserError(f"{text}: not a dataset name and no such file or folder. Known names: embedded "
-                        f"{', '.join(EMBEDDED)}; paper sequences {', '.join(PAPER)} (need --data-dir); "
-                        "or give a folder of PLY frames")
+                        f"{', '.join(EMBEDDED)}; paper sequences {', '.join(PAPER)} (need --data-dir); mesh "
+                        f"sequences {', '.join(MESHES)}; or give a folder of PLY frames or of mesh frames")
     return load_path(text, frames, progress=progress)
 
 
@@ -382,4 +479,9 @@ def describe_datasets(data_dir=None) -> list[dict]:
                         reason = f"{missing} of {len(expected)} frame files missing in {folder}"
         rows.append({"name": info.name, "kind": "paper", "description": f"{info.title}: {info.summary}",
                      "terms": info.terms, "available": not reason, "reason": reason})
+    for info in MESHES.values():
+        folder = find_mesh_folder(info, data_dir)
+        rows.append({"name": info.name, "kind": "mesh", "description": f"{info.title}: {info.summary}",
+                     "terms": info.terms, "available": folder is not None,
+                     "reason": "" if folder else f"no {info.folder}/ found (--data-dir, {DATA_DIR_ENV} or ../shared/data)"})
     return rows

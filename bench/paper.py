@@ -99,6 +99,11 @@ PAPER_SEQUENCES = {"longdress": "Longdress", "loot": "Loot", "redandblack": "Red
 #: embedded stand-ins used when the paper's data is not given -> row label (always says stand-in)
 STANDINS = {"human": "Human (stand-in)", "bunny": "Bunny (stand-in)"}
 
+#: real captured motion added as an extra row when its data is found (bench.datasets.MESHES) -> row label
+REAL_MOTION = {"samba": "Samba (real captured motion, not one of the paper's sequences)"}
+#: its points per frame by stand-in size (None: fill the 10-bit grid, ~790k points, like an 8i capture)
+REAL_MOTION_POINTS = {"tiny": 20_000, "small": 100_000, "default": None}
+
 TABLE1_GPSNR: dict[str, tuple[float, float, float, float]] = {
     "Longdress": (11.7926, 30.3883, 41.5686, 43.1301),
     "Loot": (16.4451, 27.3715, 40.1546, 47.5648),
@@ -228,6 +233,12 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
         real_cfg["sequences"] = [first]
         real_cfg["holes"] = [{"generator": "occlusion", "seed": 0}]
         real_cfg["experiment"]["detection"] = dict(STANDIN_DETECTION)
+    # real captured motion (a mesh sequence with exact correspondences), when its data is found; an
+    # optional sequence, so it is skipped with a message otherwise
+    points = REAL_MOTION_POINTS[size or ("tiny" if quick else "default")]
+    for name, label in REAL_MOTION.items():
+        synthetic_cfg["sequences"].append({"name": name, "frames": frames, "label": label, "optional": True,
+                                           "params": {} if points is None else {"points": points}})
     synthetic = parse_config(synthetic_cfg, source=f"preset {preset}").expand()
     real = parse_config(real_cfg, source=f"preset {preset} (real holes)").expand()
     return PaperProtocol(preset, standins, synthetic, real, synthetic_cfg)

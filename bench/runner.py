@@ -138,6 +138,13 @@ def load_ground_truth(sequence: dict):
 
     wanted = frame_range(sequence.get("frames"))
     if sequence.get("path"):
+        from bench.meshseq import list_mesh_files
+
+        if list_mesh_files(sequence["path"]) is not None:  # a folder of mesh frames: sampled with its params
+            from bench.datasets import load_dataset
+
+            return load_dataset(sequence["path"], frames=None if wanted is None else list(wanted), progress=False,
+                                **sequence.get("params", {}))
         seq = load_sequence(sequence["path"], name=sequence.get("label") or sequence["name"])
     else:
         from bench.datasets import load_dataset
@@ -326,7 +333,10 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) 
                     rows.append({"frame": f, "metric": name, "scope": scope,
                                  "peak": _peak_label(peak) if name in peak_names else "", "value": value})
     if cfg.get("temporal_consistency") and len(inpainted) > 1:
-        value = metrics_pkg.temporal_consistency(truth.points, inpainted, regions, region_margin=cfg["region_margin"])
+        # true point correspondences when the sequence knows them (mesh sequences), else nearest-point links
+        motion = getattr(truth, "motion", None)
+        value = metrics_pkg.temporal_consistency(truth.points, inpainted, regions, region_margin=cfg["region_margin"],
+                                                 correspondences=None if motion is None else motion.correspondences())
         items = value.items() if isinstance(value, dict) else [("temporal_consistency", value)]
         for name, val in items:
             if isinstance(val, (int, float, np.floating)):

@@ -28,6 +28,9 @@ class Sequence:
     bit_depth: for voxelized data (integer coordinates in 0..2^b-1), b; None when unvoxelized.
     files:     the PLY file each frame came from, when read from disk.
     meta:      free-form provenance (generator parameters, licence notes, ...).
+    motion:    the true motion of the points when the source knows it (mesh sequences with shared
+               connectivity: a `bench.meshseq.MeshMotion`, with ``flow(f, g)``, ``indices(f, g)`` and
+               ``correspondences()``); None for captured point clouds, which have no correspondence.
     """
 
     name: str
@@ -35,6 +38,7 @@ class Sequence:
     bit_depth: int | None = None
     files: list[Path] = field(default_factory=list)
     meta: dict = field(default_factory=dict)
+    motion: object | None = None
 
     def __len__(self) -> int:
         return len(self.frames)

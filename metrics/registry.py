@@ -2,7 +2,7 @@
 
 ``fn`` of a frame-level metric takes ``(pair: CloudPair, selection: Selection, settings: Settings)``
 and returns a float (see `metrics.geometry`); ``fn`` of the sequence-level metric takes
-``(references, results, regions=None, *, region_margin=0.0)``.
+``(references, results, regions=None, *, region_margin=0.0, correspondences=None)``.
 
 ``version`` changes whenever a definition changes, so stored results say which definition made them.
 """

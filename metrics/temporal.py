@@ -16,6 +16,14 @@ regions (all points when no regions are given). For each consecutive pair (f, g 
 
 TC = the mean of the pair values (NaN pairs, with no hole points, left out).
 
+True correspondences. When the sequence knows where each ground-truth point goes (a mesh sequence
+sampled with shared connectivity, `bench.meshseq.MeshMotion.correspondences`), pass them as
+``correspondences``: one (forward, backward) pair of index arrays per consecutive frame pair, forward
+(N_f,) the index in frame f + 1 of each point of frame f, backward (N_{f+1},) the index in frame f of each
+point of frame f + 1. The links then follow the true motion (x in S_g linked to backward[x], y in S_f to
+forward[y]) instead of the nearest ground-truth point, which on fast motion can sit on another part of
+the body. Everything else is unchanged.
+
 Why: the ground truth's own motion is factored out because errors are measured against the ground
 truth of each frame, and linked across frames by ground-truth proximity (real captures have no point
 correspondence across frames, so the link is spatial). A fill that is wrong but steadily wrong keeps
@@ -79,23 +87,49 @@ class _Frame:
         return self.res[nearest] - x
 
 
-def _links(src: _Frame, dst: _Frame) -> np.ndarray:
-    """|(e_src(x) - e_dst(y)) . n_x| for every hole point x of ``src`` linked to its nearest
-    ground-truth point y of ``dst``."""
+def _links(src: _Frame, dst: _Frame, mapping: np.ndarray | None = None) -> np.ndarray:
+    """|(e_src(x) - e_dst(y)) . n_x| for every hole point x of ``src`` linked to y of ``dst``: its true
+    correspondent ``mapping[x]`` when given, else its nearest ground-truth point."""
     if src.hole.size == 0:
         return np.empty(0)
     x = src.gt[src.hole]
-    _, y_index = dst.gt_tree.query(x, k=1, workers=-1)
+    if mapping is None:
+        _, y_index = dst.gt_tree.query(x, k=1, workers=-1)
+    else:
+        y_index = mapping[src.hole]
     normals = pca_normals(src.gt, src.gt_tree, x)
     change = src.errors(src.hole) - dst.errors(y_index)
     return np.abs(np.einsum("ij,ij->i", change, normals))
 
 
-def temporal_consistency_per_pair(references, results, regions=None, *, region_margin: float = 0.0) -> np.ndarray:
+def _check_correspondences(correspondences, frames) -> list | None:
+    if correspondences is None:
+        return None
+    correspondences = list(correspondences)
+    if len(correspondences) != len(frames) - 1:
+        raise ValueError(f"correspondences are given for {len(correspondences)} frame pairs but the sequence has "
+                         f"{len(frames) - 1} consecutive pairs")
+    out = []
+    for f, pair in enumerate(correspondences):
+        forward, backward = (np.asarray(m) for m in pair)
+        for name, m, src, dst in (("forward", forward, f, f + 1), ("backward", backward, f + 1, f)):
+            if m.shape != (len(frames[src].gt),) or m.dtype.kind not in "iu":
+                raise ValueError(f"correspondences[{f}] {name}: expected ({len(frames[src].gt)},) integer indices "
+                                 f"(one per point of frame {src}), got {m.dtype} {m.shape}")
+            if m.size and (m.min() < 0 or m.max() >= len(frames[dst].gt)):
+                raise ValueError(f"correspondences[{f}] {name}: indices must lie in 0..{len(frames[dst].gt) - 1} "
+                                 f"(points of frame {dst})")
+        out.append((forward, backward))
+    return out
+
+
+def temporal_consistency_per_pair(references, results, regions=None, *, region_margin: float = 0.0,
+                                  correspondences=None) -> np.ndarray:
     """The value of each consecutive frame pair (F - 1,), NaN where no frame of the pair has hole points.
 
     references, results: lists of (N_f, 3) arrays, same length F >= 2. regions: None (whole frames)
-    or a list of F lists of hole regions (objects with ``contains(points, margin)``).
+    or a list of F lists of hole regions (objects with ``contains(points, margin)``). correspondences:
+    None (nearest-point links) or F - 1 pairs (forward, backward) of index arrays (module docstring).
     """
     references, results = list(references), list(results)
     if len(references) != len(results):
@@ -113,19 +147,23 @@ def temporal_consistency_per_pair(references, results, regions=None, *, region_m
         _Frame(ref, res, None if regions is None else regions[i], region_margin, i)
         for i, (ref, res) in enumerate(zip(references, results))
     ]
+    maps = _check_correspondences(correspondences, frames)
     values = np.full(len(frames) - 1, np.nan)
     for f in range(len(frames) - 1):
-        links = np.concatenate([_links(frames[f + 1], frames[f]), _links(frames[f], frames[f + 1])])
+        forward, backward = maps[f] if maps is not None else (None, None)
+        links = np.concatenate([_links(frames[f + 1], frames[f], backward), _links(frames[f], frames[f + 1], forward)])
         if links.size:
             values[f] = float(links.mean())
     return values
 
 
-def temporal_consistency(references, results, regions=None, *, region_margin: float = 0.0) -> float:
+def temporal_consistency(references, results, regions=None, *, region_margin: float = 0.0,
+                         correspondences=None) -> float:
     """Sequence-level temporal consistency (lower = steadier); see the module docstring for the formula.
 
     Returns NaN when no frame has ground-truth points inside its regions.
     """
-    values = temporal_consistency_per_pair(references, results, regions, region_margin=region_margin)
+    values = temporal_consistency_per_pair(references, results, regions, region_margin=region_margin,
+                                           correspondences=correspondences)
     finite = values[~np.isnan(values)]
     return float(finite.mean()) if finite.size else math.nan

@@ -1,5 +1,6 @@
 """`dpcbench generate NAME --frames N --out DIR`: write an embedded sequence (human, bunny) as binary
-PLY frames ``<NAME>_0000.ply ...`` (float x y z, uchar red green blue)."""
+PLY frames ``<NAME>_0000.ply ...`` (float x y z, uchar red green blue), or a mesh sequence (samba, or a
+folder of OBJ/OFF/PLY meshes) sampled into point clouds (float x y z, float nx ny nz from the faces)."""
 
 from __future__ import annotations
 
@@ -9,38 +10,46 @@ from bench.errors import UserError
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("generate", help="write an embedded sequence (human, bunny) as PLY frames",
+    parser = subparsers.add_parser("generate", help="write an embedded or mesh sequence as PLY frames",
                                    description=__doc__)
-    parser.add_argument("name", help="embedded sequence name (see `dpcbench list`)")
+    parser.add_argument("name", help="embedded sequence name, mesh sequence name (see `dpcbench list`), or a "
+                                     "folder / glob of mesh frames")
     parser.add_argument("--frames", type=int, default=None, help="number of frames (default: the dataset's)")
     parser.add_argument("--out", required=True, help="output folder (created)")
     parser.add_argument("--param", action="append", metavar="K=V", default=[],
                         help="generator parameter, repeatable: size=tiny|small|default, bit_depth=10, "
-                             "motion=walk|dance|wave (human), seed=0, ...")
+                             "motion=walk|dance|wave (human), seed=0, ...; meshes: points=800000 or density=..., "
+                             "bit_depth=10|none, seed=0, oversampling=8")
+    parser.add_argument("--data-dir", default=None, help="folder holding mesh sequences such as mit_samba/")
     parser.add_argument("--no-cache", action="store_true", help="regenerate instead of reading the frame cache")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from bench.datasets import EMBEDDED, PAPER, load_dataset, parse_params
+    from bench.datasets import EMBEDDED, MESHES, PAPER, load_dataset, parse_params
+    from bench.meshseq import list_mesh_files
     from bench.sequences import save_sequence
 
     name = args.name.lower()
-    if name not in EMBEDDED:
+    mesh = name in MESHES or (not Path(args.name).is_file() and list_mesh_files(args.name) is not None)
+    if name not in EMBEDDED and not mesh:
         hint = " (a paper sequence: it is read from --data-dir, not generated)" if name in PAPER else ""
-        raise UserError(f"{args.name!r} is not an embedded sequence{hint}; choose one of {', '.join(EMBEDDED)}")
+        raise UserError(f"{args.name!r} is not an embedded sequence{hint} nor a mesh sequence; choose one of "
+                        f"{', '.join(EMBEDDED)}, {', '.join(MESHES)}, or give a folder of mesh frames")
     if args.frames is not None and args.frames < 1:
         raise UserError(f"--frames must be at least 1, got {args.frames}")
     params = parse_params(args.param)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder")
-    seq = load_dataset(name, frames=args.frames, cache=not args.no_cache, **params)
+    seq = load_dataset(args.name if mesh and name not in MESHES else name, frames=args.frames,
+                       data_dir=args.data_dir, cache=not args.no_cache, **params)
     try:
-        paths = save_sequence(seq, out, prefix=name)
+        paths = save_sequence(seq, out, prefix=seq.name)
     except OSError as err:
         raise UserError(f"--out {out}: cannot write frames ({err})") from None
     counts = [len(f) for f in seq.frames]
     depth = f", {seq.bit_depth}-bit integer coordinates" if seq.bit_depth else ""
-    print(f"wrote {len(paths)} frames to {out} ({min(counts)}..{max(counts)} points per frame{depth})")
+    normals = ", normals from the mesh faces" if seq.frames[0].normals is not None else ""
+    print(f"wrote {len(paths)} frames to {out} ({min(counts)}..{max(counts)} points per frame{depth}{normals})")
     return 0

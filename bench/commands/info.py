@@ -48,6 +48,7 @@ def describe(seq) -> dict:
         "normals": seq.frames[0].normals is not None,
         "files": [str(p) for p in seq.files[:3]] + (["..."] if len(seq.files) > 3 else []),
         "meta": {k: v for k, v in seq.meta.items() if k not in ("description",)},
+        "true_motion": getattr(seq, "motion", None) is not None,
     }
 
 
@@ -77,7 +78,15 @@ def run(args) -> int:
     print(f"attributes:  colours {'yes' if info['colors'] else 'no'}, normals {'yes' if info['normals'] else 'no'}")
     if info["files"]:
         print(f"files:       {', '.join(info['files'])}")
+    meta = info["meta"]
+    if meta.get("generator") == "mesh":
+        print(f"mesh:        {meta['vertices']} vertices, {meta['faces']} faces; "
+              f"{'shared connectivity' if meta['shared_connectivity'] else 'connectivity differs between frames'}; "
+              f"{meta['samples_per_frame']} surface samples a frame; x_out = {meta['scale']:.6g} x + "
+              f"({', '.join(f'{v:.6g}' for v in meta['offset'])})")
+        print("motion:      " + ("true point correspondences and scene flow (same surface samples in every frame)"
+                                 if info["true_motion"] else "none (frames sampled independently)"))
     for key in ("generator", "params", "dataset", "source", "terms"):
-        if key in info["meta"]:
-            print(f"{key + ':':<13}{info['meta'][key]}")
+        if key in meta:
+            print(f"{key + ':':<13}{meta[key]}")
     return 0
