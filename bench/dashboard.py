@@ -437,10 +437,15 @@ def comparison_table(comparison: compare.Comparison, colours: dict[str, str], ro
     return "".join(out)
 
 
-def paper_gaps(history: History, paper: pd.DataFrame) -> str:
+def paper_gaps(history: History, paper: pd.DataFrame, runs: pd.DataFrame | None = None) -> str:
     """The paper's claim as a reproduction can test it on any data: temporal-graph's GPSNR D1 gain
     (dB) over each other paper method, and the NSHD ratio fu-nonlocal / temporal-graph, at the
-    newest version, per sequence and scope, beside the paper's average over its five sequences."""
+    newest version, per sequence, hole configuration (generator and parameters: e.g. the independent
+    and the temporally coherent holes of `reproduce-paper` are two rows) and scope, beside the
+    paper's average over its five sequences. ``runs`` (the store's runs table) supplies the labels
+    that experiment configs gave to hole configurations ("coherent holes")."""
+    from bench.tables import config_labels, given_labels
+
     proposed = "temporal-graph"
     others = [m for m in paper["method"].drop_duplicates() if m != proposed]
     # each method as the paper ran it: default parameters, or those bench.paper names (meshlab whole)
@@ -462,8 +467,13 @@ def paper_gaps(history: History, paper: pd.DataFrame) -> str:
     ref = paper.pivot_table(index="sequence", columns=["metric", "method"], values="value")
     paper_gain = {m: float((ref[("gpsnr_d1", proposed)] - ref[("gpsnr_d1", m)]).mean()) for m in others}
     paper_ratio = float((ref[("nshd", "fu-nonlocal")] / ref[("nshd", proposed)]).mean())
+    # a hole configuration is named by its generator plus the parameters that tell it from the
+    # generator's other configurations in the table ("region (coherent=True)")
+    given = given_labels(runs, "holes") if runs is not None and len(runs) else {}
+    latest = latest.assign(holes_label=config_labels(latest["holes"], latest["holes_params"], given=given))
     rows = []
-    for (sequence, holes, scope), sub in latest.groupby(["sequence", "holes", "scope"], sort=True):
+    for (sequence, holes, _, scope), sub in latest.groupby(["sequence", "holes_label", "holes_params", "scope"],
+                                                          sort=True):
         psnr = sub[sub["metric"] == "gpsnr_d1"].set_index("method")["mean"]
         nshd = sub[sub["metric"] == "nshd"].set_index("method")["mean"]
         if proposed not in psnr.index:
@@ -631,7 +641,7 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
             f'<section id="quality"><h2>Quality over code versions</h2><p class="note">Mean over frames (and seeds) '
             f'of the newest run per cell, per code version in time order. Scope "frame" scores whole frames, '
             f'"holes" only the hole regions. {_e(paper_note)}</p>{"".join(charts)}</section>')
-        gaps = paper_gaps(history, paper)
+        gaps = paper_gaps(history, paper, runs)
         if gaps:
             sections.append(
                 '<section id="paper"><h2>Against the paper</h2><p class="note">GPSNR D1 gain of temporal-graph '

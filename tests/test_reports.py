@@ -232,3 +232,36 @@ def test_facing_view_looks_at_the_hole_from_outside():
     assert facing_view(body, [30.0, 50.0, 0.0])[0] == pytest.approx(-90.0)         # a side
     assert facing_view(body, [0.0, 100.0, 0.0])[1] == pytest.approx(60.0)          # the crown: from above, clipped
     assert facing_view(body, [0.0, 50.0 - 10.0, 10.0])[1] == pytest.approx(-45.0)  # below the centroid
+
+
+def test_d2_tables_say_which_normals_d2_used(tmp_path):
+    """The D2 table captions (Markdown, LaTeX) and REPORT.md name the normals the runs' D2 used, as
+    the runner records them: from file for both sequences here, then mixed per sequence."""
+    from bench.tables import d2_normals_note
+
+    store = _store_with_results(tmp_path / "s.sqlite")
+    for seq in ("Human (stand-in)", "Bunny (stand-in)"):
+        for k, method in enumerate(METHODS):
+            rows = [{"frame": f, "metric": "gpsnr_d2", "scope": "frame", "peak": "intrinsic", "value": 20.0 + k + f}
+                    for f in range(3)]
+            source = "estimated" if (seq.startswith("Bunny") and method == "meshlab") else "file"
+            store.record_run(f"{seq[:3]}-{method}-d2", {
+                "sequence": seq, "holes": "region", "holes_params": {"preset": "medium"}, "seed": 1,
+                "method": method, "method_params": {}, "method_version": "1", "code_version": "abc", "spec": {},
+                "env": {"d2_normals": source}}, rows, ["d2"])
+    runs = store.runs_frame("d2")
+    human_ids = set(runs[runs["sequence"] == "Human (stand-in)"]["run_id"])
+    assert d2_normals_note(runs, human_ids) == ("D2 (point-to-plane): normals from file (the ground truth's own, "
+                                                "as pc_error reads them).")
+    mixed = d2_normals_note(runs)
+    assert "Bunny (stand-in): normals estimated by PCA of 12 neighbours" in mixed and "normals from file" in mixed
+    out = tmp_path / "paper"
+    df = store.results_frame("d2")
+    report = write_paper_report(df, runs, out, standins=True, preset="paper-quick", command="x", elapsed_s=1.0,
+                                figure_notes={})
+    md = (out / "tables" / "variant_gpsnr_d2_frame_peakintrinsic.md").read_text()
+    tex = (out / "tables" / "variant_gpsnr_d2_frame_peakintrinsic.tex").read_text()
+    assert "estimated by PCA of 12 neighbours" in md and "normals from file" in md
+    assert "estimated by PCA of 12 neighbours" in tex
+    assert "estimated by PCA of 12 neighbours" in report.read_text()
+    assert "PCA" not in (out / "tables" / "table2_nshd.md").read_text()  # NSHD does not use normals
