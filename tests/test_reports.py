@@ -157,9 +157,31 @@ def test_subjective_grid_renders(tmp_path):
     region = HoleRegion.ball(base[0], 0.4)
     damaged = base[~region.contains(base)]
     rows = [("Ground truth", [base, base]), ("With holes", [damaged, damaged]), ("Method", [base, base])]
-    out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region],
-                          highlight_regions=[[region], [region]], title="test")
-    assert out.stat().st_size > 1000
+    out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region, None],
+                          highlight_regions=[[region], [region]], title="test", panel_height=120)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(out)
+    # the paper's layout: 3 rows of panels, 2 frame columns of (cloud, zoom) side by side: wider than tall
+    assert img.shape[1] > 1.15 * img.shape[0] and img.shape[0] < 4.5 * 120
+    with pytest.raises(ValueError, match="one region"):
+        subjective_grid(rows, ["f=0", "f=1"], tmp_path / "x.png", zoom_regions=[region])
+
+
+def test_flattest_region_prefers_a_hole_in_an_open_surface():
+    """A ball through a thin cylinder (a limb) against one on a plane (a torso): the plane's."""
+    from bench.figures import flattest_region
+    from holes.regions import HoleRegion
+
+    rng = np.random.default_rng(1)
+    angle, height = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(0, 40, 4000)
+    limb = np.c_[3 * np.cos(angle), height, 3 * np.sin(angle)]
+    torso = np.c_[rng.uniform(20, 60, 4000), rng.uniform(0, 40, 4000), np.zeros(4000)]
+    points = np.vstack([limb, torso])
+    regions = [HoleRegion.ball([0.0, 20.0, 0.0], 5.0), HoleRegion.ball([40.0, 20.0, 0.0], 5.0)]
+    assert flattest_region(points, regions) == 1
+    assert flattest_region(points, regions[::-1]) == 0
+    assert flattest_region(points, [HoleRegion.ball([500.0, 0.0, 0.0], 1.0)]) == 0  # no point inside
 
 
 def test_reproduce_paper_refuses_bad_input(tmp_path, capsys):
