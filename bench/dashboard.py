@@ -642,6 +642,13 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
             f'of the newest run per cell, per code version in time order. Scope "frame" scores whole frames, '
             f'"holes" only the hole regions. {_e(paper_note)}</p>{"".join(charts)}</section>')
         gaps = paper_gaps(history, paper, runs)
+        normals_note = ""
+        if runs is not None and len(runs) and "gpsnr_d2" in metrics_present:
+            from bench.tables import d2_normals_note
+
+            done = runs[runs["status"] == "done"]
+            newest = done[done["code_version"].astype(str) == history.versions[-1]]
+            normals_note = d2_normals_note(newest if len(newest) else done)  # the runs of the newest version
         if gaps:
             sections.append(
                 '<section id="paper"><h2>Against the paper</h2><p class="note">GPSNR D1 gain of temporal-graph '
@@ -650,7 +657,7 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
                 'from the paper\'s; the ranking and the size of the gaps are what a reproduction is held to. '
                 'Negative gains in red.</p>' + gaps + '</section>')
         sections.append(f'<section id="latest"><h2>Latest results: {_e(short_version(history.versions[-1]))}</h2>'
-                        f'<p class="note">Mean ± std over frames; best per column in bold.</p>'
+                        f'<p class="note">Mean ± std over frames; best per column in bold. {_e(normals_note)}</p>'
                         f'{latest_table(history, colours, quality_metrics)}</section>')
     # speed
     speed = []

@@ -282,6 +282,7 @@ def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypat
     assert result.returncode == 0, result.stderr[-2000:]
     dom = result.stdout
     assert "Against the paper" in dom
+    assert "D2 (point-to-plane): normals from file" in dom  # the stand-ins' own normals
     gaps = dom[dom.index("class=\"gaps\"") if 'class="gaps"' in dom else dom.index("class='gaps'"):]
     gaps = gaps[:gaps.index("</table>")]
     rows = re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)</td>", gaps)
