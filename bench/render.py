@@ -357,8 +357,8 @@ def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: lis
     The zoom shows the points whose screen position lies in the square and whose depth is within
     2 ``zoom_half`` of the centre's: surfaces far in front of or behind the hole (another limb, the
     back of the body) do not cover it. Every panel uses the same view and scale; every zoom the same
-    magnification. The PNG is ``panel_height``-based: about (2 + width/height of the cloud) x
-    ``panel_height`` pixels per cell.
+    magnification. Each cell is ``panel_height`` pixels tall and (1 + the clouds' width / height) x
+    ``panel_height`` wide; 260 (the default) prints a 3-frame figure at about 380 dpi a column wide.
     """
     import matplotlib
 

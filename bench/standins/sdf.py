@@ -68,7 +68,7 @@ class RoundCone:
         length = np.sqrt(l2)
         e = ba / length
         pa = p - self.a
-        y = pa @ ba
+        y = pa[:, 0] * ba[0] + pa[:, 1] * ba[1] + pa[:, 2] * ba[2]  # no BLAS call (see _rotate_inverse)
         z = y - l2
         s = y / length
         w = pa - np.outer(s, e)
@@ -111,7 +111,7 @@ class Ellipsoid:
         u = _rotate_inverse(p - self.c, self.R) / self.radii
         norm = np.sqrt(np.einsum("ij,ij->i", u, u))
         g = float(self.radii.min()) * u / self.radii / np.maximum(norm, 1e-300)[:, None]
-        return g @ self.R.T
+        return g[:, :1] * self.R[:, 0] + g[:, 1:2] * self.R[:, 1] + g[:, 2:3] * self.R[:, 2]  # g @ R^T
 
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
         # half extent along world axis i of a rotated ellipsoid: sqrt(sum_j (R_ij r_j)^2)
