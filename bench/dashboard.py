@@ -437,14 +437,18 @@ def comparison_table(comparison: compare.Comparison, colours: dict[str, str], ro
     return "".join(out)
 
 
-def paper_gaps(history: History, paper: pd.DataFrame) -> str:
+def paper_gaps(history: History, paper: pd.DataFrame, runs: pd.DataFrame | None = None) -> str:
     """The paper's claim as a reproduction can test it on any data: temporal-graph's GPSNR D1 gain
     (dB) over each other method of the paper's columns, and the NSHD ratio fu-nonlocal /
-    temporal-graph, at the newest version, per sequence and scope, beside the paper's average over
-    its five sequences. Each method in the configuration bench.paper gives its column (the paper
-    configuration: variant=paper for the two graph methods, meshlab output=whole) where the store
-    holds it, else at its defaults (for the graph methods: our tuned variant, not the paper
-    configuration)."""
+    temporal-graph, at the newest version, per sequence, hole configuration (generator and
+    parameters: e.g. the independent and the temporally coherent holes of `reproduce-paper` are two
+    rows) and scope, beside the paper's average over its five sequences. Each method in the
+    configuration bench.paper gives its column (the paper configuration: variant=paper for the two
+    graph methods, meshlab output=whole) where the store holds it, else at its defaults (for the
+    graph methods: our tuned variant, not the paper configuration). ``runs`` (the store's runs
+    table) supplies the labels that experiment configs gave to hole configurations ("coherent holes")."""
+    from bench.tables import config_labels, given_labels
+
     proposed = "temporal-graph"
     others = [m for m in paper["method"].drop_duplicates() if m != proposed]
     # each method in its paper column's configuration (bench.paper), else at its defaults
@@ -466,8 +470,13 @@ def paper_gaps(history: History, paper: pd.DataFrame) -> str:
     ref = paper.pivot_table(index="sequence", columns=["metric", "method"], values="value")
     paper_gain = {m: float((ref[("gpsnr_d1", proposed)] - ref[("gpsnr_d1", m)]).mean()) for m in others}
     paper_ratio = float((ref[("nshd", "fu-nonlocal")] / ref[("nshd", proposed)]).mean())
+    # a hole configuration is named by its generator plus the parameters that tell it from the
+    # generator's other configurations in the table ("region (coherent=True)")
+    given = given_labels(runs, "holes") if runs is not None and len(runs) else {}
+    latest = latest.assign(holes_label=config_labels(latest["holes"], latest["holes_params"], given=given))
     rows = []
-    for (sequence, holes, scope), sub in latest.groupby(["sequence", "holes", "scope"], sort=True):
+    for (sequence, holes, _, scope), sub in latest.groupby(["sequence", "holes_label", "holes_params", "scope"],
+                                                          sort=True):
         psnr = sub[sub["metric"] == "gpsnr_d1"].set_index("method")["mean"]
         nshd = sub[sub["metric"] == "nshd"].set_index("method")["mean"]
         if proposed not in psnr.index:
@@ -635,7 +644,14 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
             f'<section id="quality"><h2>Quality over code versions</h2><p class="note">Mean over frames (and seeds) '
             f'of the newest run per cell, per code version in time order. Scope "frame" scores whole frames, '
             f'"holes" only the hole regions. {_e(paper_note)}</p>{"".join(charts)}</section>')
-        gaps = paper_gaps(history, paper)
+        gaps = paper_gaps(history, paper, runs)
+        normals_note = ""
+        if runs is not None and len(runs) and "gpsnr_d2" in metrics_present:
+            from bench.tables import d2_normals_note
+
+            done = runs[runs["status"] == "done"]
+            newest = done[done["code_version"].astype(str) == history.versions[-1]]
+            normals_note = d2_normals_note(newest if len(newest) else done)  # the runs of the newest version
         if gaps:
             sections.append(
                 '<section id="paper"><h2>Against the paper</h2><p class="note">GPSNR D1 gain of temporal-graph '
@@ -646,7 +662,7 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
                 'from the paper\'s; the ranking and the size of the gaps are what a reproduction is held to. '
                 'Negative gains in red.</p>' + gaps + '</section>')
         sections.append(f'<section id="latest"><h2>Latest results: {_e(short_version(history.versions[-1]))}</h2>'
-                        f'<p class="note">Mean ± std over frames; best per column in bold.</p>'
+                        f'<p class="note">Mean ± std over frames; best per column in bold. {_e(normals_note)}</p>'
                         f'{latest_table(history, colours, quality_metrics)}</section>')
     # speed
     speed = []

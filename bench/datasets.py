@@ -39,7 +39,7 @@ DATA_DIR_ENV = "DPCBENCH_DATA_DIR"
 
 @dataclass(frozen=True)
 class EmbeddedDataset:
-    """A generated sequence: ``module.generate_frame(index, **params) -> (points, colours)``."""
+    """A generated sequence: ``module.generate_frame(index, **params) -> (points, colours, normals)``."""
 
     name: str
     description: str
@@ -304,17 +304,22 @@ def generate_embedded(name: str, frames=None, *, cache: bool = True, progress: b
     for index in iterator:
         key = cache_key(name, module.GENERATOR_VERSION, full, index)
         arrays = load_cached(key, name) if cache else None
+        if arrays is not None and "normals" not in arrays:  # written by an older dpcbench: regenerate
+            arrays = None
         if arrays is None:
             try:
-                points, colours = module.generate_frame(index, **full)
+                points, colours, normals = module.generate_frame(index, **full)
             except (ValueError, TypeError) as err:
                 raise UserError(f"{name}: {err}") from err
-            # voxel indices (<= 16 bits) are stored exactly as uint16; float samples keep float64
+            # voxel indices (<= 16 bits) are stored exactly as uint16; float samples keep float64;
+            # normals as float32, the type of the PLY files, so that the frames in memory and the
+            # frames written (which pc_error reads) carry the same normals
             arrays = {"points": points if full.get("bit_depth") is None else points.astype(np.uint16),
-                      "colors": colours}
+                      "colors": colours, "normals": normals.astype(np.float32)}
             if cache:
                 store_cached(key, name, arrays)
-        out.append(PointCloud(arrays["points"].astype(np.float64), arrays["colors"]))
+        out.append(PointCloud(arrays["points"].astype(np.float64), arrays["colors"],
+                              arrays["normals"].astype(np.float64)))
     bit_depth = full.get("bit_depth")
     meta = {"generator": name, "version": module.GENERATOR_VERSION, "params": full, "frame_indices": indices,
             "description": info.description}

@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from scipy.spatial import cKDTree  # noqa: E402
 
 from bench.tables import ComparisonTable, frame_values  # noqa: E402
 
@@ -96,6 +97,24 @@ def facing_view(points: np.ndarray, center: np.ndarray) -> tuple[float, float]:
     return (azimuth, elevation)
 
 
+def flattest_region(points: np.ndarray, regions: list) -> int:
+    """Index of the region whose points (of ``points``, (N, 3)) lie closest to a plane: the smallest
+    lambda_min / (lambda_1 + lambda_2 + lambda_3) of their covariance (regions with fewer than 10
+    points count as not flat). A hole cut into an open surface patch (a torso) reads as a hole from
+    one viewpoint; one that wraps around a thin limb (a ball through an ankle) does not. 0 when no
+    region has 10 points."""
+    best, best_score = 0, np.inf
+    for i, region in enumerate(regions):
+        inside = np.asarray(points)[region.contains(points)]
+        if len(inside) < 10:
+            continue
+        eig = np.linalg.eigvalsh(np.cov(inside.T))
+        score = float(eig[0] / max(eig.sum(), 1e-300))
+        if score < best_score:
+            best, best_score = i, score
+    return best
+
+
 def zoom_box(regions: list, pad: float = 1.3) -> tuple:
     """An axis-aligned box (x0, y0, z0, x1, y1, z1) around hole regions (their bounding balls grown by ``pad``)."""
     lo = np.min([r.center - pad * r.bounding_radius for r in regions], axis=0)
@@ -105,29 +124,44 @@ def zoom_box(regions: list, pad: float = 1.3) -> tuple:
 
 def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list[str], out_png: str | Path, *,
                     zoom_regions: list | None = None, highlight_regions: list[list] | None = None,
-                    view=None, title: str = "", highlight_from_row: int = 2) -> Path:
-    """A paper-style subjective figure (Fig. 3/4): one row per (label, frames) entry (ground truth,
-    with holes, each method), one column per frame, drawn by `bench.render.render_clouds` with the
-    same scale in every panel, shaded by normals. ``zoom_regions``: hole regions whose box is outlined
-    and magnified under each row. ``highlight_regions``: per column, regions whose points are painted
-    red (the filled area) in every row from ``highlight_from_row`` on (default 2: not in the ground
-    truth and the damaged input)."""
-    from bench.render import render_clouds
+                    view=None, title: str = "", highlight_from_row: int = 2, panel_height: int = 260) -> Path:
+    """A paper-style subjective figure (Fig. 3/4), laid out like the paper's: one row per (label,
+    frames) entry (ground truth, with holes, each method), one column per frame; each cell is the
+    whole frame, shaded by normals, with the hole's area outlined in orange, and beside it that area
+    magnified (`bench.render.render_zoom_grid`).
+
+    zoom_regions:      per column (frame), the hole region to magnify, or None (no hole there); every
+                       column is magnified equally: a square of side 2 x 2 x the largest region's
+                       bounding radius (at least 16 point spacings), centred on each column's region.
+    highlight_regions: per column, regions whose points are tinted red (the filled area) in every
+                       row from ``highlight_from_row`` on (default 2: not in the ground truth and
+                       the damaged input).
+    view:              None = facing the first zoom region from outside the body (`facing_view`).
+    """
+    from bench.render import render_zoom_grid
     from holes.regions import union_mask
 
-    grid, titles, highlight = [], [], []
+    grid, highlight = [], []
     for r, (label, frames) in enumerate(rows):
         grid.append([np.asarray(f, float) for f in frames])
-        titles.append([f"{label}, {frame_labels[c]}" for c in range(len(frames))])
         marks = []
         for c, pts in enumerate(frames):
             regs = highlight_regions[c] if highlight_regions is not None and r >= highlight_from_row else None
-            marks.append(union_mask(regs, pts) if regs else None)
+            marks.append(union_mask(regs, np.asarray(pts, float)) if regs else None)
         highlight.append(marks)
-    box = zoom_box(zoom_regions) if zoom_regions else None
-    if view is None and zoom_regions:
-        view = facing_view(grid[0][0], zoom_regions[0].center)
+    n_cols = len(frame_labels)
+    zoom_regions = list(zoom_regions) if zoom_regions is not None else [None] * n_cols
+    if len(zoom_regions) != n_cols:
+        raise ValueError(f"zoom_regions: give one region (or None) per column ({n_cols}), got {len(zoom_regions)}")
+    present = [z for z in zoom_regions if z is not None]
+    first = grid[0][0]
+    spacing = float(np.median(cKDTree(first).query(first, k=2)[0][:, 1])) if len(first) > 1 else 1.0
+    half = max([2.0 * z.bounding_radius for z in present] + [8.0 * spacing])
+    if view is None:
+        view = facing_view(first, present[0].center) if present else "front"
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
-    return render_clouds(grid, out, titles=titles, zoom=box, highlight=highlight, view=view or "front",
-                         shading="normal", panel_height=300, suptitle=title or None)
+    return render_zoom_grid(grid, out, row_labels=[label for label, _ in rows], column_labels=list(frame_labels),
+                            zooms=[None if z is None else z.center for z in zoom_regions], zoom_half=half,
+                            highlight=highlight, view=view, shading="normal", panel_height=panel_height,
+                            title=title or None)

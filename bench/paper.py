@@ -267,7 +267,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
 
     import numpy as np
 
-    from bench.figures import subjective_grid
+    from bench.figures import flattest_region, subjective_grid
     from bench.runner import load_ground_truth, read_run_folder
 
     fig_dir = Path(fig_dir)
@@ -289,7 +289,14 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         n = len(truth.frames)
         shown = sorted(set(np.linspace(0, n - 1, min(4, n)).round().astype(int).tolist()))
         regions = content0["regions"]
-        zoom = [regions[f][0] for f in shown if regions[f]]  # the first hole, followed over the frames
+        # the flattest hole of the first frame shown (a hole in an open surface reads as a hole from one
+        # view), followed over the frames: the same index for coherent holes (the generator keeps the
+        # order), else the nearest region of each frame
+        first = None
+        if regions[shown[0]]:
+            first = regions[shown[0]][flattest_region(truth.frames[shown[0]].points, regions[shown[0]])]
+        zoom = [None if first is None or not regions[f] else
+                min(regions[f], key=lambda r: float(np.linalg.norm(r.center - first.center))) for f in shown]
         rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                 ("With holes", [content0["damaged"][f] for f in shown])]
         for _, label, _ in PAPER_METHODS:
@@ -301,8 +308,8 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         missing = [label for _, label, _ in PAPER_METHODS if label not in done]
         notes["fig4_synthetic_holes"] = (
             f"Like the paper's Fig. 4: {first_seq}, {first_holes.get('label') or first_holes['generator']}, seed {seed}; rows ground truth, with holes, then each of the paper's methods in its paper configuration; "
-            f"columns frames {shown}; the orange box (first hole) is magnified under each row; points inside "
-            "the hole regions are red in the method rows." + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))
+            f"columns frames {shown}; each panel's orange square (the flattest hole of the first frame, followed over the frames) is "
+            "magnified beside it; points inside the hole regions are tinted red in the method rows." + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))
 
     # Fig. 3: detected holes on consecutive frames
     done = _done_folders(store, protocol.real)
@@ -312,17 +319,19 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         content0 = read_run_folder(folder0)
         detected = content0["detected"] or [[] for _ in content0["damaged"]]
         shown = list(range(len(content0["damaged"])))
-        # detections are not tracked over frames: follow the first one through each frame's nearest
-        # detection within 5% of the bounding-box diagonal
-        first = next((detected[f][0] for f in shown if detected[f]), None)
-        zoom = []
+        # detections are not tracked over frames: follow the flattest one of the first frame with a
+        # detection (see flattest_region) through each frame's nearest detection within 5% of the
+        # bounding-box diagonal
+        first = next((detected[f][flattest_region(content0["damaged"][f], detected[f])] for f in shown
+                      if detected[f]), None)
+        zoom = [None] * len(shown)
         if first is not None:
             pts = content0["damaged"][0]
             reach = 0.05 * float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-            for f in shown:
+            for k, f in enumerate(shown):
                 near = [d for d in detected[f] if np.linalg.norm(d.center - first.center) <= reach]
                 if near:
-                    zoom.append(min(near, key=lambda d: np.linalg.norm(d.center - first.center)))
+                    zoom[k] = min(near, key=lambda d: np.linalg.norm(d.center - first.center))
         if protocol.standins:
             rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                     ("Acquisition holes", content0["damaged"])]
@@ -341,7 +350,8 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         notes["fig3_real_holes"] = (
             f"Like the paper's Fig. 3: {source}. The methods get the regions found by "
             f"`holes.detection.detect_holes` ({counts} regions per frame), not the true ones; consecutive "
-            "frames show temporal coherence; red = points inside the detected regions."
+            "frames show temporal coherence; the orange square (the flattest detected hole, followed over the frames) "
+            "is magnified beside each panel; points inside the detected regions are tinted red."
             + (" No hole was detected in these frames, so every method returned them unchanged: the "
                "detector's parameters (holes.detection) decide what this figure can show." if not any(counts) else ""))
     return notes

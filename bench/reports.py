@@ -15,7 +15,8 @@ import pandas as pd
 
 from bench import figures, paper
 from bench.compare import newest_runs
-from bench.tables import ComparisonTable, comparison_table, config_labels, given_labels, method_labels, runtime_table
+from bench.tables import (ComparisonTable, comparison_table, config_labels, d2_normals_note, given_labels, method_labels,
+                          runtime_table, uses_d2)
 
 
 def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, Path]:
@@ -73,15 +74,17 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
     metrics = metrics or [m for m in dict.fromkeys(df["metric"]) if m not in skip and not m.startswith("temporal")]
     scopes = scopes or [s for s in ("frame", "holes") if s in set(df["scope"])]
     sections = [f"# {title}", ""]
+    normals_note = d2_normals_note(runs, set(df["run_id"]))
     n_runs = runs["run_id"].nunique()
     sections += [f"{n_runs} runs ({(runs.drop_duplicates('run_id')['status'] == 'done').sum()} done) over "
-                 f"sequences {', '.join(sorted(df['sequence'].unique()))}.", ""]
+                 f"sequences {', '.join(sorted(df['sequence'].unique()))}." + (f" {normals_note}" if normals_note else ""), ""]
     for metric in metrics:
         for scope in scopes:
             peak = _pick_peak(df, metric)
             table = comparison_table(df, metric, scope, peak, title=f"{metric}, scope {scope}",
                                      scale=1e7 if metric == "nshd" else 1.0,
-                                     decimals=2 if "psnr" in metric else None)
+                                     decimals=2 if "psnr" in metric else None,
+                                     notes=[normals_note] if uses_d2(metric) and normals_note else None)
             if not table.rows:
                 continue
             stem = f"{metric}_{scope}"
@@ -186,8 +189,9 @@ def columns_markdown() -> str:
 
 
 def paper_tables(df: pd.DataFrame, *, standins: bool, peak: str = "intrinsic", scope: str = "frame",
-                 gpsnr_metric: str = "gpsnr_d1") -> tuple[ComparisonTable, ComparisonTable]:
-    """Table 1 (GPSNR, dB) and Table 2 (NSHD, x1e-7) in the paper's layout."""
+                 gpsnr_metric: str = "gpsnr_d1", normals_note: str = "") -> tuple[ComparisonTable, ComparisonTable]:
+    """Table 1 (GPSNR, dB) and Table 2 (NSHD, x1e-7) in the paper's layout; ``normals_note``
+    (`bench.tables.d2_normals_note`) goes under Table 1 when it is a D2 table."""
     note = ("Rows are embedded STAND-IN sequences, not the paper's data: compare rankings and gaps, not "
             "absolute values; the paper's rows are printed for reference." if standins else
             "Rows are the paper's sequences (local copies); frames and holes follow this run's preset.")
@@ -196,7 +200,7 @@ def paper_tables(df: pd.DataFrame, *, standins: bool, peak: str = "intrinsic", s
     columns = paper.ALL_COLUMNS
     t1 = comparison_table(df, gpsnr_metric, scope, peak, title=f"Table 1: GPSNR ({gp_label}, dB){where}",
                           column_of=paper_column, columns=columns, paper=paper.paper_table("gpsnr"),
-                          notes=[note, paper.columns_caption()])
+                          notes=[note, paper.columns_caption()] + ([normals_note] if uses_d2(gpsnr_metric) and normals_note else []))
     t2 = comparison_table(df, "nshd", scope, "", title=f"Table 2: NSHD (x1e-7){where}", column_of=paper_column,
                           columns=columns, scale=1e7, decimals=4, paper=paper.paper_table("nshd"),
                           notes=[note, paper.columns_caption()])
@@ -213,7 +217,8 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
     fig_dir.mkdir(parents=True, exist_ok=True)
     label = "STAND-IN DATA (embedded human and bunny, not the paper's sequences)" if standins else "the paper's sequences"
     df = hole_rows(df, runs)
-    t1, t2 = paper_tables(df, standins=standins)
+    normals_note = d2_normals_note(runs, set(df["run_id"]))
+    t1, t2 = paper_tables(df, standins=standins, normals_note=normals_note)
     write_table(t1, tables_dir, "table1_gpsnr")
     write_table(t2, tables_dir, "table2_nshd")
     subtitle = "embedded stand-ins, not the paper's data" if standins else ""
@@ -236,7 +241,7 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
                 tv = comparison_table(df, metric, scope, peak,
                                       title=f"Table 1 variant: {metric}, scope {scope}, peak {peak}",
                                       column_of=paper_column, columns=paper.ALL_COLUMNS,
-                                      notes=[paper.columns_caption()])
+                                      notes=[paper.columns_caption()] + ([normals_note] if uses_d2(metric) and normals_note else []))
             stem = f"variant_{metric}_{scope}" + (f"_peak{peak}" if peak else "")
             write_table(tv, tables_dir, stem)
             variants.append(tv)
@@ -255,6 +260,8 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
                  "comparable with the paper's; the ranking of the methods and the size of the gaps are. Run "
                  "`dpcbench reproduce-paper --data-dir DIR` with local copies for the paper's rows.", ""]
     text += [f"Command: `{command}` (preset `{preset}`); wall time {elapsed_s / 60:.1f} min.", ""]
+    if normals_note:
+        text += [normals_note, ""]
     seqs = runs[runs["run_id"].isin(set(df["run_id"]))].drop_duplicates("run_id")
     frames = df[df["frame"] >= 0].groupby("sequence")["frame"].nunique()
     text += ["Sequences: " + ", ".join(f"{s} ({frames.get(s, 0)} frames)" for s in sorted(df["sequence"].unique())) + ".",

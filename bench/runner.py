@@ -305,11 +305,28 @@ def _uses_peak(name: str) -> bool:
     return "psnr" in name
 
 
+#: how D2 got the reference normals, as stored in a run's ``env["d2_normals"]`` and printed in captions
+D2_NORMALS_FILE = "file"
+D2_NORMALS_ESTIMATED = "estimated"
+D2_NORMALS_TEXT = {
+    D2_NORMALS_FILE: "normals from file (the ground truth's own, as pc_error reads them)",
+    D2_NORMALS_ESTIMATED: "normals estimated by PCA of 12 neighbours (the ground truth has none)",
+}
+
+
+def d2_normals_source(truth) -> str:
+    """``"file"`` when every ground-truth frame carries normals (the stand-ins' exact normals, or a
+    PLY's nx ny nz): D2 uses them, as pc_error does; ``"estimated"`` otherwise (`metrics.pairs.
+    estimate_normals` on the frames without)."""
+    return D2_NORMALS_FILE if all(f.normals is not None for f in truth.frames) else D2_NORMALS_ESTIMATED
+
+
 def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) -> list[dict]:
     """Every metric per frame and scope (and peak for PSNRs), plus temporal consistency at frame -1.
 
     PSNRs are as `metrics.score_pair` returns them (capped at its ``max_psnr``, 200 dB by default,
-    when a result equals the reference)."""
+    when a result equals the reference). D2 uses the ground truth's own normals when its frames carry
+    them (`d2_normals_source`), else normals estimated by PCA of 12 neighbours."""
     import metrics as metrics_pkg
 
     cfg = spec.metrics
@@ -378,6 +395,7 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
         results.append({"frame": f, "metric": "removed_fraction", "scope": "frame", "peak": "", "value": frac})
     env = environment()
     env["frames_reused"] = reused
+    env["d2_normals"] = d2_normals_source(truth)
     record = {
         "sequence": spec.sequence_label, "holes": spec.holes["generator"], "holes_params": spec.holes["params"],
         "seed": spec.holes["seed"], "method": spec.method["name"], "method_params": spec.method["params"],

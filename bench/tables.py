@@ -187,6 +187,39 @@ class ComparisonTable:
         return buf.getvalue()
 
 
+def uses_d2(metric: str) -> bool:
+    """Whether a metric is a point-to-plane (D2) figure, whose value depends on the reference normals."""
+    return metric in ("gpsnr_d2", "d2_mse")
+
+
+def d2_normals_note(runs: pd.DataFrame, run_ids=None) -> str:
+    """One sentence for table captions: which normals D2 used, read from the runs' stored
+    ``env["d2_normals"]`` (`bench.runner.d2_normals_source`): "normals from file" or "estimated by
+    PCA of 12 neighbours", per sequence when they differ; "" when ``runs`` is empty."""
+    from bench.runner import D2_NORMALS_TEXT
+
+    if runs is None or runs.empty:
+        return ""
+    runs = runs.drop_duplicates("run_id")
+    if run_ids is not None:
+        runs = runs[runs["run_id"].isin(set(run_ids))]
+    by_sequence: dict[str, set] = {}
+    for sequence, env in zip(runs["sequence"], runs["env"]):
+        try:
+            source = json.loads(env).get("d2_normals") if isinstance(env, str) else None
+        except ValueError:
+            source = None
+        by_sequence.setdefault(str(sequence), set()).add(source or "unknown")
+    sources = set().union(*by_sequence.values()) if by_sequence else set()
+    if not sources:
+        return ""
+    text = {**D2_NORMALS_TEXT, "unknown": "normals not recorded (runs made before dpcbench recorded them)"}
+    if len(sources) == 1:
+        return f"D2 (point-to-plane): {text[next(iter(sources))]}."
+    parts = [f"{seq}: {' / '.join(text[s] for s in sorted(src))}" for seq, src in sorted(by_sequence.items())]
+    return "D2 (point-to-plane): " + "; ".join(parts) + "."
+
+
 def frame_values(df: pd.DataFrame, metric: str, scope: str, peak: str = "") -> pd.DataFrame:
     """The per-frame rows (frame >= 0) of one metric/scope/peak."""
     sel = df[(df["metric"] == metric) & (df["scope"] == scope) & (df["frame"] >= 0)]

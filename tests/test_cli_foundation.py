@@ -76,11 +76,11 @@ def test_generate_info_render_round_trip(tmp_path, capsys):
     assert [f.name for f in files] == ["bunny_0000.ply", "bunny_0001.ply", "bunny_0002.ply"]
     code, out, _ = run_cli(["info", out_dir, "--json"], capsys)
     info = json.loads(out)
-    assert code == 0 and info["frames"] == 3 and info["bit_depth"] == 9 and info["colors"] and not info["normals"]
+    assert code == 0 and info["frames"] == 3 and info["bit_depth"] == 9 and info["colors"] and info["normals"]
     assert info["points_per_frame"] == [len(read_ply(f)) for f in files]
     assert info["median_spacing_frame0"] == 1.0
     code, out, _ = run_cli(["info", "human", "--frames", "1", "--param", "size=tiny"], capsys)
-    assert code == 0 and "10-bit integer coordinates (0..1023)" in out and "colours yes, normals no" in out
+    assert code == 0 and "10-bit integer coordinates (0..1023)" in out and "colours yes, normals yes" in out
     png = tmp_path / "fig.png"
     code, out, _ = run_cli(["render", out_dir, "--out", png, "--frames", "0,2", "--zoom", "200,100,200,300,200,300",
                             "--view", "left"], capsys)

@@ -234,3 +234,59 @@ def test_comparison_against_a_baseline_summary(tmp_path):
     changes = page.split('<section id="comparison">')[1].split("<details>")[0]
     assert "against the baseline summary (code 11111111" in changes
     assert changes.count('data-status="REGRESSED"') == 4
+
+
+def test_paper_gaps_per_sequence_and_hole_configuration(tmp_path):
+    """Two hole configurations of one generator on one sequence (reproduce-paper's independent and
+    coherent holes) are two rows of the gaps table, each with its own gains, named by the labels
+    the experiment config gave them (this raised "truth value of a Series is ambiguous")."""
+    store = ResultsStore(tmp_path / "s.sqlite")
+    psnr = {"temporal-graph": 30.0, "fu-nonlocal": 27.0, "lozes-pde": 22.0, "meshlab": 10.0}
+    for coherent, label, shift in ((False, "independent holes", 0.0), (True, "coherent holes", -2.0)):
+        holes_params = {"preset": "medium", "coherent": coherent}
+        for method, value in psnr.items():
+            # the proposed method loses 2 dB on coherent holes, the others do not
+            gain = shift if method == "temporal-graph" else 0.0
+            rows = [dict(frame=f, metric=m, scope="frame", peak=p, value=v) for f in range(2)
+                    for m, p, v in (("gpsnr_d1", "intrinsic", value + gain), ("nshd", "", 1e-7))]
+            store.record_run(f"{method}-{coherent}", dict(
+                sequence="Human (stand-in)", holes="region", holes_params=holes_params, seed=0, method=method,
+                method_params={"output": "whole"} if method == "meshlab" else {}, method_version="1",
+                code_version="abc", spec={"holes": {"generator": "region", "label": label}},
+                created_at=VERSIONS[0][1], finished_at=VERSIONS[0][1], env={}), rows, ["paper-quick"])
+    history = dashboard.build_history(store.results_frame())
+    html_text = dashboard.paper_gaps(history, dashboard.paper_reference(), store.runs_frame())
+    rows = re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)</td>(.*?)</tr>", html_text)
+    by_holes = {holes: re.findall(r"([+-]\d+\.\d\d) dB", cells) for _, holes, _, cells in rows}
+    assert set(by_holes) == {"independent holes", "coherent holes"}
+    assert by_holes["independent holes"] == ["+20.00", "+8.00", "+3.00"]  # vs meshlab, lozes-pde, fu-nonlocal
+    assert by_holes["coherent holes"] == ["+18.00", "+6.00", "+1.00"]
+
+
+def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypatch, capsys):
+    """The README's flow: `reproduce-paper --quick` (here with 2 frames a sequence to keep it short),
+    then `dpcbench dashboard` on the same store, and the page opened in a real browser: the gaps to
+    the paper are shown per sequence and hole configuration."""
+    if shutil.which("chromium") is None and shutil.which("chromium-browser") is None:
+        pytest.skip("chromium is not installed (Debian: apt-get install chromium; ./install.sh --dev installs it)")
+    monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    store = str(tmp_path / "results.sqlite")
+    code = cli_main(["reproduce-paper", "--quick", "--frames", "2", "--out", str(tmp_path / "r"), "--store", store])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert (tmp_path / "r" / "REPORT.md").is_file()
+    page = tmp_path / "d.html"
+    assert cli_main(["dashboard", "--out", str(page), "--store", store]) == 0
+    assert "dashboard written" in capsys.readouterr().out
+    result = run_chromium(["--dump-dom", page.resolve().as_uri()], tmp_path / "profile")
+    assert result.returncode == 0, result.stderr[-2000:]
+    dom = result.stdout
+    assert "Against the paper" in dom
+    assert "D2 (point-to-plane): normals from file" in dom  # the stand-ins' own normals
+    gaps = dom[dom.index("class=\"gaps\"") if 'class="gaps"' in dom else dom.index("class='gaps'"):]
+    gaps = gaps[:gaps.index("</table>")]
+    rows = re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)</td>", gaps)
+    configurations = {(sequence, holes) for sequence, holes, _ in rows}
+    for sequence in ("Human (stand-in)", "Bunny (stand-in)"):
+        assert {(sequence, "independent holes"), (sequence, "coherent holes")} <= configurations, configurations
+    assert len(re.findall(r" dB</td>", gaps)) >= 3 * len(rows)  # a gain vs every other method in each row

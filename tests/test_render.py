@@ -117,3 +117,40 @@ def test_render_refuses_bad_panels(tmp_path):
     with pytest.raises(ValueError, match="empty"):
         render_clouds([], tmp_path / "x.png")
     assert HIGHLIGHT_COLOR[0] > 200
+
+
+def test_zoom_grid_layout_magnification_and_depth_window(tmp_path):
+    """Rows x columns of (cloud, zoom beside it): the hole's tinted fill covers many times more pixels
+    in the zoom than in the cloud panel, a blob far in front of the hole (an occluding limb) hides it
+    in the cloud panel but not in the zoom, and a column without a hole gets a plain "no hole" zoom."""
+    from bench.render import render_zoom_grid
+
+    full = sphere(n=20000, seed=3)
+    hole = np.linalg.norm(full - [0.0, 0.0, 50.0], axis=1) < 10
+    blob = sphere(n=2000, seed=4) * 0.3 + [0.0, 0.0, 95.0]  # 45 units in front of the hole centre, wider
+    with_blob = np.vstack([full, blob])
+    grid = [[full[~hole], full[~hole]], [with_blob, full]]
+    highlight = [[None, None], [np.r_[hole, np.zeros(len(blob), bool)], hole]]
+    H = 200
+    out = render_zoom_grid(grid, tmp_path / "z.png", row_labels=["damaged", "filled"], column_labels=["f=0", "f=1"],
+                           zooms=[np.array([0.0, 0.0, 50.0]), None], zoom_half=15.0, highlight=highlight,
+                           view="front", panel_height=H)
+    img = mpimg.imread(out)[..., :3]
+    assert img.shape[1] > 1.6 * img.shape[0]  # two cells of (cloud, zoom) side by side, two rows
+    label_w, head_h, gap_in, gap_row = int(0.3 * H), int(0.2 * H), 3, 8
+    width = img.shape[1]
+    cell = (width - label_w - gap_in - max(6, H // 12)) // 2  # two cells and one gap between them
+    W = cell - gap_in - H
+    red = (img[..., 0] > 0.3) & (img[..., 0] > 2.5 * img[..., 1]) & (img[..., 0] > 2.5 * img[..., 2])
+    row1 = slice(head_h + H + gap_row, head_h + 2 * H + gap_row)
+    cloud_panel = red[row1, label_w:label_w + W]
+    zoom_panel = red[row1, label_w + W + gap_in:label_w + W + gap_in + H]
+    hidden = red[row1, label_w + cell + max(6, H // 12):label_w + cell + max(6, H // 12) + W]  # f=1: no blob
+    assert hidden.sum() > 20  # the fill is visible in a cloud panel without the blob in front
+    assert cloud_panel.sum() < 0.5 * hidden.sum()  # the blob hides (most of) it in the panel it is in
+    assert zoom_panel.sum() > 5 * hidden.sum()  # magnified, and the blob is outside the depth window
+    assert not red[head_h:head_h + H].any()  # the damaged row has nothing tinted
+    no_hole = img[row1, width - gap_in - H + 10:width - gap_in - 10]
+    assert np.mean(np.all(np.abs(no_hole - 238 / 255) < 0.02, axis=-1)) > 0.8
+    with pytest.raises(ValueError, match="zoom centres"):
+        render_zoom_grid(grid, tmp_path / "x.png", row_labels=["a", "b"], column_labels=["f=0", "f=1"], zooms=[None])

@@ -170,9 +170,31 @@ def test_subjective_grid_renders(tmp_path):
     region = HoleRegion.ball(base[0], 0.4)
     damaged = base[~region.contains(base)]
     rows = [("Ground truth", [base, base]), ("With holes", [damaged, damaged]), ("Method", [base, base])]
-    out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region],
-                          highlight_regions=[[region], [region]], title="test")
-    assert out.stat().st_size > 1000
+    out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region, None],
+                          highlight_regions=[[region], [region]], title="test", panel_height=120)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(out)
+    # the paper's layout: 3 rows of panels, 2 frame columns of (cloud, zoom) side by side: wider than tall
+    assert img.shape[1] > 1.15 * img.shape[0] and img.shape[0] < 4.5 * 120
+    with pytest.raises(ValueError, match="one region"):
+        subjective_grid(rows, ["f=0", "f=1"], tmp_path / "x.png", zoom_regions=[region])
+
+
+def test_flattest_region_prefers_a_hole_in_an_open_surface():
+    """A ball through a thin cylinder (a limb) against one on a plane (a torso): the plane's."""
+    from bench.figures import flattest_region
+    from holes.regions import HoleRegion
+
+    rng = np.random.default_rng(1)
+    angle, height = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(0, 40, 4000)
+    limb = np.c_[3 * np.cos(angle), height, 3 * np.sin(angle)]
+    torso = np.c_[rng.uniform(20, 60, 4000), rng.uniform(0, 40, 4000), np.zeros(4000)]
+    points = np.vstack([limb, torso])
+    regions = [HoleRegion.ball([0.0, 20.0, 0.0], 5.0), HoleRegion.ball([40.0, 20.0, 0.0], 5.0)]
+    assert flattest_region(points, regions) == 1
+    assert flattest_region(points, regions[::-1]) == 0
+    assert flattest_region(points, [HoleRegion.ball([500.0, 0.0, 0.0], 1.0)]) == 0  # no point inside
 
 
 def test_reproduce_paper_refuses_bad_input(tmp_path, capsys):
@@ -298,3 +320,36 @@ def test_paper_configuration_and_ours_are_separate_columns(tmp_path):
         assert switch in proposed
     ours = next(line for line in columns.splitlines() if line.startswith("| temporal-graph tuned (ours) |"))
     assert "variant='tuned'" in ours and "link_cutoff=True" in ours
+
+
+def test_d2_tables_say_which_normals_d2_used(tmp_path):
+    """The D2 table captions (Markdown, LaTeX) and REPORT.md name the normals the runs' D2 used, as
+    the runner records them: from file for both sequences here, then mixed per sequence."""
+    from bench.tables import d2_normals_note
+
+    store = _store_with_results(tmp_path / "s.sqlite")
+    for seq in ("Human (stand-in)", "Bunny (stand-in)"):
+        for k, method in enumerate(METHODS):
+            rows = [{"frame": f, "metric": "gpsnr_d2", "scope": "frame", "peak": "intrinsic", "value": 20.0 + k + f}
+                    for f in range(3)]
+            source = "estimated" if (seq.startswith("Bunny") and method == "meshlab") else "file"
+            store.record_run(f"{seq[:3]}-{method}-d2", {
+                "sequence": seq, "holes": "region", "holes_params": {"preset": "medium"}, "seed": 1,
+                "method": method, "method_params": {}, "method_version": "1", "code_version": "abc", "spec": {},
+                "env": {"d2_normals": source}}, rows, ["d2"])
+    runs = store.runs_frame("d2")
+    human_ids = set(runs[runs["sequence"] == "Human (stand-in)"]["run_id"])
+    assert d2_normals_note(runs, human_ids) == ("D2 (point-to-plane): normals from file (the ground truth's own, "
+                                                "as pc_error reads them).")
+    mixed = d2_normals_note(runs)
+    assert "Bunny (stand-in): normals estimated by PCA of 12 neighbours" in mixed and "normals from file" in mixed
+    out = tmp_path / "paper"
+    df = store.results_frame("d2")
+    report = write_paper_report(df, runs, out, standins=True, preset="paper-quick", command="x", elapsed_s=1.0,
+                                figure_notes={})
+    md = (out / "tables" / "variant_gpsnr_d2_frame_peakintrinsic.md").read_text()
+    tex = (out / "tables" / "variant_gpsnr_d2_frame_peakintrinsic.tex").read_text()
+    assert "estimated by PCA of 12 neighbours" in md and "normals from file" in md
+    assert "estimated by PCA of 12 neighbours" in tex
+    assert "estimated by PCA of 12 neighbours" in report.read_text()
+    assert "PCA" not in (out / "tables" / "table2_nshd.md").read_text()  # NSHD does not use normals

@@ -235,3 +235,44 @@ def test_cli_dry_run_and_bad_config(env, tmp_path):
     corrupt = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(junk)],
                              cwd=REPO, capture_output=True, text=True, timeout=60)
     assert corrupt.returncode == 2 and "move it aside" in corrupt.stderr
+
+
+def test_stand_in_d2_uses_the_ground_truth_normals_as_pc_error_would(tmp_path, monkeypatch, capsys):
+    """On a stand-in, the stored D2 is the one pc_error computes from the files: the ground truth as
+    `dpcbench generate` writes it (with the stand-in's exact normals as float nx ny nz) against the
+    run's inpainted PLY. The run records that D2 used the normals from file; estimated normals would
+    give another value."""
+    import metrics
+    from bench.cli import main as cli_main
+    from bench.plyio import read_ply
+    from bench.sequences import list_frame_files
+
+    monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
+    monkeypatch.chdir(REPO)
+    cfg = {
+        "experiment": {"name": "normals", "timeout_s": 300},
+        "sequences": [{"name": "human", "frames": 2, "params": {"size": "tiny"}}],
+        "holes": [{"generator": "region", "params": {"preset": "small", "count": 2}, "seed": 0}],
+        "methods": [{"name": "temporal-copy"}],
+        "metrics": {"names": ["gpsnr_d2", "d2_mse"], "peaks": ["intrinsic"], "scopes": ["frame"]},
+    }
+    specs = parse_config(cfg).expand()
+    store = ResultsStore(tmp_path / "store.sqlite")
+    summary = run_experiment(specs, store, executor="serial", quiet=True)
+    assert len(summary.done) == 1, store.runs_frame()["error"].tolist()
+    run = store.runs_frame().iloc[0]
+    assert json.loads(run["env"])["d2_normals"] == "file"
+
+    assert cli_main(["generate", "human", "--frames", "2", "--param", "size=tiny", "--out", str(tmp_path / "gt")]) == 0
+    capsys.readouterr()
+    truth_files = list_frame_files(tmp_path / "gt")
+    results = store.results_frame()
+    for f, truth_file in enumerate(truth_files):
+        truth = read_ply(truth_file)
+        assert truth.normals is not None  # written as float nx ny nz, as pc_error reads them
+        result = read_ply(Path(run["output_dir"]) / "inpainted" / f"frame_{f:04d}.ply").points
+        figures = metrics.pc_error(truth.points, result, truth.normals, peak="intrinsic")
+        stored = results[(results["frame"] == f) & (results["metric"] == "gpsnr_d2")]["value"].item()
+        assert stored == pytest.approx(figures["d2_psnr"], rel=1e-12)
+        estimated = metrics.pc_error(truth.points, result, None, peak="intrinsic")
+        assert abs(estimated["d2_mse"] / figures["d2_mse"] - 1) > 1e-3

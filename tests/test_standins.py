@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from bench.standins import bunny, cache, human
-from bench.standins.sdf import Ellipsoid, RoundCone, smooth_min, surface_voxels
+from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, smooth_min, surface_voxels
 
 
 @pytest.fixture(autouse=True)
@@ -115,8 +115,8 @@ def test_surface_voxels_match_brute_force():
 
 # -- the human figure -------------------------------------------------------------------------------
 def test_human_is_deterministic_and_8i_like():
-    p1, c1 = human.generate_frame(3, size="tiny")
-    p2, c2 = human.generate_frame(3, size="tiny")
+    p1, c1, _ = human.generate_frame(3, size="tiny")
+    p2, c2, _ = human.generate_frame(3, size="tiny")
     np.testing.assert_array_equal(p1, p2)
     np.testing.assert_array_equal(c1, c2)
     assert 10_000 <= len(p1) <= 30_000
@@ -131,17 +131,17 @@ def test_human_is_deterministic_and_8i_like():
 
 
 def test_human_seed_and_frame_change_output():
-    p0, c0 = human.generate_frame(0, size="tiny")
-    p_seed, c_seed = human.generate_frame(0, size="tiny", seed=1)
-    p_next, _ = human.generate_frame(1, size="tiny")
+    p0, c0, _ = human.generate_frame(0, size="tiny")
+    p_seed, c_seed, _ = human.generate_frame(0, size="tiny", seed=1)
+    p_next, _, _ = human.generate_frame(1, size="tiny")
     assert not np.array_equal(p0, p_seed) and not np.array_equal(c0, c_seed)
     assert not (len(p0) == len(p_next) and np.array_equal(p0, p_next))
 
 
 def test_human_motion_is_articulated():
     """Walking: between consecutive frames the feet move far more than the chest (not a rigid motion)."""
-    p0, _ = human.generate_frame(0, size="tiny")
-    p1, _ = human.generate_frame(1, size="tiny")
+    p0, _, _ = human.generate_frame(0, size="tiny")
+    p1, _, _ = human.generate_frame(1, size="tiny")
     moved = cKDTree(p1).query(p0)[0]
     y = p0[:, 1]
     lo, h = y.min(), np.ptp(y)
@@ -154,7 +154,7 @@ def test_human_motion_is_articulated():
 
 def test_human_motions_and_bit_depth():
     for motion in human.MOTIONS:
-        p, _ = human.generate_frame(5, motion=motion, size="tiny", bit_depth=9)
+        p, _, _ = human.generate_frame(5, motion=motion, size="tiny", bit_depth=9)
         assert p.max() <= 511 and p.min() >= 0
     with pytest.raises(ValueError, match="unknown motion"):
         human.generate_frame(0, motion="fly", size="tiny")
@@ -176,24 +176,91 @@ def icp_rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def test_bunny_deterministic_voxelized_and_non_rigid():
-    p0, c0 = bunny.generate_frame(0, size="tiny")
-    again, c_again = bunny.generate_frame(0, size="tiny")
+    p0, c0, _ = bunny.generate_frame(0, size="tiny")
+    again, c_again, _ = bunny.generate_frame(0, size="tiny")
     np.testing.assert_array_equal(p0, again)
     np.testing.assert_array_equal(c0, c_again)
     assert 10_000 <= len(p0) <= 30_000
     assert np.array_equal(p0, np.round(p0)) and p0.min() >= 0 and p0.max() <= 1023
     assert len(np.unique(p0, axis=0)) == len(p0)
-    resampled, _ = bunny.generate_frame(0, size="tiny", seed=1)  # same shape, other samples
-    later, _ = bunny.generate_frame(10, size="tiny")
+    resampled, _, _ = bunny.generate_frame(0, size="tiny", seed=1)  # same shape, other samples
+    later, _, _ = bunny.generate_frame(10, size="tiny")
     assert icp_rmse(later, p0) > 3 * icp_rmse(resampled, p0)
 
 
 def test_bunny_float_samples():
-    p, c = bunny.generate_frame(2, bit_depth=None, points=5000, seed=4)
+    p, c, _ = bunny.generate_frame(2, bit_depth=None, points=5000, seed=4)
     assert p.shape == (5000, 3) and c.shape == (5000, 3)
     assert not np.array_equal(p, np.round(p))
-    q, _ = bunny.generate_frame(2, bit_depth=None, points=5000, seed=5)
+    q, _, _ = bunny.generate_frame(2, bit_depth=None, points=5000, seed=5)
     assert not np.array_equal(p, q)
+
+
+# -- exact normals ----------------------------------------------------------------------------------
+def _central_differences(fn, p: np.ndarray, h: float = 1e-5) -> np.ndarray:
+    return np.stack([(fn(p + h * e) - fn(p - h * e)) / (2 * h) for e in np.eye(3)], axis=1)
+
+
+def test_primitive_gradients_match_finite_differences():
+    rng = np.random.default_rng(3)
+    primitives = [RoundCone(np.array([0.0, 0, 0]), np.array([3.0, 1, 0.5]), 1.2, 0.6),
+                  RoundCone(np.array([1.0, 0, 0]), np.array([-2.0, 2, 1]), 0.4, 1.1),
+                  Ellipsoid(np.array([1.0, 2, 3]), np.array([2.0, 1, 0.7]), random_rotation(rng))]
+    for prim in primitives:
+        centre = prim.a if isinstance(prim, RoundCone) else prim.c
+        p = centre + rng.normal(size=(3000, 3)) * 2.5
+        np.testing.assert_allclose(prim.gradient(p), _central_differences(prim.distance, p), atol=1e-6)
+
+
+def test_smooth_union_gradient_and_human_normals():
+    """The body's field gradient (chain rule through the smooth minima) against central differences
+    of the field itself, at the points of a frame; the frame's normals are that gradient normalized,
+    point outwards, and agree with the surface the points sample (PCA normals)."""
+    scale = 180 / human.rest_height_m()
+    body, _, _ = human.build_body("walk", 0.1, 0.3, scale, np.array([512.0, 20.0, 512.0]))
+    points = surface_voxels(body, 1024).astype(np.float64)
+    _, _, grad = body.evaluate(points, 2.0, gradient=True)
+    numeric = _central_differences(lambda q: body.evaluate(q, 2.0)[0], points)
+    np.testing.assert_allclose(grad, numeric, atol=1e-5)
+
+    p, _, n = human.generate_frame(2, size="tiny")
+    assert n.shape == p.shape and n.dtype == np.float64
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-12)
+    frame_body, _, _ = human.build_body("walk", 2 / 30.0, float(np.random.default_rng(0).uniform(0, 2 * np.pi)),
+                                        scale, np.array([512.0, 0.02 * 1024, 512.0]))
+    outside, _ = frame_body.evaluate(p + 0.5 * n, 3.0)
+    inside, _ = frame_body.evaluate(p - 0.5 * n, 3.0)
+    assert (outside > inside).all()  # outward: the field grows along every normal
+    pca = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(p))
+    pca.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=12))
+    agreement = np.abs((np.asarray(pca.normals) * n).sum(axis=1))
+    assert np.median(agreement) > 0.97
+
+
+def test_bunny_normals_are_the_mesh_normals():
+    """Float samples: each normal is the interpolated vertex normal of the sample's triangle, on the
+    outward side of the triangle; voxelized: unit, and the mean of the samples' normals per voxel
+    agrees with the surface the voxels sample (PCA)."""
+    p, _, n = bunny.generate_frame(1, bit_depth=None, points=4000, seed=2)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-12)
+    v, tri, rest_n = bunny.rest_mesh()
+    moved = bunny.deform(v, rest_n, 1 / 30.0, 1.0, 12.0) * 1000.0
+    mesh = o3d.t.geometry.RaycastingScene()
+    mesh.add_triangles(moved.astype(np.float32), tri.astype(np.uint32))
+    closest = mesh.compute_closest_points(p.astype(np.float32))
+    assert np.abs(closest["points"].numpy() - p).max() < 1e-2  # the samples lie on the deformed mesh
+    face = closest["primitive_ids"].numpy().astype(np.int64)
+    a, b, c = (moved[tri[face, k]] for k in range(3))
+    face_normal = np.cross(b - a, c - a)
+    face_normal /= np.linalg.norm(face_normal, axis=1, keepdims=True)
+    assert np.mean((face_normal * n).sum(axis=1) > 0) > 0.99
+    assert np.median((face_normal * n).sum(axis=1)) > 0.99
+
+    pv, _, nv = bunny.generate_frame(1, size="tiny")
+    np.testing.assert_allclose(np.linalg.norm(nv, axis=1), 1.0, atol=1e-12)
+    pca = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pv))
+    pca.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=12))
+    assert np.median(np.abs((np.asarray(pca.normals) * nv).sum(axis=1))) > 0.97
 
 
 # -- cache ------------------------------------------------------------------------------------------

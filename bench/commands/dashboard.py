@@ -87,15 +87,17 @@ def run(args) -> int:
             benchmarks = benchsuite.load_benchmark_runs(bench_paths)
         except ValueError as err:
             raise UserError(str(err)) from None
-    try:
+    try:  # bad input files: one-line errors
         baseline = compare.read_summary(args.baseline) if args.baseline else None
         tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
         tolerances = compare.load_tolerances(tolerance_file)
-        sources = [str(p) for p in (args.store or ["default results store"])] + [str(p) for p in bench_paths]
-        written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
-                                            tolerances=tolerances, title=args.title, sources=sources)
     except (ValueError, KeyError) as err:
         raise UserError(str(err).strip('"')) from None
+    sources = [str(p) for p in (args.store or ["default results store"])] + [str(p) for p in bench_paths]
+    # rendering is our own code on validated data: an exception here is a bug and keeps its traceback
+    # (it was once reported as a one-line "user error": issue 11)
+    written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
+                                        tolerances=tolerances, title=args.title, sources=sources)
     n_versions = results["code_version"].nunique() if len(results) else 0
     print(f"dashboard written to {written} ({n_versions} code version(s), {results['run_id'].nunique()} runs"
           f"{', ' + str(benchmarks['fullname'].nunique()) + ' benchmarks' if benchmarks is not None else ''})")

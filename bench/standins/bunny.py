@@ -17,6 +17,12 @@ hit every surface voxel) are rounded down to voxel indices, one point per occupi
 coloured with the mean colour of its samples; with ``bit_depth=None`` the frame is ``points`` float
 samples in the unit-extent frame scaled by 1000. Colours are a procedural fur pattern of the rest
 position (so it moves with the surface) plus per-point noise.
+
+Normals: the deformed mesh's vertex normals (area-weighted face normals, open3d
+``compute_vertex_normals``) interpolated at each sample with its barycentric weights (Phong normals)
+and normalized; a voxel's normal is the normalized mean of its samples' normals (like its colour).
+They are written into the frames' PLY files (float nx, ny, nz), so that D2 uses them, as pc_error
+does with the reference's normals.
 """
 
 from __future__ import annotations
@@ -26,7 +32,8 @@ from functools import lru_cache
 
 import numpy as np
 
-GENERATOR_VERSION = 1
+#: bump when the output for the same parameters changes (part of the cache key); 2: frames carry normals
+GENERATOR_VERSION = 2
 SIZE_EXTENTS = {"tiny": 80, "small": 180, "default": 460}  # largest extent in voxels
 SIZE_POINTS = {"tiny": 20_000, "small": 100_000, "default": 600_000}  # samples when not voxelized
 SAMPLES_PER_VOXEL_AREA = 8.0
@@ -81,6 +88,26 @@ def deform(v: np.ndarray, n: np.ndarray, t: float, amount: float, turn: float) -
     return out
 
 
+def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unit vertex normals (V, 3) of a triangle mesh (open3d: area-weighted mean of the face normals)."""
+    import open3d as o3d
+
+    mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(triangles))
+    mesh.compute_vertex_normals()
+    return np.asarray(mesh.vertex_normals, dtype=np.float64)
+
+
+def _unit(vectors: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Rows of ``vectors`` scaled to unit length; rows of (near) zero length take ``fallback``'s row."""
+    norm = np.linalg.norm(vectors, axis=1)
+    flat = ~(norm > 1e-9)
+    if flat.any():
+        vectors, norm = vectors.copy(), norm.copy()
+        vectors[flat] = fallback[flat]
+        norm[flat] = np.linalg.norm(fallback[flat], axis=1)
+    return vectors / norm[:, None]
+
+
 def _fur(rest: np.ndarray) -> np.ndarray:
     """Procedural colour (n, 3) float of rest positions: light brown with darker patches, pale chest."""
     base = np.array([176.0, 140.0, 104.0])
@@ -93,9 +120,9 @@ def _fur(rest: np.ndarray) -> np.ndarray:
 
 def generate_frame(index: int, *, bit_depth: int | None = 10, size: str = "default", height: float | None = None,
                    points: int | None = None, fps: float = 30.0, deform_amount: float = 1.0, turn: float = 12.0,
-                   seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Frame ``index``: (points (N, 3) float64, colours (N, 3) uint8). Voxelized (integer-valued in
-    [0, 2^bit_depth)) unless ``bit_depth`` is None."""
+                   seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frame ``index``: (points (N, 3) float64, colours (N, 3) uint8, unit outward normals (N, 3)
+    float64). Voxelized (integer-valued in [0, 2^bit_depth)) unless ``bit_depth`` is None."""
     if size not in SIZE_EXTENTS:
         raise ValueError(f"unknown size {size!r}; choose one of {', '.join(SIZE_EXTENTS)}")
     if fps <= 0:
@@ -128,9 +155,12 @@ def generate_frame(index: int, *, bit_depth: int | None = 10, size: str = "defau
     tri_f = tri[face]
     samples = np.einsum("nk,nkj->nj", w, moved[tri_f])
     colour = _fur(np.einsum("nk,nkj->nj", w, v[tri_f]))
+    # the moves are a uniform scale away from the voxel / millimetre frame: normals keep their direction
+    face_normal = np.cross(moved[tri_f[:, 1]] - moved[tri_f[:, 0]], moved[tri_f[:, 2]] - moved[tri_f[:, 0]])
+    normal = np.einsum("nk,nkj->nj", w, vertex_normals(moved, tri)[tri_f])
     if bit_depth is None:
         colour = colour + rng.normal(0.0, 5.0, colour.shape)
-        return samples * 1000.0, np.clip(np.rint(colour), 0, 255).astype(np.uint8)
+        return samples * 1000.0, np.clip(np.rint(colour), 0, 255).astype(np.uint8), _unit(normal, face_normal)
     centre = np.array([grid / 2.0, 0.1 * grid, grid / 2.0])
     vox = np.floor(samples * extent + centre).astype(np.int64)
     if vox.min() < 0 or vox.max() >= grid:  # guarded by the extent limit above; never clip silently
@@ -141,4 +171,8 @@ def generate_frame(index: int, *, bit_depth: int | None = 10, size: str = "defau
     mean = np.stack([np.bincount(inverse, weights=colour[:, j]) for j in range(3)], 1) / counts[:, None]
     mean = mean * rng.uniform(0.92, 1.08, size=(len(mean), 1)) + rng.normal(0.0, 4.0, mean.shape)
     pts = np.stack([unique_keys // (grid * grid), (unique_keys // grid) % grid, unique_keys % grid], 1)
-    return pts.astype(np.float64), np.clip(np.rint(mean), 0, 255).astype(np.uint8)
+    normal = _unit(normal, face_normal)
+    voxel_normal = np.stack([np.bincount(inverse, weights=normal[:, j]) for j in range(3)], 1)
+    first = np.zeros(len(unique_keys), dtype=np.int64)
+    first[inverse[::-1]] = np.arange(len(inverse))[::-1]  # a voxel's first sample (fallback where they cancel)
+    return pts.astype(np.float64), np.clip(np.rint(mean), 0, 255).astype(np.uint8), _unit(voxel_normal, normal[first])

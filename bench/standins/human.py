@@ -16,6 +16,11 @@ correspondence between frames.
 Colours: each surface voxel takes the material of its nearest primitive (skin, shirt, trousers, hair,
 shoes; sleeves end half-way down the upper arm, the shirt has stripes in the chest's frame, so the
 pattern moves with the body), plus per-voxel noise from ``numpy.random.default_rng((seed, frame))``.
+
+Normals: the exact outward unit normal of the body's field at each output point (the integer voxel
+index written to the PLY), n = grad f / |grad f|, from the analytic gradients of the primitives and of
+the smooth minimum (`bench.standins.sdf.SmoothUnion.normals`). They are written into the frames' PLY
+files (float nx, ny, nz), so that D2 uses them, as pc_error does with the reference's normals.
 """
 
 from __future__ import annotations
@@ -24,8 +29,8 @@ import numpy as np
 
 from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, surface_voxels
 
-#: bump when the output for the same parameters changes (part of the cache key)
-GENERATOR_VERSION = 4
+#: bump when the output for the same parameters changes (part of the cache key); 5: frames carry normals
+GENERATOR_VERSION = 5
 
 MOTIONS = ("walk", "dance", "wave")
 #: figure height (rest pose, voxels) per size preset; None -> a fraction of the grid, see frame_params
@@ -241,9 +246,10 @@ def resolve_height(size: str, bit_depth: int, height: float | None) -> float:
 
 
 def generate_frame(index: int, *, motion: str = "walk", bit_depth: int = 10, size: str = "default",
-                   height: float | None = None, fps: float = 30.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+                   height: float | None = None, fps: float = 30.0,
+                   seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Frame ``index`` of the sequence: (points (N, 3) float64 integer-valued in [0, 2^bit_depth),
-    colours (N, 3) uint8).
+    colours (N, 3) uint8, unit outward normals (N, 3) float64 of the body's field at the points).
 
     The seed sets the motion's starting phase (uniform in [0, 2 pi)) and the colour noise.
     """
@@ -267,7 +273,8 @@ def generate_frame(index: int, *, motion: str = "walk", bit_depth: int = 10, siz
         raise ValueError("the figure has no surface voxel in the grid; increase height or bit_depth")
     _, nearest = body.evaluate(voxels + 0.5, 2.0)
     colours = _colours(voxels + 0.5, nearest, materials, body, joint_frames, scale, seed, index)
-    return voxels.astype(np.float64), colours
+    points = voxels.astype(np.float64)
+    return points, colours, body.normals(points)
 
 
 def _colours(centres, nearest, materials, body, joint_frames, scale, seed, index) -> np.ndarray:

@@ -54,6 +54,36 @@ class RoundCone:
         d_side = (np.sqrt(np.maximum(x2 * a2 * il2, 0.0)) + y * rr) * il2 - self.ra
         return np.where(np.sign(z) * a2 * z2 > k, d_b, np.where(np.sign(y) * a2 * y2 < k, d_a, d_side))
 
+    def gradient(self, p: np.ndarray) -> np.ndarray:
+        """p: (n, 3) -> (n, 3) gradient of `distance` (unit length: the field is an exact distance).
+
+        The three branches of `distance`: beyond b, (p - b) / |p - b|; before a, (p - a) / |p - a|;
+        on the side, with e = (b - a) / l, s = (p - a) . e, w = p - a - s e, rho = |w|, the side
+        distance is rho cos(t) + s sin(t) - ra (cos(t) = sqrt(l^2 - (ra - rb)^2) / l,
+        sin(t) = (ra - rb) / l), whose gradient is cos(t) w / rho + sin(t) e."""
+        ba = self.b - self.a
+        l2 = float(ba @ ba)
+        rr = self.ra - self.rb
+        a2 = l2 - rr * rr
+        length = np.sqrt(l2)
+        e = ba / length
+        pa = p - self.a
+        y = pa[:, 0] * ba[0] + pa[:, 1] * ba[1] + pa[:, 2] * ba[2]  # no BLAS call (see _rotate_inverse)
+        z = y - l2
+        s = y / length
+        w = pa - np.outer(s, e)
+        rho = np.sqrt(np.einsum("ij,ij->i", w, w))
+        x2 = rho * rho * l2 * l2
+        k = np.sign(rr) * rr * rr * x2
+        cos_t, sin_t = np.sqrt(max(a2, 0.0)) / length, rr / length
+        side = cos_t * w / np.maximum(rho, 1e-300)[:, None] + sin_t * e
+        pb = p - self.b
+        to_b = pb / np.maximum(np.linalg.norm(pb, axis=1), 1e-300)[:, None]
+        to_a = pa / np.maximum(np.linalg.norm(pa, axis=1), 1e-300)[:, None]
+        beyond_b = (np.sign(z) * a2 * z * z * l2 > k)[:, None]
+        before_a = (np.sign(y) * a2 * y * y * l2 < k)[:, None]
+        return np.where(beyond_b, to_b, np.where(before_a, to_a, side))
+
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
         r = max(self.ra, self.rb)
         return np.minimum(self.a, self.b) - r, np.maximum(self.a, self.b) + r
@@ -75,10 +105,27 @@ class Ellipsoid:
         q = _rotate_inverse(p - self.c, self.R) / self.radii
         return float(self.radii.min()) * (np.sqrt(np.einsum("ij,ij->i", q, q)) - 1.0)
 
+    def gradient(self, p: np.ndarray) -> np.ndarray:
+        """p: (n, 3) -> (n, 3) gradient of `distance`: with u = q / radii,
+        grad f = min(radii) R (u / radii) / |u| (normal to the ellipsoid on its surface)."""
+        u = _rotate_inverse(p - self.c, self.R) / self.radii
+        norm = np.sqrt(np.einsum("ij,ij->i", u, u))
+        g = float(self.radii.min()) * u / self.radii / np.maximum(norm, 1e-300)[:, None]
+        return g[:, :1] * self.R[:, 0] + g[:, 1:2] * self.R[:, 1] + g[:, 2:3] * self.R[:, 2]  # g @ R^T
+
     def aabb(self) -> tuple[np.ndarray, np.ndarray]:
         # half extent along world axis i of a rotated ellipsoid: sqrt(sum_j (R_ij r_j)^2)
         half = np.sqrt(((self.R * self.radii) ** 2).sum(axis=1))
         return self.c - half, self.c + half
+
+
+def smooth_min_weight(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
+    """d smooth_min(a, b, k) / da = h (and d / db = 1 - h): the weight of a's gradient in the
+    gradient of the smooth minimum (the terms in dh cancel: (a - b) - k (1 - 2h) = 0 where
+    0 < h < 1). For k <= 0, 1 where a <= b else 0."""
+    if k <= 0:
+        return (a <= b).astype(np.float64)
+    return np.clip(0.5 + 0.5 * (b - a) / k, 0.0, 1.0)
 
 
 def smooth_min(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
@@ -105,10 +152,15 @@ class SmoothUnion:
         self.lo = np.array([b[0] for b in boxes])
         self.hi = np.array([b[1] for b in boxes])
 
-    def evaluate(self, p: np.ndarray, band: float) -> tuple[np.ndarray, np.ndarray]:
-        """p: (n, 3) float -> (field (n,), nearest primitive index (n,) int; -1 where none is near)."""
+    def evaluate(self, p: np.ndarray, band: float, *, gradient: bool = False):
+        """p: (n, 3) float -> (field (n,), nearest primitive index (n,) int; -1 where none is near).
+
+        With ``gradient``: (field, nearest, gradient (n, 3)), the exact gradient of the field (chain
+        rule through the smooth minima, `smooth_min_weight`); NaN where no primitive is near.
+        """
         n = len(p)
         field = np.full(n, np.inf)
+        grad = np.full((n, 3), np.nan) if gradient else None
         nearest_d = np.full(n, np.inf)
         nearest = np.full(n, -1, dtype=np.int32)
         margin = band + self.k
@@ -127,13 +179,39 @@ class SmoothUnion:
             d = prim.distance(p[idx])
             cur = field[idx]
             first = np.isinf(cur)  # no primitive near yet: the union is this primitive
+            if gradient:
+                g = prim.gradient(p[idx])
+                cur_g = grad[idx]
+                h = smooth_min_weight(cur[~first], d[~first], self.k)[:, None]
+                cur_g[~first] = h * cur_g[~first] + (1.0 - h) * g[~first]
+                cur_g[first] = g[first]
+                grad[idx] = cur_g
             cur[first] = d[first]
             cur[~first] = smooth_min(cur[~first], d[~first], self.k)
             field[idx] = cur
             closer = d < nearest_d[idx]
             nearest_d[idx[closer]] = d[closer]
             nearest[idx[closer]] = i
+        if gradient:
+            return field, nearest, grad
         return field, nearest
+
+    def normals(self, p: np.ndarray, band: float = 2.0) -> np.ndarray:
+        """Unit outward normals (n, 3) at points p (n, 3) near the surface (within ``band``): the
+        normalized gradient of the field. Points near no primitive are evaluated again with every
+        primitive; where the gradient still vanishes (two blended parts facing each other exactly),
+        the nearest primitive's own gradient is used."""
+        _, nearest, grad = self.evaluate(p, band, gradient=True)
+        far = nearest < 0
+        if far.any():
+            _, nearest[far], grad[far] = self.evaluate(p[far], np.inf, gradient=True)
+        norm = np.linalg.norm(grad, axis=1)
+        flat = ~(norm > 1e-9)
+        for i in np.unique(nearest[flat]):
+            sel = np.flatnonzero(flat & (nearest == i))
+            grad[sel] = self.primitives[i].gradient(p[sel])
+            norm[sel] = np.linalg.norm(grad[sel], axis=1)
+        return grad / norm[:, None]
 
 
 def surface_voxels(field: SmoothUnion, size: int, start_block: int = 32, chunk: int = 1 << 20) -> np.ndarray:
