@@ -509,16 +509,25 @@ class CloudPair:
     def ref_to_res(self) -> Neighbours:
         """For each reference point, its nearest result point(s)."""
         hit, index = self._matches(self.reference, self._ref_keys, self.result, self._res_keys)
-        return Neighbours(self.result_tree, self.result, self.reference, self.reference_tree.indices,
-                          matched=hit, matched_index=index, separated_targets=self.result_on_grid, workers=self.workers)
+        nb = Neighbours(self.result_tree, self.result, self.reference, self.reference_tree.indices,
+                        matched=hit, matched_index=index, separated_targets=self.result_on_grid, workers=self.workers)
+        self._release_keys("res_to_ref")
+        return nb
 
     @cached_property
     def res_to_ref(self) -> Neighbours:
         """For each result point, its nearest reference point(s)."""
         hit, index = self._matches(self.result, self._res_keys, self.reference, self._ref_keys)
-        return Neighbours(self.reference_tree, self.reference, self.result, self.result_tree.indices,
-                          matched=hit, matched_index=index, separated_targets=self.reference_on_grid,
-                          workers=self.workers)
+        nb = Neighbours(self.reference_tree, self.reference, self.result, self.result_tree.indices,
+                        matched=hit, matched_index=index, separated_targets=self.reference_on_grid,
+                        workers=self.workers)
+        self._release_keys("ref_to_res")
+        return nb
+
+    def _release_keys(self, other_direction: str) -> None:
+        """Free the sorted keys (4 arrays of N) once both directions have used them."""
+        if other_direction in self.__dict__:
+            self._ref_keys = self._res_keys = None
 
     @cached_property
     def reference_spacing(self) -> np.ndarray:
