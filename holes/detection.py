@@ -35,25 +35,63 @@ from holes.geometry import check_frame, estimate_normals, point_spacing, radius_
 from holes.regions import HoleRegion
 
 
-def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, tree: cKDTree | None = None):
+#: Points handled per block in `boundary_points` (bounds the (block, k, 3) temporaries to ~50 MB at k = 32).
+_BLOCK = 1 << 16
+
+
+def _octants_all_occupied(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(n,) bool: the tangent-plane offsets (u, v) (n, m) have a point in each of the 8 sectors of 45 degrees.
+
+    Then no angular gap exceeds 90 degrees: an empty open arc longer than 90 degrees contains a whole
+    closed 45-degree sector, which would be empty. The sectors come from three comparisons (signs of
+    u and v, |u| < |v|), so this is much cheaper than the angles and their sort.
+    """
+    code = (v < 0).astype(np.uint8) << 2
+    code |= (u < 0).astype(np.uint8) << 1
+    code |= (np.abs(u) < np.abs(v)).astype(np.uint8)
+    bits = np.left_shift(np.uint8(1), code)
+    return np.bitwise_or.reduce(bits, axis=1) == 0xFF
+
+
+def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, tree: cKDTree | None = None,
+                    *, interior_values: bool = True):
     """Per point: is it on a boundary, and the unit tangent direction into the empty side.
 
     points: (N, 3). k: neighbours (including the point itself). gap: angular gap threshold (radians).
     Returns (mask (N,) bool, largest gap (N,) radians, empty-side direction (N, 3)).
+
+    With ``interior_values=False`` the largest gap and the direction are computed only for the
+    points whose neighbours leave a 45-degree sector empty (`_octants_all_occupied`), NaN elsewhere;
+    when ``gap`` >= pi / 2 those NaN points have no gap above 90 degrees, so the mask is exactly the
+    same, and the work (arctan2 and sort of k - 1 angles per point) is done for a few percent of the
+    points only. Points are processed in blocks of `_BLOCK` to bound memory.
     """
     tree = tree if tree is not None else cKDTree(points)
+    n = len(points)
     _, nbr = tree.query(points, k=k, workers=-1)
     tangent = tangent_basis(estimate_normals(points, k))
-    offsets = points[nbr[:, 1:]] - points[:, None, :]  # (N, k-1, 3), self excluded
-    u = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 0])
-    v = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 1])
-    angles = np.sort(np.arctan2(v, u), axis=1)
-    gaps = np.diff(angles, axis=1, append=angles[:, :1] + 2 * np.pi)  # wrap-around gap last
-    widest = gaps.argmax(axis=1)
-    rows = np.arange(len(points))
-    largest = gaps[rows, widest]
-    middle = angles[rows, widest] + largest / 2
-    direction = np.cos(middle)[:, None] * tangent[:, :, 0] + np.sin(middle)[:, None] * tangent[:, :, 1]
+    prefilter = not interior_values and gap >= np.pi / 2
+    largest = np.full(n, np.nan)
+    direction = np.full((n, 3), np.nan)
+    for start in range(0, n, _BLOCK):
+        stop = min(start + _BLOCK, n)
+        rows = np.arange(start, stop)
+        offsets = np.take(points, nbr[start:stop, 1:], axis=0) - points[start:stop, None, :]  # self excluded
+        t0, t1 = tangent[start:stop, :, 0], tangent[start:stop, :, 1]
+        u = np.einsum("nkd,nd->nk", offsets, t0)
+        v = np.einsum("nkd,nd->nk", offsets, t1)
+        if prefilter:
+            keep = ~_octants_all_occupied(u, v)
+            rows, u, v, t0, t1 = rows[keep], u[keep], v[keep], t0[keep], t1[keep]
+        angles = np.arctan2(v, u)
+        angles.sort(axis=1)
+        gaps = np.diff(angles, axis=1, append=angles[:, :1] + 2 * np.pi)  # wrap-around gap last
+        widest = gaps.argmax(axis=1)
+        local = np.arange(len(rows))
+        widest_gap = gaps[local, widest]
+        middle = angles[local, widest] + widest_gap / 2
+        largest[rows] = widest_gap
+        direction[rows] = np.cos(middle)[:, None] * t0 + np.sin(middle)[:, None] * t1
     return largest > gap, largest, direction
 
 
@@ -89,7 +127,7 @@ def detect_holes(
         raise ValueError("detect_holes: link, max_radius and min_points must be positive")
     tree = cKDTree(points)
     spacing = point_spacing(points, tree)
-    on_rim, _, direction = boundary_points(points, int(k), gap, tree)
+    on_rim, _, direction = boundary_points(points, int(k), gap, tree, interior_values=False)
     rim_idx = np.flatnonzero(on_rim)
     count, labels = radius_components(points[rim_idx], link * spacing)
     diag = float(np.linalg.norm(np.ptp(points, axis=0)))

@@ -12,6 +12,16 @@ hole-region variants) is a reduction of a few per-point arrays:
 `CloudPair` builds the two KD-trees (scipy ``cKDTree``) and runs each query once, lazily, so that a
 frame scored with all metrics queries each tree at most once per direction.
 
+Shortcuts that change no value (they skip work whose result is known exactly):
+
+- a point that occurs exactly in the other cloud (most points of a damaged or inpainted frame)
+  has its nearest neighbour at distance 0; exact matches are found by hashing coordinates
+  (`point_keys`, `SortedKeys`) and only the other points are queried in the tree;
+- on integer (voxelized) data distinct points are at least 1 apart, so a point with one of its 6
+  face neighbours present has nearest-neighbour distance exactly 1 (`face_neighbour_mask`), and
+  no exact match has a second neighbour within the 1e-8 tolerance;
+- the tie sets below are computed only when D2 or the normal transfer asks for them.
+
 pc_error conventions reproduced here (mpeg-pcc-dmetric 0.14, default options):
 
 - ``--dropdups=2``: points with identical coordinates are merged before anything is measured (the
@@ -32,11 +42,9 @@ last digits of D2.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-import pandas as pd
 from scipy.spatial import cKDTree
 
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
@@ -66,17 +74,97 @@ def check_points(points, label: str) -> np.ndarray:
     return arr
 
 
+def _mix64(z: np.ndarray) -> np.ndarray:
+    """splitmix64's finalizer on uint64 values (in place): every input bit reaches every output bit."""
+    z ^= z >> np.uint64(30)
+    z *= np.uint64(0xBF58476D1CE4E5B9)
+    z ^= z >> np.uint64(27)
+    z *= np.uint64(0x94D049BB133111EB)
+    z ^= z >> np.uint64(31)
+    return z
+
+
+def point_keys(points: np.ndarray) -> np.ndarray:
+    """(N,) uint64 hash of each point's exact coordinates (the bits of the three float64 values).
+
+    Equal points have equal keys (``+ 0.0`` maps -0.0 to 0.0 first, as pc_error's ``==`` equates
+    them); different points almost never do, and every use of the keys checks the coordinates of
+    the points it pairs, so a collision costs time, never correctness.
+    """
+    bits = np.ascontiguousarray(points + 0.0).view(np.uint64)
+    key = _mix64(bits[:, 0].copy())
+    key ^= bits[:, 1]
+    key = _mix64(key)
+    key ^= bits[:, 2]
+    return _mix64(key)
+
+
 def first_occurrences(points: np.ndarray) -> np.ndarray | None:
     """Indices of the first occurrence of each distinct point, in input order; None when all are distinct.
 
-    pandas' hash-based ``duplicated`` is used because it is O(N) (``np.unique(axis=0)`` sorts and is
-    about 4x slower on 1M points). ``+ 0.0`` maps -0.0 to 0.0 so that they count as equal, as
-    pc_error's ``==`` does.
+    Points are grouped by sorting their `point_keys` (one uint64 column, ~0.05 s for 1M points, and
+    no pandas import); only the points of groups of equal keys are then compared coordinate by
+    coordinate, so a key collision never merges distinct points.
     """
-    duplicated = pd.DataFrame(points + 0.0).duplicated(keep="first").to_numpy()
+    return distinct_points(points)[0]
+
+
+def _rows_equal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) bool: a[i] == b[i] for (n, 3) arrays (column by column: cheaper than ``.all(axis=1)``)."""
+    same = a[:, 0] == b[:, 0]
+    same &= a[:, 1] == b[:, 1]
+    same &= a[:, 2] == b[:, 2]
+    return same
+
+
+def _index_bits(n: int) -> int:
+    return max(1, int(n - 1).bit_length())
+
+
+def sort_with_order(keys: np.ndarray, key_bits: int = 64) -> tuple[np.ndarray, np.ndarray, int]:
+    """(sorted keys, order, shift): ``order`` sorts ``keys`` (uint64, each < 2**key_bits), ties in index order.
+
+    Each key and its index are packed into one uint64 and sorted with `np.sort` (a SIMD sort, ~5x
+    faster than `np.argsort` on 1M values); keys too wide to share 64 bits with the index lose
+    their ``shift`` lowest bits (the sorted keys returned are ``keys >> shift``). Callers that need
+    exact keys check ``shift == 0``.
+    """
+    n = len(keys)
+    bits = _index_bits(n)
+    shift = max(0, key_bits + bits - 64)
+    mask = np.uint64((1 << bits) - 1)
+    packed = (keys >> np.uint64(shift)) << np.uint64(bits)
+    packed |= np.arange(n, dtype=np.uint64)
+    packed.sort()
+    order = (packed & mask).astype(np.intp)
+    packed >>= np.uint64(bits)
+    return packed, order, shift
+
+
+def distinct_points(points: np.ndarray) -> tuple[np.ndarray | None, "SortedKeys"]:
+    """(first occurrences as `first_occurrences`, the `SortedKeys` of the distinct points)."""
+    n = len(points)
+    sorted_keys, order, shift = sort_with_order(point_keys(points))
+    equal_next = sorted_keys[1:] == sorted_keys[:-1]
+    if not equal_next.any():
+        return None, SortedKeys(sorted_keys, order, shift)
+    in_group = np.zeros(n, dtype=bool)
+    in_group[1:] |= equal_next
+    in_group[:-1] |= equal_next
+    positions = np.flatnonzero(in_group)
+    rows = order[positions]  # within a key group in index order
+    coords = np.take(points, rows, axis=0) + 0.0
+    # exact grouping of the few grouped rows; lexsort is stable, so a group's first row is its first occurrence
+    by_coords = np.lexsort((coords[:, 2], coords[:, 1], coords[:, 0], sorted_keys[positions]))
+    coords, rows = coords[by_coords], rows[by_coords]
+    duplicated = np.zeros(n, dtype=bool)
+    duplicated[rows[1:][_rows_equal(coords[1:], coords[:-1])]] = True
     if not duplicated.any():
-        return None
-    return np.flatnonzero(~duplicated)
+        return None, SortedKeys(sorted_keys, order, shift)
+    kept = np.flatnonzero(~duplicated)
+    new_row = np.cumsum(~duplicated) - 1
+    keep_sorted = ~duplicated[order]
+    return kept, SortedKeys(sorted_keys[keep_sorted], new_row[order[keep_sorted]], shift)
 
 
 def squared_distances(queries: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -89,108 +177,238 @@ def squared_distances(queries: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return (d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) + d[..., 2] * d[..., 2]
 
 
-@dataclass
-class Neighbours:
-    """Nearest neighbours of each query point in a target cloud.
+def on_integer_grid(points: np.ndarray) -> bool:
+    """True when every coordinate is an integer (voxelized data): distinct points are then at least
+    1 apart, so no two lie within pc_error's 1e-8 squared-distance tolerance."""
+    return bool(np.equal(np.floor(points), points).all())
 
-    index:   (N,) int, the nearest target point of each query point.
-    sq_dist: (N,) float64, its squared distance.
-    exact_rows, exact_cols: flat pairs (query i, target j) of every target point at exactly the
-        nearest squared distance (at least the nearest itself for each query point).
-    same_rows, same_cols: flat pairs of pc_error's "same-distance" run (consecutive squared distances
-        within `SIMILAR_SQ_DISTANCE`), a superset of the exact pairs.
+
+class SortedKeys:
+    """The `point_keys` of a cloud's distinct points in sorted order, to find which points of another
+    cloud occur in it exactly.
+
+    keys: (K,) uint64 sorted, each a point key shifted right by ``shift`` bits; order: (K,) the row
+    of each (``keys == point_keys(points)[order] >> shift``). Equal keys may belong to different
+    points (a collision): every match is confirmed on the coordinates, and a query whose match is
+    missed that way is simply searched in the KD-tree, so values never depend on collisions.
     """
 
-    index: np.ndarray
-    sq_dist: np.ndarray
-    exact_rows: np.ndarray
-    exact_cols: np.ndarray
-    same_rows: np.ndarray
-    same_cols: np.ndarray
+    def __init__(self, keys: np.ndarray, order: np.ndarray, shift: int = 0):
+        self.keys, self.order, self.shift = keys, order, shift
+
+    def exact_matches(self, other: "SortedKeys", queries: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(hit (n,) bool, index (n,) int): which ``queries`` (the cloud of ``other``) equal a point of
+        ``targets`` (the cloud of ``self``), and that point's row (meaningful where hit). The queries
+        are looked up in key order (numpy's binary search is several times faster on sorted
+        queries)."""
+        n = len(queries)
+        hit = np.zeros(n, dtype=bool)
+        index = np.zeros(n, dtype=np.intp)
+        if len(self.keys) == 0 or n == 0:
+            return hit, index
+        shift = max(self.shift, other.shift)  # compare at the coarser of the two (a monotone map: order kept)
+        mine = self.keys >> np.uint64(shift - self.shift) if shift > self.shift else self.keys
+        theirs = other.keys >> np.uint64(shift - other.shift) if shift > other.shift else other.keys
+        pos = np.searchsorted(mine, theirs)
+        np.minimum(pos, len(mine) - 1, out=pos)
+        found = mine[pos] == theirs
+        rows, cols = other.order[found], self.order[pos[found]]
+        for start in range(0, rows.size, _CHUNK):
+            r, c = rows[start:start + _CHUNK], cols[start:start + _CHUNK]
+            same = _rows_equal(np.take(targets, c, axis=0), np.take(queries, r, axis=0))
+            hit[r[same]] = True
+            index[r[same]] = c[same]
+        return hit, index
 
 
-def _sorted_query(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, k: int):
-    """k nearest targets of each query as (index (M, k), squared distance (M, k)), rows sorted by the
-    recomputed squared distance (cKDTree sorts on its own rounding of the distance)."""
-    _, idx = tree.query(queries, k=k, workers=-1)
-    idx = idx.reshape(len(queries), k)
-    sq = squared_distances(queries[:, None, :], targets[idx])
-    if k == 1:
-        return idx, sq
-    if k == 2:  # a swap is enough, and much cheaper than argsort on the full-size first query
-        swap = sq[:, 1] < sq[:, 0]
-        idx[swap] = idx[swap][:, ::-1]
-        sq[swap] = sq[swap][:, ::-1]
-        return idx, sq
-    order = np.argsort(sq, axis=1, kind="stable")
-    return np.take_along_axis(idx, order, axis=1), np.take_along_axis(sq, order, axis=1)
+#: Query rows handled per block: bounds the (rows, k, 3) temporaries of `_sorted_query` (~25 MB at k = 10).
+_CHUNK = 1 << 17
+
+
+def _sorted_query(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, rows: np.ndarray, k: int, workers: int = -1):
+    """k nearest targets of ``queries[rows]`` as (index (m, k), squared distance (m, k)), each row
+    sorted by the recomputed squared distance (cKDTree sorts on its own rounding of the distance).
+    Queried in blocks of `_CHUNK` rows so that memory stays bounded."""
+    m = len(rows)
+    out_idx = np.empty((m, k), dtype=np.intp)
+    out_sq = np.empty((m, k))
+    for start in range(0, m, _CHUNK):
+        block = np.take(queries, rows[start:start + _CHUNK], axis=0)
+        _, idx = tree.query(block, k=k, workers=workers)
+        idx = idx.reshape(len(block), k)
+        sq = squared_distances(block[:, None, :], np.take(targets, idx, axis=0))
+        if k == 2:  # a swap is enough, and much cheaper than argsort
+            swap = sq[:, 1] < sq[:, 0]
+            idx[swap] = idx[swap][:, ::-1]
+            sq[swap] = sq[swap][:, ::-1]
+        elif k > 2:
+            order = np.argsort(sq, axis=1, kind="stable")
+            idx = np.take_along_axis(idx, order, axis=1)
+            sq = np.take_along_axis(sq, order, axis=1)
+        out_idx[start:start + len(block)] = idx
+        out_sq[start:start + len(block)] = sq
+    return out_idx, out_sq
 
 
 def build_tree(points: np.ndarray) -> cKDTree:
     """The KD-tree used for every query. ``balanced_tree=False, leafsize=32`` measured fastest for
     two builds + three 2-neighbour queries on the 100k golden pair: 0.30 s CPU against 0.35 s with
-    scipy's defaults (leafsize 8: 0.40 s; compact_nodes=False: 0.39 s)."""
+    scipy's defaults (leafsize 8: 0.40 s; compact_nodes=False: 0.39 s). The tree shares ``points``
+    (float64, C order) instead of copying it."""
     return cKDTree(points, leafsize=32, balanced_tree=False)
 
 
-def query_neighbours(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, order: np.ndarray | None = None) -> Neighbours:
-    """Nearest neighbours of ``queries`` in ``targets`` (indexed by ``tree``) with pc_error's tie sets.
+class Neighbours:
+    """Nearest neighbours of each query point in a target cloud, with pc_error's tie sets.
 
-    ``order`` is a permutation of the queries that keeps spatially close queries together (the leaf
-    order of the queries' own KD-tree); querying in that order is ~30% faster (cache locality).
-    A first 2-neighbour query finds the points that may have ties; only those are asked again with
-    pc_error's 10..30 schedule.
+    sq_dist: (N,) float64, the squared distance of each query point to its nearest target point.
+    index:   (N,) int, that nearest target point.
+    exact_rows, exact_cols: flat pairs (query i, target j) of every target point at exactly the
+        nearest squared distance (at least the nearest itself for each query point).
+    same_rows, same_cols: flat pairs of pc_error's "same-distance" run (consecutive squared distances
+        within `SIMILAR_SQ_DISTANCE`), a superset of the exact pairs.
+
+    ``sq_dist`` is computed on construction (all D1 needs); ``index`` and the tie sets on first use
+    (D2 and the normal transfer), so D1 alone never pays for the tie queries.
+
+    Construction: ``order`` is a permutation of the queries that keeps spatially close queries
+    together (the leaf order of the queries' own KD-tree; ~30% faster by cache locality on
+    unordered files). ``matched`` (N,) bool / ``matched_index`` (N,) mark the queries equal to a
+    target point (`SortedKeys.exact_matches`; only valid when the targets are distinct): their
+    nearest distance is 0 without a tree query. ``separated_targets``: no two targets lie within
+    the 1e-8 tolerance (integer grid), so a matched query has no tie either. The other queries
+    first ask for 2 neighbours; those whose two are within the tolerance are asked again, lazily,
+    with pc_error's 10..30 schedule.
     """
-    n = len(queries)
-    if order is None:
-        order = np.arange(n)
-    k0 = min(2, tree.n)
-    idx_sorted, sq_sorted = _sorted_query(tree, targets, queries[order], k0)
-    idx = np.empty_like(idx_sorted)
-    sq = np.empty_like(sq_sorted)
-    idx[order] = idx_sorted
-    sq[order] = sq_sorted
-    nearest, nearest_sq = idx[:, 0].copy(), sq[:, 0].copy()
-    if k0 == 1:
-        rows = np.arange(n)
-        return Neighbours(nearest, nearest_sq, rows, nearest, rows, nearest)
 
-    tie_rows = np.flatnonzero(sq[:, 1] - sq[:, 0] < SIMILAR_SQ_DISTANCE)
-    single = np.ones(n, dtype=bool)
-    single[tie_rows] = False
-    single_rows = np.flatnonzero(single)
-    exact_r, exact_c = [single_rows], [nearest[single_rows]]
-    same_r, same_c = [single_rows], [nearest[single_rows]]
+    def __init__(self, tree: cKDTree, targets: np.ndarray, queries: np.ndarray, order: np.ndarray | None = None, *,
+                 matched: np.ndarray | None = None, matched_index: np.ndarray | None = None,
+                 separated_targets: bool = False, workers: int = -1):
+        n = len(queries)
+        self._tree, self._targets, self._queries, self._workers = tree, targets, queries, workers
+        if order is None:
+            order = np.arange(n)
+        nearest = np.empty(n, dtype=np.intp)
+        nearest_sq = np.empty(n)
+        check = np.empty(0, dtype=np.intp)
+        if matched is not None and matched.any():
+            nearest[matched] = matched_index[matched]
+            nearest_sq[matched] = 0.0
+            order = order[~matched[order]]
+            if not separated_targets and tree.n > 1:
+                check = np.flatnonzero(matched)  # a target within 1e-8 of the match would join its run
+        k0 = min(2, tree.n)
+        idx, sq = _sorted_query(tree, targets, queries, order, k0, workers)
+        nearest[order] = idx[:, 0]
+        nearest_sq[order] = sq[:, 0]
+        self._nearest = nearest
+        self.sq_dist = nearest_sq
+        if k0 == 1:
+            self._tie_rows = np.empty(0, dtype=np.intp)
+        else:
+            self._tie_rows = order[sq[:, 1] - sq[:, 0] < SIMILAR_SQ_DISTANCE]
+        self._check_rows = check
 
-    pending = tie_rows
-    for step, k in enumerate(_NEIGHBOUR_SCHEDULE):
-        if pending.size == 0:
-            break
-        k_eff = min(k, tree.n)
-        nb_idx, nb_sq = _sorted_query(tree, targets, queries[pending], k_eff)
-        last_step = step == len(_NEIGHBOUR_SCHEDULE) - 1 or k_eff < k
-        # pc_error asks again while the k-th neighbour is exactly as close as the first
-        again = (nb_sq[:, -1] == nb_sq[:, 0]) if not last_step else np.zeros(len(pending), dtype=bool)
-        done = ~again
-        rows, nb_idx, nb_sq = pending[done], nb_idx[done], nb_sq[done]
-        nearest[rows], nearest_sq[rows] = nb_idx[:, 0], nb_sq[:, 0]
-        exact = nb_sq == nb_sq[:, :1]
-        close = np.abs(np.diff(nb_sq, axis=1)) < SIMILAR_SQ_DISTANCE
-        same = np.concatenate([np.ones((len(rows), 1), dtype=bool), np.logical_and.accumulate(close, axis=1)], axis=1)
-        row_grid = np.broadcast_to(rows[:, None], nb_idx.shape)
-        exact_r.append(row_grid[exact])
-        exact_c.append(nb_idx[exact])
-        same_r.append(row_grid[same])
-        same_c.append(nb_idx[same])
-        pending = pending[again]
-    return Neighbours(
-        nearest,
-        nearest_sq,
-        np.concatenate(exact_r),
-        np.concatenate(exact_c),
-        np.concatenate(same_r),
-        np.concatenate(same_c),
-    )
+    @property
+    def index(self) -> np.ndarray:
+        self._ties  # tied queries take the first of pc_error's sorted neighbour list
+        return self._nearest
+
+    @cached_property
+    def _ties(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        tree, targets, queries = self._tree, self._targets, self._queries
+        n = len(queries)
+        nearest = self._nearest
+        pending = self._tie_rows
+        if self._check_rows.size:
+            _, sq = _sorted_query(tree, targets, queries, self._check_rows, 2, self._workers)
+            pending = np.concatenate([pending, self._check_rows[sq[:, 1] - sq[:, 0] < SIMILAR_SQ_DISTANCE]])
+        single = np.ones(n, dtype=bool)
+        single[pending] = False
+        single_rows = np.flatnonzero(single)
+        exact_r, exact_c = [single_rows], [nearest[single_rows]]
+        same_r, same_c = [single_rows], [nearest[single_rows]]
+        for step, k in enumerate(_NEIGHBOUR_SCHEDULE):
+            if pending.size == 0:
+                break
+            k_eff = min(k, tree.n)
+            nb_idx, nb_sq = _sorted_query(tree, targets, queries, pending, k_eff, self._workers)
+            last_step = step == len(_NEIGHBOUR_SCHEDULE) - 1 or k_eff < k
+            # pc_error asks again while the k-th neighbour is exactly as close as the first
+            again = (nb_sq[:, -1] == nb_sq[:, 0]) if not last_step else np.zeros(len(pending), dtype=bool)
+            done = ~again
+            rows, nb_idx, nb_sq = pending[done], nb_idx[done], nb_sq[done]
+            nearest[rows] = nb_idx[:, 0]
+            exact = nb_sq == nb_sq[:, :1]
+            close = np.abs(np.diff(nb_sq, axis=1)) < SIMILAR_SQ_DISTANCE
+            same = np.concatenate([np.ones((len(rows), 1), dtype=bool), np.logical_and.accumulate(close, axis=1)], axis=1)
+            row_grid = np.broadcast_to(rows[:, None], nb_idx.shape)
+            exact_r.append(row_grid[exact])
+            exact_c.append(nb_idx[exact])
+            same_r.append(row_grid[same])
+            same_c.append(nb_idx[same])
+            pending = pending[again]
+        return np.concatenate(exact_r), np.concatenate(exact_c), np.concatenate(same_r), np.concatenate(same_c)
+
+    @property
+    def exact_rows(self) -> np.ndarray:
+        return self._ties[0]
+
+    @property
+    def exact_cols(self) -> np.ndarray:
+        return self._ties[1]
+
+    @property
+    def same_rows(self) -> np.ndarray:
+        return self._ties[2]
+
+    @property
+    def same_cols(self) -> np.ndarray:
+        return self._ties[3]
+
+
+def query_neighbours(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, order: np.ndarray | None = None,
+                     workers: int = -1) -> Neighbours:
+    """Nearest neighbours of ``queries`` in ``targets`` (indexed by ``tree``) with pc_error's tie
+    sets, without the exact-match shortcut (see `Neighbours`)."""
+    return Neighbours(tree, targets, queries, order, workers=workers)
+
+
+def face_neighbour_mask(points: np.ndarray) -> np.ndarray | None:
+    """(N,) bool: which points of distinct integer ``points`` have another point at distance exactly
+    1 (one of their 6 face neighbours on the grid); None when the grid is too large for int64 keys.
+
+    Distinct integer points are at least 1 apart, so these points' nearest-neighbour distance is 1
+    without a tree query. Points get linear keys (x, y, z) -> (x * ny + y) * nz + z on a grid
+    padded by one cell; z-neighbours are adjacent in key order, y and x ones are looked up with
+    `np.searchsorted`, only for the points not yet settled.
+    """
+    lo = points.min(axis=0)
+    extent = (points.max(axis=0) - lo + 3).astype(np.int64)
+    if float(extent[0]) * float(extent[1]) * float(extent[2]) >= 2.0**62:
+        return None
+    keys = (points[:, 0] - (lo[0] - 1)).astype(np.int64)
+    for axis in (1, 2):
+        keys *= extent[axis]
+        keys += (points[:, axis] - (lo[axis] - 1)).astype(np.int64)
+    sorted_keys, order, shift = sort_with_order(keys.view(np.uint64), int(keys.max()).bit_length())
+    if shift:  # grid too large to share 64 bits with the indices
+        order = np.argsort(keys)
+    sorted_keys = keys[order]
+    has = np.zeros(len(points), dtype=bool)
+    adjacent = np.flatnonzero(sorted_keys[1:] - sorted_keys[:-1] == 1)
+    has[order[adjacent]] = True
+    has[order[adjacent + 1]] = True
+    last = len(sorted_keys) - 1
+    for step in (extent[2], extent[1] * extent[2]):
+        for sign in (1, -1):
+            rest = order[~has[order]]  # in key order: sorted lookups are much faster
+            if rest.size == 0:
+                return has
+            wanted = keys[rest] + sign * step
+            pos = np.minimum(np.searchsorted(sorted_keys, wanted), last)
+            has[rest[sorted_keys[pos] == wanted]] = True
+    return has
 
 
 def estimate_normals(points: np.ndarray, neighbours: int = DEFAULT_NORMAL_NEIGHBOURS) -> np.ndarray:
@@ -219,6 +437,7 @@ class CloudPair:
     reference_normals: (N, 3) normals of the reference for D2, or None to estimate them
         (`estimate_normals` with ``normal_neighbours`` neighbours).
     drop_duplicates: merge identical points first, as pc_error does by default.
+    workers: threads for the KD-tree queries (scipy's ``workers``; -1 = all cores).
 
     Attributes after construction: ``reference``, ``result`` (deduplicated float64 arrays),
     ``reference_index`` / ``result_index`` (the kept input rows, or None when nothing was dropped).
@@ -232,6 +451,7 @@ class CloudPair:
         *,
         drop_duplicates: bool = True,
         normal_neighbours: int = DEFAULT_NORMAL_NEIGHBOURS,
+        workers: int = -1,
     ):
         ref = check_points(reference, "reference")
         res = check_points(result, "result")
@@ -242,15 +462,22 @@ class CloudPair:
                 raise ValueError(
                     f"reference normals must have the shape of the reference points {ref.shape}, got {normals.shape}"
                 )
-        self.reference_index = first_occurrences(ref) if drop_duplicates else None
-        self.result_index = first_occurrences(res) if drop_duplicates else None
+        if not (isinstance(workers, (int, np.integer)) and (workers >= 1 or workers == -1)):
+            raise ValueError(f"workers must be a positive number of threads or -1 (all cores), got {workers!r}")
+        self.workers = int(workers)
+        self.drop_duplicates = bool(drop_duplicates)
+        self._ref_keys = self._res_keys = None
+        self.reference_index = self.result_index = None
+        if self.drop_duplicates:
+            self.reference_index, self._ref_keys = distinct_points(ref)
+            self.result_index, self._res_keys = distinct_points(res)
         if self.reference_index is not None:
             ref = ref[self.reference_index]
             normals = None if normals is None else normals[self.reference_index]
         if self.result_index is not None:
             res = res[self.result_index]
-        self.reference = ref
-        self.result = res
+        self.reference = np.ascontiguousarray(ref)
+        self.result = np.ascontiguousarray(res)
         self._given_normals = normals
         self.normal_neighbours = int(normal_neighbours)
 
@@ -264,24 +491,63 @@ class CloudPair:
         return build_tree(self.result)
 
     @cached_property
+    def reference_on_grid(self) -> bool:
+        return on_integer_grid(self.reference)
+
+    @cached_property
+    def result_on_grid(self) -> bool:
+        return on_integer_grid(self.result)
+
+    def _matches(self, queries, query_keys, targets, target_keys):
+        """Exact matches of the queries in the (deduplicated) targets, or (None, None) without deduplication:
+        duplicated targets would tie at distance 0."""
+        if not self.drop_duplicates:
+            return None, None
+        return target_keys.exact_matches(query_keys, queries, targets)
+
+    @cached_property
     def ref_to_res(self) -> Neighbours:
         """For each reference point, its nearest result point(s)."""
-        return query_neighbours(self.result_tree, self.result, self.reference, self.reference_tree.indices)
+        hit, index = self._matches(self.reference, self._ref_keys, self.result, self._res_keys)
+        nb = Neighbours(self.result_tree, self.result, self.reference, self.reference_tree.indices,
+                        matched=hit, matched_index=index, separated_targets=self.result_on_grid, workers=self.workers)
+        self._release_keys("res_to_ref")
+        return nb
 
     @cached_property
     def res_to_ref(self) -> Neighbours:
         """For each result point, its nearest reference point(s)."""
-        return query_neighbours(self.reference_tree, self.reference, self.result, self.result_tree.indices)
+        hit, index = self._matches(self.result, self._res_keys, self.reference, self._ref_keys)
+        nb = Neighbours(self.reference_tree, self.reference, self.result, self.result_tree.indices,
+                        matched=hit, matched_index=index, separated_targets=self.reference_on_grid,
+                        workers=self.workers)
+        self._release_keys("ref_to_res")
+        return nb
+
+    def _release_keys(self, other_direction: str) -> None:
+        """Free the sorted keys (4 arrays of N) once both directions have used them."""
+        if other_direction in self.__dict__:
+            self._ref_keys = self._res_keys = None
 
     @cached_property
     def reference_spacing(self) -> np.ndarray:
-        """(N,) distance of each reference point to its nearest other reference point (inf if alone)."""
+        """(N,) distance of each reference point to its nearest other reference point (inf if alone).
+
+        On distinct integer points, those with a face neighbour (`face_neighbour_mask`) are at 1
+        exactly and skip the tree query.
+        """
         n = len(self.reference)
         if n < 2:
             return np.full(n, np.inf)
-        order = self.reference_tree.indices
-        idx, sq = _sorted_query(self.reference_tree, self.reference, self.reference[order], 2)
         spacing = np.empty(n)
+        order = self.reference_tree.indices
+        settled = None
+        if self.drop_duplicates and self.reference_on_grid:
+            settled = face_neighbour_mask(self.reference)
+        if settled is not None:
+            spacing[settled] = 1.0
+            order = order[~settled[order]]
+        _, sq = _sorted_query(self.reference_tree, self.reference, self.reference, order, 2, self.workers)
         spacing[order] = np.sqrt(sq[:, 1])
         return spacing
 

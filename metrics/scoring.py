@@ -24,7 +24,7 @@ from metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
 from metrics.registry import DEFAULT_METRICS, METRICS, get_metric
 
 DEFAULT_MAX_PSNR = 200.0
-_OPTIONS = ("bit_depth", "fscore_threshold", "normal_neighbours", "drop_duplicates", "max_psnr")
+_OPTIONS = ("bit_depth", "fscore_threshold", "normal_neighbours", "drop_duplicates", "max_psnr", "workers")
 
 
 def _frame_metric_names(metrics) -> list[str]:
@@ -51,6 +51,7 @@ def _split_options(options: dict, peak="intrinsic") -> tuple[Settings, dict, flo
     pair_kw = {
         "drop_duplicates": bool(options.get("drop_duplicates", True)),
         "normal_neighbours": int(options.get("normal_neighbours", DEFAULT_NORMAL_NEIGHBOURS)),
+        "workers": options.get("workers", -1),
     }
     return settings, pair_kw, options.get("max_psnr", DEFAULT_MAX_PSNR)
 
@@ -93,7 +94,8 @@ def score_frame(reference, result, metrics=None, *, peak="intrinsic", reference_
     reference_normals: (N, 3) or None (estimated for D2); regions: None for the whole frame, or the
     frame's hole regions for the hole-region variant (see `metrics.geometry`), grown by
     ``region_margin``. options: ``bit_depth``, ``fscore_threshold``, ``normal_neighbours`` (default
-    12), ``drop_duplicates`` (default True, as pc_error), ``max_psnr`` (default 200 dB, None = keep inf).
+    12), ``drop_duplicates`` (default True, as pc_error), ``max_psnr`` (default 200 dB, None = keep inf),
+    ``workers`` (threads of the neighbour queries, default -1 = all cores; values do not depend on it).
 
     Returns {metric name: value}. The KD-trees and neighbour queries are built once and shared by all
     metrics.

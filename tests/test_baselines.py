@@ -263,7 +263,7 @@ def test_lozes_leaves_a_region_without_surface_alone():
 
 # -- meshlab ---------------------------------------------------------------------------------------
 
-from methods.meshlab import MeshlabError, MeshlabFill, sample_triangles  # noqa: E402
+from methods.meshlab import MeshlabError, MeshlabFill, cluster_points, sample_triangles  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -315,6 +315,38 @@ def test_meshlab_whole_resamples_the_same_count_on_the_surface(holed_sphere):
     assert np.abs(np.linalg.norm(out, axis=1) - 50.0).max() < 2.0
     # the hole is covered too
     assert cKDTree(out).query(truth)[0].max() < 2 * sampling_step(damaged)
+
+
+def test_cluster_points_caps_the_count_and_stays_on_the_surface():
+    sphere = fibonacci_sphere(20000, 50.0)
+    assert cluster_points(sphere, 20000, 1.2) is sphere  # small frames are used as they are
+    clustered = cluster_points(sphere, 4000, sampling_step(sphere))
+    assert 2500 < len(clustered) <= 4000
+    assert np.abs(np.linalg.norm(clustered, axis=1) - 50.0).max() < 0.5  # cell means lie on the sphere
+    assert cKDTree(clustered).query(sphere)[0].max() < 3 * sampling_step(clustered)  # and cover it
+
+
+@pytest.mark.parametrize("output", ["whole", "holes-only"])
+def test_meshlab_reconstructs_large_frames_from_clustered_points(output):
+    """Above max_points the mesh comes from a clustered copy; the output keeps its meaning: the input
+    count on the closed surface (whole), or the input plus points in the hole only (holes-only)."""
+    sphere = fibonacci_sphere(12000, 50.0)
+    region = HoleRegion.ball(sphere[np.argmax(sphere @ np.array([0.3, 0.5, 0.8]))], 9.0)
+    hole = region.contains(sphere)
+    damaged, truth = sphere[~hole], sphere[hole]
+    step = sampling_step(damaged)
+    out = MeshlabFill(output=output, max_points=4000).inpaint([damaged], [[region]])[0]
+    if output == "whole":
+        assert len(out) == len(damaged)
+        assert np.abs(np.linalg.norm(out, axis=1) - 50.0).max() < 2.0
+        assert cKDTree(out).query(truth)[0].max() < 3 * step
+    else:
+        np.testing.assert_array_equal(out[: len(damaged)], damaged)
+        added = out[len(damaged):]
+        assert 0.5 * len(truth) < len(added) < 1.5 * len(truth)
+        assert region.contains(added, margin=2 * step).all()
+    with pytest.raises(ValueError, match="max_points"):
+        MeshlabFill(max_points=10).inpaint([damaged], [[region]])
 
 
 def test_meshlab_failures_are_clear_errors(holed_sphere):

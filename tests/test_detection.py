@@ -128,3 +128,21 @@ def test_real_capture_holes(shared_dir):
 def test_bad_input_refused(points, params, match):
     with pytest.raises(ValueError, match=match):
         detect_holes(points, **params)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_octant_prefilter_changes_no_boundary_decision(seed):
+    """detect_holes skips the angle sort where all 8 sectors hold a neighbour; the boundary mask and the
+    gap directions of the boundary points must equal the full computation's."""
+    pts = sphere(6000, seed=seed)
+    rng = np.random.default_rng(seed)
+    pts = pts[np.linalg.norm(pts - pts[rng.integers(len(pts))], axis=1) > 20]  # a hole
+    full_mask, full_gap, full_dir = boundary_points(pts)
+    fast_mask, fast_gap, fast_dir = boundary_points(pts, interior_values=False)
+    assert np.array_equal(full_mask, fast_mask)
+    assert 0 < full_mask.sum() < len(pts)
+    computed = ~np.isnan(fast_gap)
+    assert computed[full_mask].all() and computed.mean() < 0.5
+    assert np.array_equal(fast_gap[computed], full_gap[computed])
+    assert np.array_equal(fast_dir[computed], full_dir[computed])
+    assert (full_gap[~computed] <= np.pi / 2).all()

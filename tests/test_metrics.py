@@ -361,3 +361,82 @@ def test_one_pair_serves_all_metrics_and_scopes(monkeypatch):
     assert sorted(built) == [500, 500]  # one tree per cloud (normal estimation uses open3d's own)
     assert both["frame"] == metrics.score_frame(a, b, names)
     assert both["holes"] == metrics.score_frame(a, b, names, regions=region)
+
+
+# -- the exact shortcuts of metrics.pairs (hash matching, face neighbours) change no value ---------------
+
+def _matched_pairs(rng):
+    """Float pairs where most result points are exact copies of reference points, some have a second
+    point within pc_error's 1e-8 squared tolerance (so the shortcut must still find their tie runs),
+    -0.0 coordinates and duplicates on both sides."""
+    a = rng.random((400, 3)) * 10
+    a[:20, 0] = 0.0
+    companions = a[20:40] + 5e-5  # squared distance 7.5e-9 < 1e-8 from their originals
+    a = np.concatenate([a, companions, a[:10]])  # duplicates in the reference
+    b = np.concatenate([a[:300], rng.random((80, 3)) * 10, a[40:45]])
+    b[:20, 0] = -0.0
+    return a, b
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_exact_match_shortcut_matches_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    a, b = _matched_pairs(rng)
+    normals = _unit(rng.normal(size=a.shape))
+    want = brute_pc_error(a, b, normals)
+    got = metrics.pc_error(a, b, normals)
+    for key, value in want.items():
+        assert got[key] == pytest.approx(value, rel=1e-12), key
+
+
+@pytest.mark.parametrize("kind", ["float", "voxel"])
+def test_hash_collisions_change_no_value(monkeypatch, kind):
+    """With a hash that collides everywhere (2 bits), deduplication and exact matching must fall back
+    on coordinates and KD-tree queries and give the same figures."""
+    import metrics.pairs as pairs_module
+
+    rng = np.random.default_rng(3)
+    if kind == "float":
+        a, b = _matched_pairs(rng)
+    else:
+        a = _voxel_cloud(rng, 350, 14)
+        b = np.concatenate([_voxel_cloud(rng, 250, 14), a[:100]])
+    normals = _unit(rng.normal(size=a.shape))
+    want = metrics.pc_error(a, b, normals)
+    original = pairs_module.point_keys
+    monkeypatch.setattr(pairs_module, "point_keys", lambda p: original(p) & np.uint64(3))
+    got = metrics.pc_error(a, b, normals)
+    assert got == want
+    assert got == pytest.approx(brute_pc_error(a, b, normals), rel=1e-12)
+
+
+def test_first_occurrences_against_numpy_unique():
+    from metrics.pairs import first_occurrences
+
+    rng = np.random.default_rng(4)
+    points = _voxel_cloud(rng, 2000, 9)  # many duplicates
+    points[rng.random(len(points)) < 0.2, 1] *= -1  # -0.0 and 0.0 must be equal
+    _, first = np.unique(points + 0.0, axis=0, return_index=True)
+    assert np.array_equal(first_occurrences(points), np.sort(first))
+    assert first_occurrences(rng.random((100, 3))) is None
+
+
+def test_face_neighbour_mask_against_brute_force():
+    from metrics.pairs import face_neighbour_mask
+
+    rng = np.random.default_rng(5)
+    points = np.unique(_voxel_cloud(rng, 600, 12), axis=0) - 3  # distinct, negative coordinates too
+    got = face_neighbour_mask(points)
+    sq = _sq_matrix(points, points)
+    want = (sq == 1.0).any(axis=1)
+    assert np.array_equal(got, want)
+    assert 0 < want.sum() < len(points)
+
+
+def test_values_do_not_depend_on_threads():
+    rng = np.random.default_rng(6)
+    a = _voxel_cloud(rng, 3000, 30)
+    b = np.concatenate([a[:2000], _voxel_cloud(rng, 500, 30) + 0.5])
+    assert metrics.score_frame(a, b, workers=1) == metrics.score_frame(a, b, workers=2)
+    with pytest.raises(ValueError, match="workers"):
+        metrics.score_frame(a, b, workers=0)

@@ -41,6 +41,9 @@ def register(subparsers) -> None:
                         help="F-score distance threshold (default: 2 x median point spacing of the reference)")
     parser.add_argument("--max-psnr", type=float, default=None,
                         help="cap for infinite PSNRs of identical clouds, in dB (default 200)")
+    parser.add_argument("--jobs", type=int, default=-1, metavar="N",
+                        help="threads for the nearest-neighbour queries (default -1: all cores); the values do not "
+                             "depend on it")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 
@@ -51,8 +54,10 @@ def run(args) -> int:
 
     from bench.sequences import load_sequence
 
-    reference = load_sequence(args.reference)
-    result = load_sequence(args.result)
+    if not (args.jobs >= 1 or args.jobs == -1):
+        raise UserError(f"--jobs {args.jobs}: give a positive number of threads, or -1 for all cores")
+    reference = load_sequence(args.reference, colors=False)
+    result = load_sequence(args.result, colors=False)
     if len(reference) != len(result):
         raise UserError(
             f"mismatched frame counts: {args.reference} has {len(reference)} frame(s), {args.result} has "
@@ -83,7 +88,7 @@ def run(args) -> int:
                 "use the holes.json written with this damaged sequence"
             )
     normals = [f.normals for f in reference.frames]
-    options = {"max_psnr": DEFAULT_MAX_PSNR if args.max_psnr is None else args.max_psnr}
+    options = {"max_psnr": DEFAULT_MAX_PSNR if args.max_psnr is None else args.max_psnr, "workers": args.jobs}
     if args.fscore_threshold is not None:
         options["fscore_threshold"] = args.fscore_threshold
     if bit_depth is not None:

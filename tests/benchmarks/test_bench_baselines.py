@@ -10,8 +10,11 @@ point count and how many points the method added. open3d and pymeshlab are impor
 timing: their import is a one-time cost (open3d took 15 s of a 31 s temporal-copy run when it was
 imported inside it).
 
-MeshLab on an 800k frame did not finish within 66 minutes (ball pivoting over the whole frame), so
-those two cases run only with ``DPCBENCH_BENCH_SLOW=1``; the 100k cases always run.
+MeshLab on an 800k frame did not finish within 66 minutes while it ran ball pivoting over the whole
+frame; since it reconstructs frames above ``max_points`` (120k) from a voxel-clustered copy (issue
+14, target 1) the 800k cases take under a minute (41 s for output=whole on 776k points, machine
+shared) and always run. ``meshlab-whole-unclustered`` keeps the old behaviour at 800k
+(``max_points=0``) for comparison, only with ``DPCBENCH_BENCH_SLOW=1``: over an hour.
 """
 
 from __future__ import annotations
@@ -29,11 +32,12 @@ CASES = {
     "lozes-pde-p1": ("lozes-pde", {"p": 1}),
     "meshlab-whole": ("meshlab", {"output": "whole"}),
     "meshlab-holes-only": ("meshlab", {"output": "holes-only"}),
+    "meshlab-whole-unclustered": ("meshlab", {"output": "whole", "max_points": 0}),
 }
 
 
 SIZES = {"100k": {"size": "small"}, "800k": {"bit_depth": 11, "height": 1040}}
-SLOW = {("meshlab-whole", "800k"), ("meshlab-holes-only", "800k")}
+SLOW = {("meshlab-whole-unclustered", "800k")}
 _damaged: dict[str, tuple] = {}
 
 
@@ -55,6 +59,8 @@ def damaged_frames(size: str):
 @pytest.mark.parametrize("size", list(SIZES))
 @pytest.mark.parametrize("case", list(CASES))
 def test_seconds_per_frame(benchmark, case, size):
+    if (case, size) == ("meshlab-whole-unclustered", "100k"):
+        pytest.skip("below max_points meshlab-whole is already unclustered")
     if (case, size) in SLOW and os.environ.get("DPCBENCH_BENCH_SLOW") != "1":
         pytest.skip(f"{case} on {size} points takes over an hour: set DPCBENCH_BENCH_SLOW=1 to run it")
     frames, regions = damaged_frames(size)
