@@ -221,6 +221,33 @@ def disagreeing(points: np.ndarray, accepted: np.ndarray, reach: float, toleranc
     return out
 
 
+def refine_point_to_plane(source: np.ndarray, target: np.ndarray, max_distance: float,
+                          init: tuple[np.ndarray, np.ndarray], iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid (R, t) refining ``init`` by point-to-plane ICP (open3d): minimises
+    sum_i ((R s_i + t - q_i) . n_i)^2 over the pairs (source s_i, nearest target q_i) closer than
+    ``max_distance``, n_i the PCA normal of q_i's 16 nearest target points. Returns ``init`` when
+    fewer than 6 pairs are in reach."""
+    rotation, translation = init
+    if len(source) < 6 or len(target) < 16 or iterations <= 0:
+        return rotation, translation
+    import open3d as o3d
+
+    reg = o3d.pipelines.registration
+    start = np.eye(4)
+    start[:3, :3], start[:3, 3] = rotation, translation
+    source_cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(source, dtype=np.float64)))
+    target_cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(target, dtype=np.float64)))
+    target_cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
+    result = reg.registration_icp(source_cloud, target_cloud, float(max_distance), start,
+                                  reg.TransformationEstimationPointToPlane(),
+                                  reg.ICPConvergenceCriteria(relative_fitness=1e-9, relative_rmse=1e-9,
+                                                             max_iteration=int(iterations)))
+    if len(result.correspondence_set) < 6:
+        return rotation, translation
+    transform = np.asarray(result.transformation)
+    return transform[:3, :3].copy(), transform[:3, 3].copy()
+
+
 # -- the method ------------------------------------------------------------------------------------
 
 class TemporalFusion(InpaintingMethod):
@@ -237,13 +264,14 @@ class TemporalFusion(InpaintingMethod):
     detects_holes = True
 
     def __init__(self, window=3, shell_factor=0.5, shell_spacings=4.0, icp_iterations=30, accept_spacings=1.0,
-                 deform=True, deform_neighbours=32, gap_spacings=0.5, fill_gap_spacings=1.0,
+                 refine=True, deform=True, deform_neighbours=32, gap_spacings=0.5, fill_gap_spacings=1.0,
                  reuse_previous=True, fallback=True, mls_neighbours=20, snap="auto"):
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
         self.icp_iterations = icp_iterations
         self.accept_spacings = accept_spacings
+        self.refine = refine
         self.deform = deform
         self.deform_neighbours = deform_neighbours
         self.gap_spacings = gap_spacings
@@ -275,7 +303,7 @@ class TemporalFusion(InpaintingMethod):
         number("accept_spacings", True)
         number("gap_spacings", False)
         number("fill_gap_spacings", False)
-        for name in ("deform", "reuse_previous", "fallback"):
+        for name in ("refine", "deform", "reuse_previous", "fallback"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -388,7 +416,18 @@ class TemporalFusion(InpaintingMethod):
                 rotation, translation = icp_align(source[in_shell], local, max_distance=shell,
                                                   max_iterations=int(self.icp_iterations),
                                                   init=(rotation, translation))
-            residual = alignment_residual(cKDTree(source), rim, rotation, translation)
+            source_tree = cKDTree(source)
+            residual = alignment_residual(source_tree, rim, rotation, translation)
+            if self.refine:
+                # point-to-plane from the converged point-to-point motion, pairs within 2 s: it
+                # slides the samplings onto each other where point-to-point stops at half a spacing
+                moved = source @ rotation.T + translation
+                in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
+                refined = refine_point_to_plane(source[in_shell], local, 2 * spacing, (rotation, translation),
+                                                int(self.icp_iterations))
+                refined_residual = alignment_residual(source_tree, rim, *refined)
+                if refined_residual <= residual:
+                    (rotation, translation), residual = refined, refined_residual
             if residual > self.accept_spacings * spacing:
                 continue
             moved = source @ rotation.T + translation
