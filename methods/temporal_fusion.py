@@ -106,6 +106,19 @@ from methods.base import InpaintingMethod
 from methods.reference import icp_align
 
 
+#: most source points an ICP call pairs: a rigid motion has 6 unknowns, and 2000 evenly spread
+#: pairs pin it down as well as the 10-20k of a large hole's shell on an 800k-point frame (the
+#: alignment cost is then independent of the point density)
+ICP_POINTS = 2000
+
+
+def even_subset(points: np.ndarray, count: int) -> np.ndarray:
+    """At most ``count`` rows of ``points``, evenly strided (deterministic)."""
+    if len(points) <= count:
+        return points
+    return points[np.linspace(0, len(points) - 1, count).astype(np.int64)]
+
+
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
 
 def pca_normals(points: np.ndarray, queries: np.ndarray, tree: cKDTree | None = None, k: int = 10) -> np.ndarray:
@@ -427,7 +440,7 @@ class TemporalFusion(InpaintingMethod):
                 # source's own patch inside R never pairs with frame f's rim
                 moved = source @ rotation.T + translation
                 in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
-                rotation, translation = icp_align(source[in_shell], local, max_distance=shell,
+                rotation, translation = icp_align(even_subset(source[in_shell], ICP_POINTS), local, max_distance=shell,
                                                   max_iterations=int(self.icp_iterations),
                                                   init=(rotation, translation))
             source_tree = cKDTree(source)
@@ -437,7 +450,7 @@ class TemporalFusion(InpaintingMethod):
                 # slides the samplings onto each other where point-to-point stops at half a spacing
                 moved = source @ rotation.T + translation
                 in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
-                refined = refine_point_to_plane(source[in_shell], local, 2 * spacing, (rotation, translation),
+                refined = refine_point_to_plane(even_subset(source[in_shell], ICP_POINTS), local, 2 * spacing, (rotation, translation),
                                                 int(self.icp_iterations))
                 refined_residual = alignment_residual(source_tree, rim, *refined)
                 if refined_residual <= residual:
