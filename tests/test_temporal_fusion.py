@@ -215,8 +215,8 @@ def test_deterministic_and_reuses_the_previous_fill():
     region = HoleRegion.ball(full[0][np.argmax(full[0][:, 2])], 10.0)
     frames = [f[~region.contains(f)] for f in full]
     regions = [[region] for _ in range(4)]
-    a = quiet(TemporalFusion(), frames, regions)
-    b = quiet(TemporalFusion(), [f.copy() for f in frames], regions)
+    a = quiet(TemporalFusion(reuse_previous=True), frames, regions)
+    b = quiet(TemporalFusion(reuse_previous=True), [f.copy() for f in frames], regions)
     for x, y in zip(a, b):
         np.testing.assert_array_equal(x, y)
     fresh = quiet(TemporalFusion(reuse_previous=False), frames, regions)
