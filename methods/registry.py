@@ -11,6 +11,7 @@ METHODS: dict[str, str] = {
     "temporal-copy": "methods.reference:TemporalCopy",
     "temporal-graph": "methods.temporal_graph:TemporalGraph",
     "fu-nonlocal": "methods.temporal_graph:FuNonlocal",
+    "temporal-fusion": "methods.temporal_fusion:TemporalFusion",
     "lozes-pde": "methods.lozes_pde:LozesPDE",
     "meshlab": "methods.meshlab:MeshlabFill",
 }

@@ -1,0 +1,62 @@
+"""Speed of temporal-fusion (benchmarks; run with --benchmark-only).
+
+The issue's setting: one voxelized frame with 5 medium region holes and its +-3 (intact) frames,
+inpainted as a 7-frame sequence with the default window W = 3, so every hole is aligned against
+six other frames; the frames without holes cost only their k-d trees. Sizes are the embedded human
+figure at several heights (points grow with height^2, as in test_bench_temporal_graph.py): ~100k,
+~290k and ~800k points a frame (the 800k figure on an 11-bit grid); 1, 3 and 5 holes on the ~290k
+frame for the growth with the number of holes. Target (issue 12): under 10 s at 800k, 5 holes.
+
+    .venv/bin/python -m pytest tests/benchmarks/test_bench_temporal_fusion.py --benchmark-only \
+        --benchmark-columns=min,mean,rounds
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+
+SIZES = {
+    "100k": dict(size="small"),
+    "290k": dict(size="default", height=620),
+    "800k": dict(size="default", bit_depth=11, height=1040),
+}
+WINDOW = 3
+
+
+def _case(size: str, holes: int):
+    from bench.datasets import load_dataset
+    from holes.registry import get_generator
+
+    seq = load_dataset("human", frames=2 * WINDOW + 1, progress=False, **SIZES[size])
+    truth = seq.points
+    damage = get_generator("region", preset="medium", count=holes).damage(truth, seed=0)
+    frames = list(truth)
+    frames[WINDOW] = damage.frames[WINDOW]
+    regions = [[] for _ in frames]
+    regions[WINDOW] = damage.regions[WINDOW]
+    return frames, regions
+
+
+def _run(benchmark, size, holes):
+    from methods.registry import get_method
+
+    frames, regions = _case(size, holes)
+    method = get_method("temporal-fusion", window=WINDOW)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = benchmark.pedantic(method.inpaint, args=(frames, regions), rounds=1, iterations=1, warmup_rounds=0)
+    benchmark.extra_info.update(points=len(frames[WINDOW]), holes=holes,
+                                added=len(out[WINDOW]) - len(frames[WINDOW]))
+    assert len(out[WINDOW]) > len(frames[WINDOW])
+
+
+@pytest.mark.parametrize("size", list(SIZES))
+def test_bench_fusion_size(benchmark, size):
+    _run(benchmark, size, 5)
+
+
+@pytest.mark.parametrize("holes", [1, 3])
+def test_bench_fusion_holes(benchmark, holes):
+    _run(benchmark, "290k", holes)

@@ -1,0 +1,239 @@
+"""temporal-fusion: each step on constructed cases with known answers, and the whole method on
+surfaces whose hidden part is known (methods/temporal_fusion.py)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from holes.regions import HoleRegion
+from methods.temporal_fusion import (TemporalFusion, disagreeing, interpolate_displacement, mls_project,
+                                     rim_displacement, snap_to_voxels)
+
+
+def sphere(n: int, radius: float = 50.0) -> np.ndarray:
+    """Fibonacci-sampled sphere (n, 3) (spacing ~ radius * sqrt(4 pi / n))."""
+    i = np.arange(n) + 0.5
+    polar = np.arccos(1.0 - 2.0 * i / n)
+    azimuth = np.pi * (1.0 + 5.0 ** 0.5) * i
+    return radius * np.column_stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
+
+
+def bumpy(n: int, phase: float = 0.0) -> np.ndarray:
+    u = sphere(n, 1.0)
+    radius = 50.0 * (1.0 + 0.06 * np.sin(3 * u[:, 0] + phase) * np.cos(2 * u[:, 1]))
+    return u * radius[:, None]
+
+
+def quiet(method, frames, regions):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return method.inpaint(frames, regions)
+
+
+def rigid_sequence(n_frames=5, hole_frame=2, n=12000):
+    """A bumpy sphere moving rigidly (known rotation + translation per frame); frame ``hole_frame``
+    has a ball hole (the other frames are intact). Returns (frames, regions, hidden points)."""
+    base = bumpy(n)
+    frames = []
+    for f in range(n_frames):
+        rot = Rotation.from_rotvec([0.0, 0.03 * f, 0.02 * f]).as_matrix()
+        frames.append(base @ rot.T + np.array([1.2, -0.7, 0.5]) * f)
+    target = frames[hole_frame]
+    centre = target[np.argmax(target[:, 0])]
+    region = HoleRegion.ball(centre, 9.0)
+    inside = region.contains(target)
+    hidden = target[inside]
+    frames[hole_frame] = target[~inside]
+    regions = [[] for _ in frames]
+    regions[hole_frame] = [region]
+    return frames, regions, hidden
+
+
+# -- steps ------------------------------------------------------------------------------------------
+
+def test_mls_projection_recovers_a_paraboloid():
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-10, 10, size=(4000, 2))
+    surface = lambda x, y: 0.02 * x ** 2 - 0.015 * y ** 2 + 0.01 * x * y
+    support = np.column_stack([xy, surface(*xy.T)])
+    probe_xy = rng.uniform(-5, 5, size=(200, 2))
+    off = rng.normal(0.0, 0.3, size=200)
+    probes = np.column_stack([probe_xy, surface(*probe_xy.T) + off])
+    projected = mls_project(probes, support, 20)
+    residual = projected[:, 2] - surface(projected[:, 0], projected[:, 1])
+    assert np.abs(residual).max() < 0.02  # a plane fit would leave the curvature (~0.1 over 2 units)
+    assert np.abs(off).mean() > 0.2
+
+
+def test_interpolate_displacement_reproduces_a_constant_and_weights_the_nearest():
+    rng = np.random.default_rng(1)
+    anchors = rng.uniform(-5, 5, size=(50, 3))
+    constant = np.tile([0.3, -0.1, 0.2], (50, 1))
+    points = rng.uniform(-3, 3, size=(20, 3))
+    np.testing.assert_allclose(interpolate_displacement(points, anchors, constant), constant[:20], atol=1e-12)
+    # a point on an anchor takes that anchor's value (inverse-square weights)
+    varying = rng.normal(size=(50, 3))
+    np.testing.assert_allclose(interpolate_displacement(anchors[:5], anchors, varying), varying[:5], atol=1e-6)
+
+
+def test_rim_displacement_is_the_normal_shift():
+    grid = np.stack(np.meshgrid(np.arange(-10.0, 11), np.arange(-10.0, 11), indexing="ij"), -1).reshape(-1, 2)
+    source = np.column_stack([grid, np.zeros(len(grid))])
+    rim = source[::3] + np.array([0.2, 0.1, 0.4])  # the target surface lies 0.4 above, slid sideways
+    anchors, displacement = rim_displacement(rim, source, max_distance=2.0)
+    assert len(anchors) == len(rim)
+    np.testing.assert_allclose(np.abs(displacement[:, 2]), 0.4, atol=1e-9)
+    np.testing.assert_allclose(displacement[:, :2], 0.0, atol=1e-9)  # the tangential slide is not a bend
+
+
+def test_snap_to_voxels_gives_integer_unique_unoccupied_voxels():
+    occupied = np.array([[0, 0, 0], [1, 0, 0]], dtype=float)
+    points = np.array([[0.2, 0.1, -0.1], [1.4, 0.0, 0.0], [2.1, 0.2, 0.0], [1.9, -0.3, 0.4], [0.5, 0.5, 0.5]])
+    voxels = snap_to_voxels(points, occupied)
+    assert np.array_equal(voxels, np.round(voxels))
+    assert len(np.unique(voxels, axis=0)) == len(voxels)
+    assert not (cKDTree(occupied).query(voxels)[0] < 0.5).any()
+    # 0.5 rounds half up (a lattice shifted by half a voxel must not fold onto its neighbour)
+    assert {tuple(v) for v in voxels} == {(2.0, 0.0, 0.0), (1.0, 1.0, 1.0)}
+
+
+def test_disagreeing_flags_points_off_the_accepted_surface():
+    grid = np.stack(np.meshgrid(np.arange(0.0, 10), np.arange(0.0, 10), indexing="ij"), -1).reshape(-1, 2)
+    accepted = np.column_stack([grid, np.zeros(len(grid))])
+    points = np.array([[4.5, 4.5, 0.2], [4.5, 4.5, 2.0], [50.0, 50.0, 9.0]])
+    np.testing.assert_array_equal(disagreeing(points, accepted, reach=3.0, tolerance=1.0), [False, True, False])
+
+
+# -- the method -------------------------------------------------------------------------------------
+
+def test_rigid_motion_fill_matches_the_hidden_surface():
+    frames, regions, hidden = rigid_sequence()
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    out = quiet(TemporalFusion(), frames, regions)
+    new = out[2][len(frames[2]):]
+    assert len(new) > 0.7 * len(hidden)
+    # every new point on the hidden surface, and the hidden surface covered
+    dense_truth = cKDTree(hidden)
+    assert np.median(dense_truth.query(new)[0]) < 0.25 * spacing
+    assert np.quantile(cKDTree(new).query(hidden)[0], 0.95) < 1.0 * spacing
+    for f in (0, 1, 3, 4):  # frames without holes come back unchanged
+        np.testing.assert_array_equal(out[f], frames[f])
+
+
+def test_far_frames_fill_what_the_near_ones_lack():
+    """f-1 and f+1 miss the same patch as f (a persistent hole); f-2 saw it: window 2 copies it."""
+    frames, regions, hidden = rigid_sequence()
+    region = regions[2][0]
+    for g in (1, 3):  # frames are index-aligned moves of one sampling: drop the same samples
+        back = frames[g] - np.array([1.2, -0.7, 0.5]) * g
+        base = back @ Rotation.from_rotvec([0.0, 0.03 * g, 0.02 * g]).as_matrix()
+        in_frame_2 = base @ Rotation.from_rotvec([0.0, 0.06, 0.04]).as_matrix().T + np.array([1.2, -0.7, 0.5]) * 2
+        frames[g] = frames[g][~region.contains(in_frame_2)]
+    near_only = quiet(TemporalFusion(window=1, fallback=False, reuse_previous=False), frames, regions)
+    far_too = quiet(TemporalFusion(window=2, fallback=False, reuse_previous=False), frames, regions)
+    gained = far_too[2][len(frames[2]):]
+    assert len(near_only[2]) - len(frames[2]) < 0.1 * len(hidden)
+    assert len(gained) > 0.7 * len(hidden)
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    assert np.median(cKDTree(hidden).query(gained)[0]) < 0.3 * spacing
+
+
+def test_non_rigid_correction_follows_a_bend():
+    """Frame 1 bulges outward in a smooth band around the hole; the rigid copy from frames 0 and 2
+    lies below it; the rim-driven correction lifts it."""
+    base = bumpy(12000)
+    centre_dir = np.array([1.0, 0.0, 0.0])
+    direction = base / np.linalg.norm(base, axis=1, keepdims=True)
+    bulge = 2.5 * np.exp(-((direction @ centre_dir - 1.0) / 0.12) ** 2)  # smooth, ~20 units wide
+    bent = base + bulge[:, None] * direction
+    region = HoleRegion.ball(bent[np.argmax(bent[:, 0])] - 0.5 * centre_dir, 7.0)
+    inside = region.contains(bent)
+    hidden = bent[inside]
+    frames = [base, bent[~inside], base]
+    regions = [[], [region], []]
+    errors = {}
+    for deform in (False, True):
+        out = quiet(TemporalFusion(deform=deform, fallback=False, mls_neighbours=0), frames, regions)
+        new = out[1][len(frames[1]):]
+        assert len(new) > 0.5 * len(hidden)
+        errors[deform] = float(np.mean(cKDTree(hidden).query(new)[0]))
+    assert errors[True] < 0.8 * errors[False], errors  # measured 0.27 -> 0.20
+
+
+def test_a_hole_no_frame_saw_falls_back_to_the_spatial_fill():
+    """The same patch is missing in every frame (a static body): nothing to copy, so the output is
+    exactly the spatial fill (window 0), and that fill lies near the true sphere."""
+    full = sphere(8000)
+    region = HoleRegion.ball(full[np.argmax(full[:, 2])], 10.0)
+    damaged = full[~region.contains(full)]
+    frames = [damaged.copy() for _ in range(3)]
+    regions = [[region] for _ in range(3)]
+    temporal = quiet(TemporalFusion(reuse_previous=False), frames, regions)
+    spatial = quiet(TemporalFusion(window=0, reuse_previous=False), frames, regions)
+    for a, b in zip(temporal, spatial):
+        np.testing.assert_array_equal(a, b)
+    new = temporal[1][len(frames[1]):]
+    assert len(new) > 0.3 * region.contains(full).sum()
+    assert np.all(region.contains(new, margin=1e-9) | (np.linalg.norm(new - region.center, axis=1) < 12))
+    assert np.abs(np.linalg.norm(new, axis=1) - 50.0).mean() < 1.0
+    no_fallback = quiet(TemporalFusion(reuse_previous=False, fallback=False), frames, regions)
+    assert len(no_fallback[1]) == len(frames[1])
+
+
+def test_voxelized_input_gets_integer_unoccupied_voxels():
+    frames, regions, hidden = rigid_sequence(n_frames=3, hole_frame=1, n=30000)
+    frames = [np.unique(np.floor(f + 0.5), axis=0) for f in frames]
+    region = regions[1][0]
+    frames[1] = frames[1][~region.contains(frames[1])]
+    out = quiet(TemporalFusion(), frames, regions)
+    new = out[1][len(frames[1]):]
+    assert len(new) > 50
+    assert np.array_equal(new, np.round(new))
+    assert len(np.unique(new, axis=0)) == len(new)
+    assert not (cKDTree(frames[1]).query(new)[0] < 0.5).any()
+
+
+def test_blind_mode_finds_and_fills_the_hole():
+    frames, regions, hidden = rigid_sequence(n_frames=3, hole_frame=1, n=12000)
+    out = quiet(TemporalFusion(), frames, None)
+    new = out[1][len(frames[1]):]
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    covered = cKDTree(new).query(hidden)[0] < 1.5 * spacing if len(new) else np.zeros(len(hidden), bool)
+    assert covered.mean() > 0.8
+    assert np.median(cKDTree(hidden).query(new)[0]) < 0.5 * spacing
+
+
+def test_deterministic_and_reuses_the_previous_fill():
+    """A persistent hole on a still body, sampled afresh each frame: with reuse the later frames keep
+    frame 0's fill (moved by the identity, re-projected), without it each frame gets its own."""
+    full = [bumpy(8000 + 37 * f) for f in range(4)]
+    region = HoleRegion.ball(full[0][np.argmax(full[0][:, 2])], 10.0)
+    frames = [f[~region.contains(f)] for f in full]
+    regions = [[region] for _ in range(4)]
+    a = quiet(TemporalFusion(reuse_previous=True), frames, regions)
+    b = quiet(TemporalFusion(reuse_previous=True), [f.copy() for f in frames], regions)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+    fresh = quiet(TemporalFusion(reuse_previous=False), frames, regions)
+
+    def drift(outputs):
+        fills = [o[len(f):] for o, f in zip(outputs, frames)]
+        assert all(len(fill) for fill in fills)
+        return max(float(np.median(cKDTree(fills[f - 1]).query(fills[f])[0])) for f in range(1, 4))
+
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    assert drift(a) < 0.05 * spacing
+    assert drift(fresh) > 4 * drift(a)
+
+
+@pytest.mark.parametrize("bad", [dict(window=-1), dict(window=1.5), dict(accept_spacings=0), dict(snap="yes"),
+                                 dict(deform="no"), dict(shell_spacings=-2.0)])
+def test_bad_parameters_are_refused(bad):
+    frames, regions, _ = rigid_sequence(n_frames=2, hole_frame=1, n=2000)
+    with pytest.raises(ValueError, match="temporal-fusion"):
+        TemporalFusion(**bad).inpaint(frames, regions)
