@@ -21,6 +21,7 @@ TABLE_COLUMNS: list[tuple[str, str, dict, str]] = [
     ("fu-nonlocal", "Hu", {"variant": "paper"}, "paper"),
     ("temporal-graph", "Proposed", {"variant": "paper"}, "paper"),
     ("temporal-graph", "temporal-graph tuned (ours)", {}, "ours"),
+    ("temporal-fusion", "temporal-fusion (ours)", {}, "ours"),
     ("temporal-copy", "temporal-copy (reference)", {}, "reference"),
 ]
 ROLES = {"paper": "the paper's column, in the paper configuration", "ours": "ours (not in the paper)",
