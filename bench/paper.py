@@ -8,6 +8,8 @@ of each sequence with synthetic holes (copied from /work/shared/SPEC.md section 
 
 from __future__ import annotations
 
+from bench.errors import UserError
+
 #: (registry name, column label in the paper, parameters) in the paper's column order
 PAPER_METHODS: list[tuple[str, str, dict]] = [
     ("meshlab", "Meshlab", {"output": "whole"}),
@@ -93,7 +95,7 @@ def available_paper_sequences(data_dir) -> list[str]:
 
     root = Path(data_dir).expanduser()
     if not root.is_dir():
-        raise ValueError(f"--data-dir {root}: no such folder; give the folder that holds e.g. longdress/Ply/*.ply")
+        raise UserError(f"--data-dir {root}: no such folder; give the folder that holds e.g. longdress/Ply/*.ply")
     return [name for name in PAPER_SEQUENCES if find_paper_folder(PAPER[name], root) is not None]
 
 
@@ -114,7 +116,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     preset = "paper-quick" if quick else "paper"
     base = tomllib.loads((PRESETS_DIR / f"{preset}.toml").read_text())
     if frames is not None and frames < 2:
-        raise ValueError("--frames: the temporal method needs at least 2 frames")
+        raise UserError("--frames: the temporal method needs at least 2 frames")
     for seq in base["sequences"]:
         if size:
             seq.setdefault("params", {})["size"] = size
@@ -129,7 +131,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     if data_dir:
         found = available_paper_sequences(data_dir)
         if not found:
-            raise ValueError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
+            raise UserError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
                              "found there; expected e.g. longdress/Ply/longdress_vox10_1051.ply ... (see "
                              "`dpcbench datasets`), or leave --data-dir out to run on the embedded stand-ins")
         standins = False

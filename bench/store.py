@@ -35,6 +35,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench.errors import UserError
+
 SCHEMA_VERSION = 1
 
 #: columns of `ResultsStore.results_frame`, in order
@@ -123,12 +125,43 @@ class ResultsStore:
         self.readonly = readonly
         self.timeout_s = timeout_s
         if self.path.is_dir():
-            raise ValueError(f"{self.path}: is a folder; the store is a file: pass e.g. {self.path / 'results.sqlite'}")
+            raise UserError(f"{self.path}: is a folder; the store is a file: pass e.g. {self.path / 'results.sqlite'}")
         if readonly and not self.path.is_file():
-            raise ValueError(f"{self.path}: no results store there; run `dpcbench run CONFIG --store {self.path}` first")
+            raise UserError(f"{self.path}: no results store there; run `dpcbench run CONFIG --store {self.path}` first")
         if not readonly:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._prepare_folder()
         self._init()
+
+    def _prepare_folder(self) -> None:
+        """Create the store's folder and prove it is writable (SQLite needs its journal beside the file)."""
+        from bench.outputs import _existing_ancestor
+
+        base = _existing_ancestor(self.path.parent)
+        if not base.is_dir():
+            raise UserError(f"--store {self.path}: {base} is a file, not a folder; give a store path outside it")
+        if self.path.exists() and not self.path.is_file():
+            raise UserError(f"--store {self.path}: is not a regular file; give the path of a results store")
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            probe = self.path.parent / f".{self.path.name}.probe{os.getpid()}"
+            probe.write_bytes(b"")
+            probe.unlink()
+        except OSError as err:
+            raise UserError(f"--store {self.path}: cannot write in {self.path.parent} ({err.strerror or err}); "
+                            "give a store path in a folder you can write to") from None
+
+    def verify(self) -> "ResultsStore":
+        """``PRAGMA quick_check``: refuse (UserError) a damaged store before anything is read from or
+        written to it, with the way out. Returns the store."""
+        with self._conn() as conn:
+            rows = [r[0] for r in conn.execute("PRAGMA quick_check").fetchall()]
+        if rows != ["ok"]:
+            first = "; ".join(str(r) for r in rows[:2]) + (f" (and {len(rows) - 2} more)" if len(rows) > 2 else "")
+            raise UserError(
+                f"{self.path}: the results store is damaged (SQLite quick_check: {first}); nothing was read from "
+                f"it. Move it aside (mv {self.path} {self.path}.bad) and rerun `dpcbench run`, which rebuilds the "
+                "results from the run folders' stored frames, or pass another --store PATH")
+        return self
 
     # -- connection ------------------------------------------------------------------------
     def _connect(self) -> sqlite3.Connection:
@@ -144,14 +177,18 @@ class ResultsStore:
         try:
             conn = self._connect()
         except sqlite3.Error as err:
-            raise ValueError(_corrupt_message(self.path, err)) from err
+            raise UserError(_corrupt_message(self.path, err)) from err
         try:
             yield conn
+        except pd.errors.DatabaseError as err:  # pandas wraps the sqlite3 error of a damaged file
+            if "malformed" in str(err) or "not a database" in str(err):
+                raise UserError(_corrupt_message(self.path, err)) from err
+            raise
         except sqlite3.DatabaseError as err:
             # "file is not a database" / "database disk image is malformed" mean a damaged file;
             # other errors (locked, programming errors) pass through unchanged.
             if type(err) is sqlite3.DatabaseError or "malformed" in str(err) or "not a database" in str(err):
-                raise ValueError(_corrupt_message(self.path, err)) from err
+                raise UserError(_corrupt_message(self.path, err)) from err
             raise
         finally:
             conn.close()
@@ -161,20 +198,20 @@ class ResultsStore:
             tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
             if not tables:
                 if self.readonly:
-                    raise ValueError(f"{self.path}: the file is empty, not a results store; run `dpcbench run` first")
+                    raise UserError(f"{self.path}: the file is empty, not a results store; run `dpcbench run` first")
                 conn.execute("PRAGMA journal_mode = WAL")
                 with conn:
                     conn.executescript(_SCHEMA)
                     conn.execute("INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,))
                 return
             if "schema_version" not in tables or not {"runs", "results"} <= tables:
-                raise ValueError(
+                raise UserError(
                     f"{self.path}: this SQLite file is not a dpcbench results store (tables: {sorted(tables)}); "
                     "pass the store's path, or a new path to start one"
                 )
             row = conn.execute("SELECT MAX(version) FROM schema_version").fetchone()
             if row[0] != SCHEMA_VERSION:
-                raise ValueError(
+                raise UserError(
                     f"{self.path}: store schema version {row[0]}, this dpcbench reads version {SCHEMA_VERSION}; "
                     "use a new --store path (or the dpcbench version that wrote it)"
                 )
@@ -197,7 +234,7 @@ class ResultsStore:
     def _write(self, run_id: str, record: dict, status: str, error: str | None, results: list[dict],
                experiments: list[str]) -> None:
         if self.readonly:
-            raise ValueError(f"{self.path}: opened read-only")
+            raise UserError(f"{self.path}: opened read-only")
         rows = []
         for r in results:
             value = r["value"]

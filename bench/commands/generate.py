@@ -18,12 +18,16 @@ def register(subparsers) -> None:
                         help="generator parameter, repeatable: size=tiny|small|default, bit_depth=10, "
                              "motion=walk|dance|wave (human), seed=0, ...")
     parser.add_argument("--no-cache", action="store_true", help="regenerate instead of reading the frame cache")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace existing files in the output folder that dpcbench did not write")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from bench.datasets import EMBEDDED, PAPER, load_dataset, parse_params
-    from bench.sequences import save_sequence
+    from bench.datasets import EMBEDDED, PAPER, load_dataset
+    from bench.outputs import Outputs, record_written
+    from bench.params import parse_params
+    from bench.sequences import save_sequence, sequence_file_names
 
     name = args.name.lower()
     if name not in EMBEDDED:
@@ -32,15 +36,13 @@ def run(args) -> int:
     if args.frames is not None and args.frames < 1:
         raise UserError(f"--frames must be at least 1, got {args.frames}")
     params = parse_params(args.param)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    seq = load_dataset(name, frames=args.frames, cache=not args.no_cache, **params)
-    try:
-        paths = save_sequence(seq, out, prefix=name)
-    except OSError as err:
-        raise UserError(f"--out {out}: cannot write frames ({err})") from None
+    count = args.frames if args.frames is not None else EMBEDDED[name].default_frames
+    guard = Outputs(args.overwrite)
+    guard.folder(args.out, "--out", sequence_file_names(name, count), sequence=True)
+    seq = load_dataset(name, frames=args.frames, cache=not args.no_cache, name_only=True, **params)
+    paths = save_sequence(seq, Path(args.out), prefix=name)
+    record_written(paths)
     counts = [len(f) for f in seq.frames]
     depth = f", {seq.bit_depth}-bit integer coordinates" if seq.bit_depth else ""
-    print(f"wrote {len(paths)} frames to {out} ({min(counts)}..{max(counts)} points per frame{depth})")
+    print(f"wrote {len(paths)} frames to {args.out} ({min(counts)}..{max(counts)} points per frame{depth})")
     return 0

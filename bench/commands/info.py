@@ -52,7 +52,8 @@ def describe(seq) -> dict:
 
 
 def run(args) -> int:
-    from bench.datasets import load_dataset, parse_frames, parse_params
+    from bench.datasets import load_dataset, parse_frames
+    from bench.params import parse_params
 
     seq = load_dataset(args.source, frames=parse_frames(args.frames), data_dir=args.data_dir,
                        **parse_params(args.param))
