@@ -106,9 +106,9 @@ def _json(value) -> str:
 
 def _corrupt_message(path: Path, err: Exception) -> str:
     return (
-        f"{path}: the results store is unreadable ({type(err).__name__}: {err}). It is not a dpcbench "
-        "SQLite store or it is corrupt: move it aside (e.g. rename it to results.sqlite.bad) and rerun, "
-        "which rebuilds the results from the cached run folders' frames, or pass another --store PATH"
+        f"{path}: the results store is damaged or not a dpcbench store ({type(err).__name__}: {err}); nothing was "
+        f"read from it. Move it aside (mv {path} {path}.bad) and rerun `dpcbench run`, which rebuilds the results "
+        "from the run folders' stored frames, or pass another --store PATH"
     )
 
 
@@ -120,7 +120,8 @@ class ResultsStore:
     what to do.
     """
 
-    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0):
+    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0,
+                 verify: bool = False):
         self.path = Path(path).expanduser() if path is not None else default_store_path()
         self.readonly = readonly
         self.timeout_s = timeout_s
@@ -129,32 +130,37 @@ class ResultsStore:
         if readonly and not self.path.is_file():
             raise UserError(f"{self.path}: no results store there; run `dpcbench run CONFIG --store {self.path}` first")
         if not readonly:
-            self._prepare_folder()
+            self.check_path(self.path)
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        if verify and self.path.is_file() and self.path.stat().st_size:
+            self.verify()  # before _init writes anything (journal mode) into a damaged file
         self._init()
 
-    def _prepare_folder(self) -> None:
-        """Create the store's folder and prove it is writable (SQLite needs its journal beside the file)."""
-        from bench.outputs import _existing_ancestor
+    @staticmethod
+    def check_path(path: Path) -> None:
+        """UserError unless a store can be created or written at ``path`` (nothing is created):
+        not under a file, not a folder, in a folder that can be written (SQLite's journal goes beside)."""
+        from bench.outputs import _check_writable_folder, _existing_ancestor
 
-        base = _existing_ancestor(self.path.parent)
+        base = _existing_ancestor(path.parent)
         if not base.is_dir():
-            raise UserError(f"--store {self.path}: {base} is a file, not a folder; give a store path outside it")
-        if self.path.exists() and not self.path.is_file():
-            raise UserError(f"--store {self.path}: is not a regular file; give the path of a results store")
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            probe = self.path.parent / f".{self.path.name}.probe{os.getpid()}"
-            probe.write_bytes(b"")
-            probe.unlink()
-        except OSError as err:
-            raise UserError(f"--store {self.path}: cannot write in {self.path.parent} ({err.strerror or err}); "
-                            "give a store path in a folder you can write to") from None
+            raise UserError(f"--store {path}: {base} is a file, not a folder; give a store path outside it")
+        if path.exists() and not path.is_file():
+            raise UserError(f"--store {path}: is not a regular file; give the path of a results store")
+        _check_writable_folder(path.parent, "--store", path)
 
     def verify(self) -> "ResultsStore":
         """``PRAGMA quick_check``: refuse (UserError) a damaged store before anything is read from or
         written to it, with the way out. Returns the store."""
-        with self._conn() as conn:
-            rows = [r[0] for r in conn.execute("PRAGMA quick_check").fetchall()]
+        try:
+            conn = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=self.timeout_s)
+            try:
+                rows = [str(r[0]) for r in conn.execute("PRAGMA quick_check").fetchall()]
+            finally:
+                conn.close()
+        except sqlite3.DatabaseError as err:  # not even the header reads
+            raise UserError(_corrupt_message(self.path, err)) from None
+        rows = [line for row in rows for line in row.splitlines() if line and not line.startswith("***")] or rows
         if rows != ["ok"]:
             first = "; ".join(str(r) for r in rows[:2]) + (f" (and {len(rows) - 2} more)" if len(rows) > 2 else "")
             raise UserError(

@@ -297,7 +297,7 @@ def test_cli_compare_errors(tmp_path, capsys):
     corrupt = tmp_path / "corrupt.sqlite"
     corrupt.write_bytes(b"this is not sqlite" * 100)
     assert cli_main(["compare", str(base), str(corrupt)]) == 2
-    assert "results store is unreadable" in capsys.readouterr().err
+    assert "results store is damaged" in capsys.readouterr().err
     bad_tol = tmp_path / "t.toml"
     bad_tol.write_text("[tolerances]\nnshd = -1\n")
     assert cli_main(["compare", str(base), str(store), "--tolerances", str(bad_tol)]) == 2

@@ -52,7 +52,7 @@ def current_from_store(store_path, experiment: str | None):
     from bench import compare
     from bench.store import ResultsStore
 
-    store = ResultsStore(store_path, readonly=True).verify()
+    store = ResultsStore(store_path, readonly=True, verify=True)
     results = store.results_frame()
     runs = store.runs_frame()
     if results.empty:

@@ -43,7 +43,7 @@ def load_stores(paths, experiment):
     results, runs = [], []
     paths = paths or [None]
     for i, path in enumerate(paths):
-        store = ResultsStore(path, readonly=True).verify()
+        store = ResultsStore(path, readonly=True, verify=True)
         store_results = store.results_frame(experiment)
         store_runs = store.runs_frame(experiment)
         if len(paths) > 1:

@@ -43,7 +43,7 @@ def main(args) -> int:
     from bench.reports import write_comparison_report
     from bench.store import ResultsStore
 
-    store = ResultsStore(resolve_store(args.results), readonly=True).verify()
+    store = ResultsStore(resolve_store(args.results), readonly=True, verify=True)
     experiments = store.experiments()
     experiment = args.experiment
     if experiment is None:

@@ -56,7 +56,7 @@ def main(args) -> int:
     protocol = paper.paper_protocol(quick=args.quick, data_dir=args.data_dir, size=args.size, frames=args.frames)
     guard = Outputs(args.overwrite)
     out = guard.folder(args.out, "--out")
-    store = ResultsStore(args.store).verify()
+    store = ResultsStore(args.store, verify=True)
     specs = protocol.synthetic + protocol.real
     if not quiet:
         where = "embedded STAND-INS (not the paper's data)" if protocol.standins else "the paper's sequences"

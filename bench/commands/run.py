@@ -53,7 +53,7 @@ def resolve_config_path(text: str) -> Path:
 def main(args) -> int:
     from bench.config import load_config
     from bench.runner import run_experiment
-    from bench.store import ResultsStore
+    from bench.store import ResultsStore, default_store_path
 
     if args.jobs is not None and args.jobs < 1:
         raise UserError("--jobs: must be at least 1")
@@ -62,14 +62,18 @@ def main(args) -> int:
     overrides = {"experiment": {"data_dir": args.data_dir}} if args.data_dir else None
     cfg = load_config(resolve_config_path(args.config), overrides)
     specs = cfg.expand()
-    store = ResultsStore(args.store).verify()
-    if args.dry_run:
-        statuses = store.statuses([s.run_id for s in specs])
+    if args.dry_run:  # reads the store if there is one; creates nothing
+        path = Path(args.store).expanduser() if args.store else default_store_path()
+        ResultsStore.check_path(path)
+        store = ResultsStore(path, readonly=True, verify=True) if path.is_file() else None
+        statuses = store.statuses([s.run_id for s in specs]) if store is not None else {}
         for spec in specs:
             print(f"{statuses.get(spec.run_id, 'todo'):7s} {spec.summary()}")
         todo = sum(1 for s in specs if s.run_id not in statuses)
-        print(f"{len(specs)} runs in experiment {cfg.name!r}: {todo} to do, {len(specs) - todo} stored; store {store.path}")
+        print(f"{len(specs)} runs in experiment {cfg.name!r}: {todo} to do, {len(specs) - todo} stored; store {path}"
+              f"{'' if store is not None else ' (not created yet)'}")
         return 0
+    store = ResultsStore(args.store, verify=True)
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
     summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
                              scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
