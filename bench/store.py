@@ -107,7 +107,7 @@ def _json(value) -> str:
 def _corrupt_message(path: Path, err: Exception) -> str:
     return (
         f"{path}: the results store is damaged or not a dpcbench store ({type(err).__name__}: {err}); nothing was "
-        f"read from it. Move it aside (mv {path} {path}.bad) and rerun `dpcbench run`, which rebuilds the results "
+        f"read from it; move it aside (mv {path} {path}.bad) and rerun `dpcbench run`, which rebuilds the results "
         "from the run folders' stored frames, or pass another --store PATH"
     )
 
@@ -165,7 +165,7 @@ class ResultsStore:
             first = "; ".join(str(r) for r in rows[:2]) + (f" (and {len(rows) - 2} more)" if len(rows) > 2 else "")
             raise UserError(
                 f"{self.path}: the results store is damaged (SQLite quick_check: {first}); nothing was read from "
-                f"it. Move it aside (mv {self.path} {self.path}.bad) and rerun `dpcbench run`, which rebuilds the "
+                f"it; move it aside (mv {self.path} {self.path}.bad) and rerun `dpcbench run`, which rebuilds the "
                 "results from the run folders' stored frames, or pass another --store PATH")
         return self
 

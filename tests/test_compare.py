@@ -199,7 +199,7 @@ def test_direction_comes_from_the_metric_registry_when_present():
     registry = pytest.importorskip("metrics.registry")
     for name, metric in registry.METRICS.items():
         assert compare.higher_is_better(name) == bool(metric.higher_is_better)
-    with pytest.raises(KeyError, match="unknown direction"):
+    with pytest.raises(ValueError, match="unknown direction"):  # a bench.errors.UserError
         compare.higher_is_better("no_such_metric")
 
 

@@ -386,6 +386,8 @@ def damaged_store(path: Path) -> Path:
     (its schema still reads: only an integrity check finds the damage)."""
     from bench.store import ResultsStore
 
+    for stale in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
+        stale.unlink(missing_ok=True)
     store = ResultsStore(path)
     for r in range(40):
         store.record_run(f"run{r:03d}", {"sequence": "s", "method": "none", "spec": {}},
