@@ -55,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _show_warning(command: str):
     def show(message, category, filename, lineno, file=None, line=None):
+        RECORDED.append(one_line(message))
         print(f"dpcbench {command}: warning: {one_line(message)}", file=sys.stderr)
     return show
 

@@ -42,11 +42,11 @@ class InputWarning(UserWarning):
     """An input accepted with a caveat the user must see (printed as one line by the CLI)."""
 
 
-#: messages of the `InputWarning`s issued so far in this process (the CLI clears it per command)
+#: messages of the warnings the running `dpcbench` command has shown (the CLI fills it, one entry per
+#: line it prints, and clears it per command), for the command's output record
 RECORDED: list[str] = []
 
 
 def warn(message: str) -> None:
-    """Issue an `InputWarning` (one line on stderr under `dpcbench`) and record its message."""
-    RECORDED.append(message)
+    """Issue an `InputWarning` (under `dpcbench`: one line on stderr, and recorded in `RECORDED`)."""
     warnings.warn(message, InputWarning, stacklevel=2)

@@ -103,6 +103,10 @@ def run(args) -> int:
             for m, frac, p in zip(result.removed, fractions, files)
         ],
     )
+    from bench.errors import RECORDED
+
+    if RECORDED:
+        record["warnings"] = list(RECORDED)  # the notes printed while it was made (e.g. which input was taken)
     tmp = out / "holes.json.tmp"
     tmp.write_text(json.dumps(record, indent=1, default=_jsonable))
     tmp.replace(out / "holes.json")

@@ -54,6 +54,10 @@ def run(args) -> int:
         source=str(args.input),
         per_frame=[{"points": int(len(p)), "region_count": len(r)} for p, r in zip(seq.points, regions)],
     )
+    from bench.errors import RECORDED
+
+    if RECORDED:
+        record["warnings"] = list(RECORDED)  # the notes printed while it was made
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text(json.dumps(record, indent=1))

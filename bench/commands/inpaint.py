@@ -34,8 +34,8 @@ def register(subparsers) -> None:
     parser.add_argument("input", help="embedded name (human, bunny), paper sequence, or PLY folder/glob/file")
     parser.add_argument("--method", required=True, help=f"method: {', '.join(sorted(METHODS))}")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE",
-                        help="method parameter (repeatable; values read as JSON when they parse: numbers, "
-                             "true/false, null), e.g. --param beta=0.5 --param known_points=free")
+                        help="method parameter (repeatable), e.g. --param beta=0.5 --param known_points=free; values: "
+                             "true/false, none, numbers, JSON lists, else text (see bench/params.py)")
     parser.add_argument("--regions", metavar="HOLES_JSON", default=None,
                         help="hole regions per frame (holes.json of `dpcbench damage`); omit for the blind protocol")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (not INPUT)")

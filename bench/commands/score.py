@@ -126,7 +126,7 @@ def run(args) -> int:
     }
     undefined = sorted({k for f in scores["frames"] for k, v in f.items()
                         if k != "frame" and isinstance(v, float) and np.isnan(v)})
-    if undefined and not RECORDED:
+    if undefined and not empty:
         warn(f"undefined (NaN) values of {', '.join(undefined)} in some frames; they are left out of the mean")
     scores["warnings"] = list(RECORDED)
     if args.json:
