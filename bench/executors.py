@@ -30,7 +30,12 @@ EXECUTORS = ("serial", "pool", "dask")
 
 
 def _failed(spec: RunSpec, err: BaseException) -> dict:
-    return {"run_id": spec.run_id, "status": "failed", "error": f"{type(err).__name__}: {err}"}
+    """The failure record of a run whose worker could not even report (a harness bug or a lost
+    worker): the traceback is kept, as for failures inside the worker, so the bug can be found."""
+    import traceback
+
+    return {"run_id": spec.run_id, "status": "failed", "error": f"{type(err).__name__}: {err}",
+            "traceback": "".join(traceback.format_exception(err))[-4000:]}
 
 
 class SerialExecutor:

@@ -220,11 +220,11 @@ class Outputs:
         if hit is not None:
             raise UserError(f"{option} {shown}: is (or lies in) the input {hit}; the input is never overwritten: "
                             "choose another output folder")
-        for item in self.input_dirs | self.input_files:
-            if target in item.parents:
-                raise UserError(f"{option} {shown}: holds the input {item}; the input is never overwritten: "
-                                "choose another output folder")
         targets = [path / n for n in names]
+        for item in self.input_files:
+            if item in {t.resolve() for t in targets} or (sequence and item.parent == target):
+                raise UserError(f"{option} {shown}: holds the input file {item.name}; the input is never overwritten "
+                                "(and new frames beside it would join its sequence): choose another output folder")
         if sequence and path.is_dir():
             planned = {t.name for t in targets}
             stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned)

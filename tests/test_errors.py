@@ -118,6 +118,9 @@ def test_a_sequence_never_mixes_with_other_frames_or_replaces_user_files(work, c
     code, _, err = run_cli(["inpaint", "seq", "--method", "none", "--regions", "holes.json", "--out", out], capsys)
     assert_refused(code, err, "inpaint", "inpaint.json", "--overwrite")
     assert (out / "inpaint.json").read_text() == "my notes"
+    # one frame given as input: its folder is not written into either, not even with --overwrite
+    code, _, err = run_cli(["damage", "seq/s_0000.ply", "--holes", "dropout", "--out", "seq", "--overwrite"], capsys)
+    assert_refused(code, err, "damage", "holds the input file s_0000.ply")
 
 
 # -- output paths that cannot be written --------------------------------------------------------
