@@ -117,6 +117,7 @@ def main() -> int:
         ws = workspace(t, root)
         os.chdir(ws)
         bad = {k: str(v) for k, v in t.bad_files(ws).items()}
+        restore = t.good_inputs(ws)
         tried = handled = 0
         problems: list[str] = []
         if "--subprocess-only" not in sys.argv:
@@ -127,6 +128,7 @@ def main() -> int:
             from bench.cli import main as cli_main
 
             for argv, out in cases:
+                restore()
                 before = t.tree_hashes(ws, skip=out)
                 err = io.StringIO()
                 try:
@@ -143,6 +145,7 @@ def main() -> int:
                     problems.append(f"in-process {argv}: exit {code}: {err.getvalue()!r}")
         env = {**os.environ, "PYTHONPATH": str(REPO)}
         for argv, out in subprocess_cases(ws, bad):
+            restore()
             before = t.tree_hashes(ws, skip=Path(out) if out else None)
             proc = subprocess.run([sys.executable, "-m", "bench.cli", *argv], capture_output=True, text=True, env=env)
             tried += 1
