@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench.errors import UserError
+
 BENCHMARK_COLUMNS = [
     "source", "datetime", "commit", "commit_time", "dirty", "branch", "machine",
     "name", "fullname", "group", "param", "extra_info",
@@ -38,7 +40,7 @@ def benchmark_files(paths) -> list[Path]:
         elif entry.is_file():
             files.append(entry)
         else:
-            raise ValueError(f"{entry}: no such benchmark file or folder; run the suite with "
+            raise UserError(f"{entry}: no such benchmark file or folder; run the suite with "
                              "`pytest tests/benchmarks --benchmark-only --benchmark-autosave` first")
     return files
 
@@ -56,9 +58,9 @@ def read_benchmark_json(path: str | os.PathLike) -> list[dict]:
     try:
         payload = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path}: not a readable JSON file ({err})") from None
+        raise UserError(f"{path}: not a readable JSON file ({err})") from None
     if not _is_benchmark_document(payload):
-        raise ValueError(f"{path}: not a pytest-benchmark JSON document (no 'benchmarks' / 'machine_info')")
+        raise UserError(f"{path}: not a pytest-benchmark JSON document (no 'benchmarks' / 'machine_info')")
     commit = payload.get("commit_info") or {}
     machine_info = payload.get("machine_info") or {}
     cpu = machine_info.get("cpu") or {}
@@ -96,7 +98,7 @@ def load_benchmark_runs(paths, *, skip_invalid: bool = True) -> pd.DataFrame:
     for path in benchmark_files(paths):
         try:
             rows.extend(read_benchmark_json(path))
-        except ValueError:
+        except UserError:  # a file that is not a pytest-benchmark document
             if not skip_invalid:
                 raise
     df = pd.DataFrame(rows, columns=BENCHMARK_COLUMNS)

@@ -52,6 +52,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from bench.errors import UserError
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10, as bench.config
@@ -100,10 +102,8 @@ SUMMARY_FORMAT = "dpcbench-summary"
 # ---------------------------------------------------------------------------------------------
 # metric facts
 def _registry_metric(name: str):
-    try:
-        from metrics.registry import METRICS
-    except Exception:  # the metrics package is optional for comparing two summary files
-        return None
+    from metrics.registry import METRICS
+
     return METRICS.get(name)
 
 
@@ -114,7 +114,7 @@ def higher_is_better(metric: str) -> bool:
         return bool(entry.higher_is_better)
     if metric in HIGHER_IS_BETTER:
         return HIGHER_IS_BETTER[metric]
-    raise KeyError(
+    raise UserError(
         f"metric {metric!r}: unknown direction (higher or lower is better); it is neither in "
         "metrics.registry.METRICS nor in bench.compare.HIGHER_IS_BETTER"
     )
@@ -225,7 +225,7 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
     required = set(RUN_KEY) | {"run_id", "metric", "scope", "peak", "value", "created_at"}
     missing = sorted(required - set(results.columns))
     if missing:
-        raise ValueError(f"results table lacks the columns {missing}; pass ResultsStore(path).results_frame()")
+        raise UserError(f"results table lacks the columns {missing}; pass ResultsStore(path).results_frame()")
     df = results
     if experiment is not None:
         df = df[df["experiment"] == experiment]
@@ -233,7 +233,7 @@ def summarize(results: pd.DataFrame, *, experiment: str | None = None,
         df = df[df["code_version"] == code_version]
     if df.empty:
         what = " and ".join(f"{k} {v!r}" for k, v in (("experiment", experiment), ("code version", code_version)) if v)
-        raise ValueError(f"no results to summarize{' for ' + what if what else ''}; run the experiment first "
+        raise UserError(f"no results to summarize{' for ' + what if what else ''}; run the experiment first "
                          "(dpcbench run CONFIG)")
     df = _frame_level_values(newest_runs(df))
     grouped = df.groupby(KEY_COLUMNS, sort=True)["value"]
@@ -272,7 +272,7 @@ def write_summary(summary: pd.DataFrame, path: str | os.PathLike, meta: dict | N
         summary.to_csv(buffer, index=False, float_format="%.12g", lineterminator="\n")
         text = "\n".join(header) + "\n" + buffer.getvalue()
     else:
-        raise ValueError(f"{path}: a summary file must end in .csv or .json")
+        raise UserError(f"{path}: a summary file must end in .csv or .json")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     tmp.write_text(text, encoding="utf-8")
@@ -284,15 +284,19 @@ def read_summary(path: str | os.PathLike) -> tuple[pd.DataFrame, dict]:
     """(summary table, meta) from a file written by `write_summary`."""
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"{path}: no such summary file")
-    text = path.read_text(encoding="utf-8")
+        raise UserError(f"{path}: no such summary file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not a text file, so not a summary; give a .csv/.json written by "
+                        "`dpcbench compare --save-current`") from None
     if path.suffix.lower() == ".json":
         try:
             payload = json.loads(text)
         except json.JSONDecodeError as err:
-            raise ValueError(f"{path}: not valid JSON ({err}); regenerate it with dpcbench compare --save") from None
+            raise UserError(f"{path}: not valid JSON ({err}); regenerate it with dpcbench compare --save") from None
         if not isinstance(payload, dict) or payload.get("format") != SUMMARY_FORMAT:
-            raise ValueError(f"{path}: not a dpcbench summary (no \"format\": \"{SUMMARY_FORMAT}\")")
+            raise UserError(f"{path}: not a dpcbench summary (no \"format\": \"{SUMMARY_FORMAT}\")")
         table = pd.DataFrame(payload.get("rows", []), columns=SUMMARY_COLUMNS)
         meta = dict(payload.get("meta", {}))
     elif path.suffix.lower() == ".csv":
@@ -306,16 +310,20 @@ def read_summary(path: str | os.PathLike) -> tuple[pd.DataFrame, dict]:
         else:
             body_start = len(lines)
         if meta.get("format", "").split(" ")[0] != SUMMARY_FORMAT:
-            raise ValueError(f"{path}: not a dpcbench summary (first line must be '# format: {SUMMARY_FORMAT} 1')")
+            raise UserError(f"{path}: not a dpcbench summary (first line must be '# format: {SUMMARY_FORMAT} 1')")
         meta.pop("format")
         body = "\n".join(lines[body_start:])
-        table = pd.read_csv(io.StringIO(body), dtype={c: str for c in KEY_COLUMNS}, keep_default_na=False,
-                            na_values={"mean": ["", "nan", "NaN"], "std": ["", "nan", "NaN"]})
+        try:
+            table = pd.read_csv(io.StringIO(body), dtype={c: str for c in KEY_COLUMNS}, keep_default_na=False,
+                                na_values={"mean": ["", "nan", "NaN"], "std": ["", "nan", "NaN"]})
+        except (pd.errors.ParserError, pd.errors.EmptyDataError) as err:
+            raise UserError(f"{path}: the table under the header is not valid CSV ({' '.join(str(err).split())}); "
+                            "regenerate it with `dpcbench compare --save-current`") from None
     else:
-        raise ValueError(f"{path}: a summary file must end in .csv or .json")
+        raise UserError(f"{path}: a summary file must end in .csv or .json")
     absent = [c for c in SUMMARY_COLUMNS if c not in table.columns]
     if absent:
-        raise ValueError(f"{path}: summary lacks the columns {absent}")
+        raise UserError(f"{path}: summary lacks the columns {absent}")
     table = _normalize_keys(table)
     table["mean"] = pd.to_numeric(table["mean"], errors="coerce")
     table["std"] = pd.to_numeric(table["std"], errors="coerce")
@@ -339,22 +347,24 @@ def load_tolerances(path: str | os.PathLike | None = None) -> dict[str, float]:
         with open(path, "rb") as handle:
             data = tomllib.load(handle)
     except FileNotFoundError:
-        raise ValueError(f"{path}: tolerances file not found") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: not valid TOML ({err})") from None
+        raise UserError(f"{path}: tolerances file not found") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a folder; give the tolerances TOML file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise UserError(f"{path}: not valid TOML ({err})") from None
     table = data.get("tolerances")
     if table is None:
-        raise ValueError(f"{path}: has no [tolerances] table; add e.g. '[tolerances]' then 'gpsnr_d1 = 0.1'")
+        raise UserError(f"{path}: has no [tolerances] table; add e.g. '[tolerances]' then 'gpsnr_d1 = 0.1'")
     if not isinstance(table, dict):
-        raise ValueError(f"{path}: 'tolerances' must be a table of metric = number")
+        raise UserError(f"{path}: 'tolerances' must be a table of metric = number")
     for metric, value in table.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ValueError(f"{path}: tolerances.{metric}: expected a number, got {value!r}")
+            raise UserError(f"{path}: tolerances.{metric}: expected a number, got {value!r}")
         if change_kind(metric) == "ratio" and value < 1:
-            raise ValueError(f"{path}: tolerances.{metric}: a ratio tolerance is a factor >= 1 (1.10 = 10 %), "
+            raise UserError(f"{path}: tolerances.{metric}: a ratio tolerance is a factor >= 1 (1.10 = 10 %), "
                              f"got {value}")
         if change_kind(metric) == "delta" and value < 0:
-            raise ValueError(f"{path}: tolerances.{metric}: a difference tolerance must be >= 0, got {value}")
+            raise UserError(f"{path}: tolerances.{metric}: a difference tolerance must be >= 0, got {value}")
         tolerances[metric] = float(value)
     return tolerances
 
@@ -433,7 +443,7 @@ def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances:
     for name, table in (("baseline", base), ("current", cur)):
         duplicated = table.duplicated(KEY_COLUMNS)
         if duplicated.any():
-            raise ValueError(f"the {name} summary repeats {int(duplicated.sum())} key(s); "
+            raise UserError(f"the {name} summary repeats {int(duplicated.sum())} key(s); "
                              "summaries have one row per (sequence, holes, method, params, metric, scope, peak)")
     merged = base.merge(cur, on=KEY_COLUMNS, how="outer", indicator="side")
     rows = []

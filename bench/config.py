@@ -82,8 +82,11 @@ _METHOD_KEYS = {"name", "params", "label"}
 _METRICS_KEYS = {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
 
 
-class ConfigError(ValueError):
-    """A config mistake; the message starts with the offending key."""
+from bench.errors import UserError
+
+
+class ConfigError(UserError):
+    """A config mistake (a `UserError`); the message starts with the offending key."""
 
 
 # -- canonical hashing -----------------------------------------------------------------------
@@ -224,6 +227,54 @@ def _check_param_types(cls, params: dict, where: str) -> None:
             raise ConfigError(f"{where}.{key}: expected true/false or a list of them, got {value!r}")
 
 
+def _validate_instance(cls, params: dict, where: str) -> None:
+    """One grid point through the class's own validation (`validate_params`), so that a bad value
+    is refused before any run starts, not when its run fails."""
+    try:
+        cls(**params).validate_params()
+    except UserError as err:
+        shown = ", ".join(f"{k}={v!r}" for k, v in params.items())
+        raise ConfigError(f"{where}: {err} (in the grid point {shown or 'with no parameters'})") from None
+
+
+def _check_dataset_name(name, where: str) -> None:
+    """A sequence `name` must be an embedded or a paper dataset (a folder goes in `path`)."""
+    from bench.datasets import EMBEDDED, MESHES, PAPER
+
+    if not isinstance(name, str) or name.lower() not in set(EMBEDDED) | set(PAPER) | set(MESHES):
+        import difflib
+
+        known = list(EMBEDDED) + list(PAPER) + list(MESHES)
+        close = difflib.get_close_matches(str(name).lower(), known, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ConfigError(f"{where}.name: unknown sequence {name!r}{hint}; known: embedded {', '.join(EMBEDDED)}, "
+                          f"paper {', '.join(PAPER)}; for a folder of PLY frames use `path`")
+
+
+def _check_dataset_params(name: str, params: dict, where: str) -> None:
+    """Parameters of an embedded dataset: known names and types (paper sequences take none)."""
+    from bench.datasets import EMBEDDED
+    from bench.params import check_param_types
+
+    from bench.datasets import MESHES
+
+    if name.lower() in MESHES:  # mesh sampling parameters are checked by the mesh loader
+        return
+    info = EMBEDDED.get(name.lower())
+    if info is None:
+        if params:
+            raise ConfigError(f"{where}: the paper sequence {name} takes no parameters, got {', '.join(params)}")
+        return
+    known = info.parameters()
+    extra = sorted(set(params) - set(known) - {"cache"})
+    if extra:
+        raise ConfigError(f"{where}.{extra[0]}: unknown parameter of {name}; valid parameters: {', '.join(known)}")
+    try:
+        check_param_types(info.generator().generate_frame, {k: v for k, v in params.items() if k != "cache"}, name)
+    except UserError as err:
+        raise ConfigError(f"{where}: {err}") from None
+
+
 def _unknown_keys(table: dict, allowed: set, where: str) -> None:
     extra = sorted(set(table) - allowed)
     if extra:
@@ -268,7 +319,15 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         mesh_files = list_mesh_files(path)
         if mesh_files is not None:
             return _mesh_fingerprint(mesh_files, sequence)
-        return _folder_fingerprint(path if path.is_dir() else path.parent)
+        fingerprint = _folder_fingerprint(path if path.is_dir() else path.parent)
+        frames = sequence.get("frames")
+        wanted = frames if isinstance(frames, int) else (frames[1] if isinstance(frames, list) else 0)
+        if fingerprint["files"] == 0:
+            raise ConfigError(f"{where}.path: {path} holds no .ply frame; give a folder of PLY frames")
+        if wanted > fingerprint["files"]:
+            raise ConfigError(f"{where}.frames: asks for {wanted} frames but {path} holds {fingerprint['files']}; "
+                              "lower `frames`")
+        return fingerprint
     name = sequence["name"]
     from bench.datasets import MESHES, find_mesh_folder
 
@@ -292,11 +351,9 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         if folder is None:
             raise ConfigError(f"{where}.name: no folder of {name} PLY frames under {root}")
         return _folder_fingerprint(folder)
-    try:
-        import bench.datasets as datasets
-    except ImportError as err:
-        raise ConfigError(f"{where}.name: embedded datasets are unavailable ({err}); use `path` to a PLY folder") from err
-    version = getattr(datasets, "DATASETS_VERSION", getattr(datasets, "VERSION", "1"))
+    import bench.datasets as datasets
+
+    version = datasets.DATASETS_VERSION
     return {"dataset": name, "params": sequence.get("params", {}), "version": str(version)}
 
 
@@ -323,10 +380,8 @@ class ExperimentConfig:
 
 
 def _metric_registry():
-    try:
-        from metrics.registry import METRICS
-    except ImportError:
-        return None
+    from metrics.registry import METRICS
+
     return METRICS
 
 
@@ -419,7 +474,11 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
             raise ConfigError(f"{where}.optional: expected true or false, got {optional!r}")
         entry = {"name": seq.get("name") or Path(seq["path"]).name, "path": path,
                  "params": seq.get("params", {}), "frames": frames, "label": seq.get("label")}
+        if not path:
+            _check_dataset_name(entry["name"], where)
         for j, params in enumerate(_expand_params(entry["params"], f"{where}.params")):
+            if not path:
+                _check_dataset_params(entry["name"], params, f"{where}.params")
             # "_optional" is not part of the run's identity (expand_config drops it)
             cfg.sequences.append({**entry, "params": params, "_where": where, "_optional": optional})
 
@@ -443,6 +502,7 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         cls = generator_class(gen)
         _check_param_types(cls, hole.get("params", {}), f"{where}.params")
         for params in _expand_params(hole.get("params", {}), f"{where}.params"):
+            _validate_instance(cls, params, f"{where}.params")
             for seed in seeds:
                 cfg.holes.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
                                   "entry": GENERATORS[gen], "version": str(getattr(cls, "version", "1"))})
@@ -457,10 +517,11 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
             raise ConfigError(f"{where}.name: unknown method {name!r}; known methods: {', '.join(sorted(METHODS))}")
         try:
             cls = method_class(name)
-        except Exception as err:
-            raise ConfigError(f"{where}.name: method {name!r} cannot be loaded here ({type(err).__name__}: {err})") from err
+        except ImportError as err:  # an optional dependency of this method is missing here
+            raise ConfigError(f"{where}.name: method {name!r} cannot be loaded here ({err})") from None
         _check_param_types(cls, meth.get("params", {}), f"{where}.params")
         for params in _expand_params(meth.get("params", {}), f"{where}.params"):
+            _validate_instance(cls, params, f"{where}.params")
             cfg.methods.append({"name": name, "params": params, "label": meth.get("label"),
                                 "entry": METHODS[name], "version": str(getattr(cls, "version", "1"))})
 

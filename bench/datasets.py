@@ -30,7 +30,8 @@ from typing import Iterable
 
 import numpy as np
 
-from bench.errors import UserError
+from bench.errors import UserError, warn
+from bench.params import parse_param_value, parse_params  # noqa: F401  (the one --param parser)
 from bench.plyio import PointCloud
 from bench.sequences import Sequence, list_frame_files, load_sequence
 
@@ -213,34 +214,6 @@ def _datasets_version() -> str:
 DATASETS_VERSION = _datasets_version()
 
 
-def parse_param_value(text: str):
-    """A CLI ``k=v`` value: int, float, true/false, none, or the text itself."""
-    low = text.strip().lower()
-    if low in ("true", "yes"):
-        return True
-    if low in ("false", "no"):
-        return False
-    if low in ("none", "null"):
-        return None
-    for cast in (int, float):
-        try:
-            return cast(text)
-        except ValueError:
-            pass
-    return text
-
-
-def parse_params(pairs: list[str] | None) -> dict:
-    """CLI ``--param k=v`` strings -> {k: parsed v}."""
-    params = {}
-    for pair in pairs or []:
-        key, sep, value = pair.partition("=")
-        if not sep or not key.strip():
-            raise UserError(f"--param {pair!r}: write parameters as NAME=VALUE, e.g. --param size=tiny")
-        params[key.strip()] = parse_param_value(value)
-    return params
-
-
 def parse_frames(text: str | None):
     """CLI frame selection: None, "N" (the first N frames), or a list "0,1,2" / ranges "0-9" -> count or
     list of indices."""
@@ -292,6 +265,9 @@ def generate_embedded(name: str, frames=None, *, cache: bool = True, progress: b
     if unknown:
         raise UserError(f"{name}: unknown parameter(s) {', '.join(unknown)}; accepted: "
                         + ", ".join(f"{k} (default {v!r})" for k, v in known.items()))
+    from bench.params import check_param_types
+
+    check_param_types(info.generator().generate_frame, params, f"embedded sequence {name}")
     full = {**known, **params}
     indices = _frame_indices(info.default_frames if frames is None else frames, None, name)
     module = info.generator()
@@ -309,8 +285,10 @@ def generate_embedded(name: str, frames=None, *, cache: bool = True, progress: b
         if arrays is None:
             try:
                 points, colours, normals = module.generate_frame(index, **full)
-            except (ValueError, TypeError) as err:
-                raise UserError(f"{name}: {err}") from err
+            except UserError:
+                raise
+            except ValueError as err:  # generate_frame's refusal of a parameter value (types checked above)
+                raise UserError(f"embedded sequence {name}: {err}") from None
             # voxel indices (<= 16 bits) are stored exactly as uint16; float samples keep float64;
             # normals as float32, the type of the PLY files, so that the frames in memory and the
             # frames written (which pc_error reads) carry the same normals
@@ -419,7 +397,7 @@ def load_path(path: str | os.PathLike, frames=None, progress: bool = True) -> Se
 
 
 def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *, progress: bool = True,
-                 **params) -> Sequence:
+                 name_only: bool = False, **params) -> Sequence:
     """An embedded sequence, a paper sequence, or a PLY folder/glob/file, as a `Sequence` (see module doc).
 
     ``params`` go to the embedded generator (e.g. ``size="tiny"``, ``motion="dance"``, ``bit_depth=9``,
@@ -427,7 +405,16 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
     """
     text = str(name_or_path)
     key = text.lower()
-    if key in EMBEDDED and not Path(text).exists():
+    # a file or folder of a dataset's name in the working directory is what the user has at hand: it
+    # is taken, and a note says so (./human is unambiguous); ``name_only`` (configs, whose `name`
+    # is always a dataset) never looks on disk
+    shadowed = (key in EMBEDDED or key in PAPER) and not name_only and Path(text).exists()
+    if shadowed and Path(text).name == text:
+        kind = "embedded" if key in EMBEDDED else "paper"
+        what = "folder" if Path(text).is_dir() else "file"
+        warn(f"{text!r} is both the {kind} sequence {key} and the {what} {Path(text).resolve()}; using the {what} "
+             f"(run from another folder for the {kind} sequence, or write ./{text} to silence this note)")
+    if key in EMBEDDED and not shadowed:
         cache = params.pop("cache", True)
         return generate_embedded(key, frames, cache=cache, progress=progress, **params)
     if key in MESHES and not Path(text).exists():
@@ -445,7 +432,7 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
         raise UserError(f"{text}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
                         f"sequences ({', '.join(EMBEDDED)}) and to mesh sequences ({', '.join(MESHES)}, or a folder "
                         "of OBJ/OFF/PLY meshes)")
-    if key in PAPER and not Path(text).exists():
+    if key in PAPER and not shadowed:
         return load_paper(key, frames, data_dir, progress=progress)
     if not Path(text).exists() and not any(ch in text for ch in "*?["):
         raise UserError(f"{text}: not a dataset name and no such file or folder. Known names: embedded "
@@ -462,7 +449,7 @@ def describe_datasets(data_dir=None) -> list[dict]:
             params = info.parameters()
             rows.append({"name": info.name, "kind": "embedded", "description": info.description,
                          "available": True, "reason": "", "params": params})
-        except Exception as err:  # listing never crashes
+        except ImportError as err:  # a dependency of the generator (e.g. pymeshlab) missing here
             rows.append({"name": info.name, "kind": "embedded", "description": info.description,
                          "available": False, "reason": f"{type(err).__name__}: {err}", "params": {}})
     root = data_dir_from(data_dir)

@@ -24,12 +24,18 @@ from pathlib import Path
 
 from bench.config import RunSpec
 from bench.runner import kill_live_workers, run_isolated
+from bench.errors import UserError
 
 EXECUTORS = ("serial", "pool", "dask")
 
 
 def _failed(spec: RunSpec, err: BaseException) -> dict:
-    return {"run_id": spec.run_id, "status": "failed", "error": f"{type(err).__name__}: {err}"}
+    """The failure record of a run whose worker could not even report (a harness bug or a lost
+    worker): the traceback is kept, as for failures inside the worker, so the bug can be found."""
+    import traceback
+
+    return {"run_id": spec.run_id, "status": "failed", "error": f"{type(err).__name__}: {err}",
+            "traceback": "".join(traceback.format_exception(err))[-4000:]}
 
 
 class SerialExecutor:
@@ -80,7 +86,7 @@ class DaskExecutor:
         try:
             import distributed  # noqa: F401
         except ImportError as err:
-            raise ValueError("the dask executor needs dask and distributed: pip install 'dpcbench[dask]'") from err
+            raise UserError("the dask executor needs dask and distributed: pip install 'dpcbench[dask]'") from err
         self.jobs = max(1, int(jobs or os.cpu_count() or 1))
         self.scheduler = scheduler
 
@@ -92,7 +98,7 @@ class DaskExecutor:
             try:
                 client = Client(self.scheduler, timeout="20s")
             except OSError as err:
-                raise ValueError(f"cannot reach the Dask scheduler at {self.scheduler} ({err}); "
+                raise UserError(f"cannot reach the Dask scheduler at {self.scheduler} ({err}); "
                                  "check the address (e.g. tcp://host:8786) and that the scheduler runs") from err
         else:
             cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
@@ -125,4 +131,4 @@ def make_executor(name: str, jobs: int | None = None, scheduler: str | None = No
         return PoolExecutor(jobs)
     if name == "dask":
         return DaskExecutor(jobs, scheduler)
-    raise ValueError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    raise UserError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")

@@ -8,6 +8,8 @@ of each sequence with synthetic holes (copied from /work/shared/SPEC.md section 
 
 from __future__ import annotations
 
+from bench.errors import UserError
+
 #: The columns of reproduce-paper's Tables 1-2, in order: (registry name, column label, parameters,
 #: role). role "paper": the paper's four columns, each run in its paper configuration (MeshLab's
 #: whole-frame resampling as the paper describes it; Lozes et al. as `lozes-pde` implements them;
@@ -173,7 +175,7 @@ def available_paper_sequences(data_dir) -> list[str]:
 
     root = Path(data_dir).expanduser()
     if not root.is_dir():
-        raise ValueError(f"--data-dir {root}: no such folder; give the folder that holds e.g. longdress/Ply/*.ply")
+        raise UserError(f"--data-dir {root}: no such folder; give the folder that holds e.g. longdress/Ply/*.ply")
     return [name for name in PAPER_SEQUENCES if find_paper_folder(PAPER[name], root) is not None]
 
 
@@ -198,11 +200,11 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     base["methods"] = table_methods()  # the table's columns, whatever the preset lists
     if seeds is not None:
         if not seeds or any(not isinstance(x, int) or isinstance(x, bool) or x < 0 for x in seeds):
-            raise ValueError(f"--seeds: give non-negative integers, e.g. --seeds 0,1,2 (got {seeds!r})")
+            raise UserError(f"--seeds: give non-negative integers, e.g. --seeds 0,1,2 (got {seeds!r})")
         for hole in base["holes"]:
             hole["seeds"] = list(seeds)
     if frames is not None and frames < 2:
-        raise ValueError("--frames: the temporal method needs at least 2 frames")
+        raise UserError("--frames: the temporal method needs at least 2 frames")
     for seq in base["sequences"]:
         if size:
             seq.setdefault("params", {})["size"] = size
@@ -217,7 +219,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     if data_dir:
         found = available_paper_sequences(data_dir)
         if not found:
-            raise ValueError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
+            raise UserError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
                              "found there; expected e.g. longdress/Ply/longdress_vox10_1051.ply ... (see "
                              "`dpcbench datasets`), or leave --data-dir out to run on the embedded stand-ins")
         standins = False

@@ -58,6 +58,38 @@ def _stack(vertex: plyfile.PlyElement, names: tuple[str, ...], dtype) -> np.ndar
     return out
 
 
+def _check_declared_size(data: plyfile.PlyData, path: Path) -> None:
+    """Refuse a file holding more data than its header declares (plyfile reads the declared count
+    and silently ignores the rest, so a wrong ``element vertex N`` would read the frame short).
+
+    ASCII: one line per element row, so the non-empty lines after ``end_header`` must number the sum
+    of the element counts. Binary with fixed-size rows (no list properties): the file size must be
+    the header plus count x row size.
+    """
+    with open(path, "rb") as handle:
+        head = handle.read(1 << 16)
+    end = head.find(b"end_header")
+    if end < 0 or head.find(b"\n", end) < 0:
+        return
+    header_size = head.find(b"\n", end) + 1
+    declared = sum(e.count for e in data.elements)
+    if data.text:
+        body = path.read_bytes()[header_size:]
+        rows = sum(1 for line in body.splitlines() if line.strip())
+        if rows != declared:
+            counts = ", ".join(f"{e.count} {e.name}" for e in data.elements)
+            raise UserError(f"{path}: the header declares {counts} ({declared} data lines) but the file holds {rows} "
+                            "data lines; fix the 'element ... N' counts in the header (or re-export the file)")
+        return
+    if any(isinstance(p, plyfile.PlyListProperty) for e in data.elements for p in e.properties):
+        return
+    expected = sum(e.count * sum(np.dtype(p.val_dtype).itemsize for p in e.properties) for e in data.elements)
+    size = path.stat().st_size - header_size
+    if size > expected:
+        raise UserError(f"{path}: {size - expected} bytes follow the {declared} rows its header declares; the "
+                        "header's 'element ... N' counts are wrong or the file is damaged: re-export it")
+
+
 def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True) -> PointCloud:
     """Read one PLY frame. Colours are read from red/green/blue (or r/g/b), normals from nx/ny/nz.
 
@@ -91,11 +123,26 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         normals = _stack(vertex, ("nx", "ny", "nz"), np.float64) if {"nx", "ny", "nz"} <= names else None
     except UserError:
         raise
-    except Exception as err:  # plyfile raises many types on corrupt input
+    except Exception as err:  # a third-party parser of the user's file: it raises many types on corrupt input
         raise UserError(
             f"{path}: cannot parse PLY ({type(err).__name__}: {err}); the file is truncated or not a "
             "valid PLY: re-export or re-copy it"
-        ) from err
+        ) from None
+    _check_declared_size(data, path)
+    vertex = _vertex_element(data, path)
+    names = {p.name for p in vertex.properties}
+    if not {"x", "y", "z"} <= names:
+        raise UserError(f"{path}: the vertex element has no x, y, z properties (has {sorted(names)})")
+    points = _stack(vertex, ("x", "y", "z"), np.float64)
+    colors = None
+    for rgb in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
+        if set(rgb) <= names:
+            raw = _stack(vertex, rgb, np.float64)
+            if raw.size and raw.max() <= 1.0 and vertex[rgb[0]].dtype.kind == "f":
+                raw = raw * 255.0  # float colours in [0, 1]
+            colors = np.clip(np.rint(raw), 0, 255).astype(np.uint8)
+            break
+    normals = _stack(vertex, ("nx", "ny", "nz"), np.float64) if {"nx", "ny", "nz"} <= names else None
     cloud = PointCloud(points, colors, normals)
     if check:
         check_cloud(cloud, str(path))

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.errors import UserError
+
 VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "left": (-90.0, 0.0), "right": (90.0, 0.0),
          "top": (0.0, 90.0)}
 HIGHLIGHT_COLOR = (230, 20, 20)
@@ -26,7 +28,7 @@ def view_rotation(view) -> np.ndarray:
     R = R_x(elevation) @ R_y(azimuth). "front" looks at the +z face, "left" at the +x face, "top" at +y."""
     if isinstance(view, str):
         if view not in VIEWS:
-            raise ValueError(f"unknown view {view!r}; use one of {', '.join(VIEWS)} or (azimuth, elevation)")
+            raise UserError(f"unknown view {view!r}; use one of {', '.join(VIEWS)} or (azimuth, elevation)")
         azimuth, elevation = VIEWS[view]
     else:
         azimuth, elevation = (float(v) for v in view)
@@ -68,7 +70,7 @@ def shade_normals(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 def panel_colours(points: np.ndarray, colors, normals, shading: str, rotation: np.ndarray) -> np.ndarray:
     """The (N, 3) uint8 colours a panel is drawn with (see render_clouds' ``shading``)."""
     if shading == "color" and colors is None:
-        raise ValueError("shading='color' but the cloud has no colours; use shading='auto' or 'normal'")
+        raise UserError("shading='color' but the cloud has no colours; use shading='auto' or 'normal'")
     use_normals = shading in ("normal", "shaded") or colors is None
     if use_normals and normals is None:
         normals = estimate_normals(points) if len(points) >= 3 else None
@@ -126,7 +128,7 @@ def _as_grid(items, nested: bool, n_rows: int, n_cols: int, what: str) -> list[l
         return [[None] * n_cols for _ in range(n_rows)]
     rows = [list(row) for row in items] if nested else [list(items)]
     if len(rows) != n_rows or any(len(row) != n_cols for row in rows):
-        raise ValueError(f"{what}: give one entry per panel ({n_rows} row(s) x {n_cols} column(s)), "
+        raise UserError(f"{what}: give one entry per panel ({n_rows} row(s) x {n_cols} column(s)), "
                          "nested like the clouds")
     return rows
 
@@ -152,10 +154,10 @@ def zoom_box(zoom) -> tuple[np.ndarray, np.ndarray]:
         return centre - half, centre + half
     box = np.asarray(zoom, dtype=np.float64).reshape(-1)
     if box.shape != (6,) or not np.isfinite(box).all():
-        raise ValueError(f"zoom box must be 6 numbers x0,y0,z0,x1,y1,z1, got {zoom!r}")
+        raise UserError(f"zoom box must be 6 numbers x0,y0,z0,x1,y1,z1, got {zoom!r}")
     lo, hi = np.minimum(box[:3], box[3:]), np.maximum(box[:3], box[3:])
     if np.any(hi - lo <= 0):
-        raise ValueError(f"zoom box {box.tolist()} has zero size along an axis")
+        raise UserError(f"zoom box {box.tolist()} has zero size along an axis")
     return lo, hi
 
 
@@ -208,15 +210,15 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     from bench.progress import progress_bar
 
     if shading not in SHADINGS:
-        raise ValueError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
+        raise UserError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
     clouds = list(clouds)
     if not clouds:
-        raise ValueError("nothing to render: the list of clouds is empty")
+        raise UserError("nothing to render: the list of clouds is empty")
     nested = isinstance(clouds[0], (list, tuple))
     grid = [list(row) for row in clouds] if nested else [clouds]
     n_rows, n_cols = len(grid), max(len(r) for r in grid)
     if any(len(r) != n_cols for r in grid):
-        raise ValueError("every row of clouds must have the same number of panels")
+        raise UserError("every row of clouds must have the same number of panels")
     titles_g = _as_grid(titles, nested, n_rows, n_cols, "titles")
     colors_g = _as_grid(colors, nested, n_rows, n_cols, "colors")
     highlight_g = _as_grid(highlight, nested, n_rows, n_cols, "highlight")
@@ -228,20 +230,20 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
         for c in range(n_cols):
             pts, own_colors, normals = _unpack(grid[r][c])
             if pts.ndim != 2 or pts.shape[1] != 3:
-                raise ValueError(f"panel ({r}, {c}): points must be an (N, 3) array, got shape {pts.shape}")
+                raise UserError(f"panel ({r}, {c}): points must be an (N, 3) array, got shape {pts.shape}")
             if not np.isfinite(pts).all():
-                raise ValueError(f"panel ({r}, {c}): the cloud has NaN or infinite coordinates")
+                raise UserError(f"panel ({r}, {c}): the cloud has NaN or infinite coordinates")
             col = colors_g[r][c] if colors_g[r][c] is not None else own_colors
             if col is not None and np.shape(col) != pts.shape:
-                raise ValueError(f"panel ({r}, {c}): colours have shape {np.shape(col)}, points {pts.shape}")
+                raise UserError(f"panel ({r}, {c}): colours have shape {np.shape(col)}, points {pts.shape}")
             col = panel_colours(pts, col, normals, shading, rotation)
             if col.shape != pts.shape:
-                raise ValueError(f"panel ({r}, {c}): colours have shape {col.shape}, points {pts.shape}")
+                raise UserError(f"panel ({r}, {c}): colours have shape {col.shape}, points {pts.shape}")
             mask = highlight_g[r][c]
             if mask is not None:
                 mask = np.asarray(mask, dtype=bool)
                 if mask.shape != (len(pts),):
-                    raise ValueError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
+                    raise UserError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
                 col[mask] = HIGHLIGHT_COLOR
             row.append((pts, col))
         panels.append(row)
@@ -249,7 +251,7 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     # common screen bounds over all panels, with a 3% margin
     screen = [rotate(p, rotation) for row in panels for p, _ in row if len(p)]
     if not screen:
-        raise ValueError("nothing to render: every cloud is empty")
+        raise UserError("nothing to render: every cloud is empty")
     lo = np.min([s[:, :2].min(0) for s in screen], axis=0)
     hi = np.max([s[:, :2].max(0) for s in screen], axis=0)
     pad = 0.03 * max(hi - lo) + 1e-9

@@ -150,7 +150,8 @@ def load_ground_truth(sequence: dict):
         from bench.datasets import load_dataset
 
         seq = load_dataset(sequence["name"], frames=None if wanted is None else list(wanted),
-                           data_dir=sequence.get("data_dir"), progress=False, **sequence.get("params", {}))
+                           data_dir=sequence.get("data_dir"), progress=False, name_only=True,
+                           **sequence.get("params", {}))
         return seq
     if wanted is not None:
         if wanted.stop > len(seq.frames):
@@ -294,14 +295,11 @@ def _peak_label(peak) -> str:
 
 
 def _uses_peak(name: str) -> bool:
-    try:
-        from metrics.registry import METRICS
+    from metrics.registry import METRICS
 
-        metric = METRICS.get(name)
-        if metric is not None and hasattr(metric, "uses_peak"):
-            return bool(metric.uses_peak)
-    except ImportError:
-        pass
+    metric = METRICS.get(name)
+    if metric is not None and hasattr(metric, "uses_peak"):
+        return bool(metric.uses_peak)
     return "psnr" in name
 
 

@@ -125,5 +125,11 @@ def save_sequence(seq: Sequence | list, out_dir: str | os.PathLike, *, prefix: s
         f if isinstance(f, PointCloud) else PointCloud(np.asarray(f, dtype=np.float64)) for f in seq
     ]
     stem = prefix or (seq.name if isinstance(seq, Sequence) else "frame")
-    width = max(4, len(str(len(frames) - 1)))
-    return [write_ply(out / f"{stem}_{i:0{width}d}.ply", frame) for i, frame in enumerate(frames)]
+    names = sequence_file_names(stem, len(frames))
+    return [write_ply(out / name, frame) for name, frame in zip(names, frames)]
+
+
+def sequence_file_names(stem: str, count: int) -> list[str]:
+    """The file names `save_sequence` gives ``count`` frames: ``<stem>_0000.ply ...``."""
+    width = max(4, len(str(count - 1)))
+    return [f"{stem}_{i:0{width}d}.ply" for i in range(count)]

@@ -35,6 +35,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench.errors import UserError
+
 SCHEMA_VERSION = 1
 
 #: columns of `ResultsStore.results_frame`, in order
@@ -104,9 +106,9 @@ def _json(value) -> str:
 
 def _corrupt_message(path: Path, err: Exception) -> str:
     return (
-        f"{path}: the results store is unreadable ({type(err).__name__}: {err}). It is not a dpcbench "
-        "SQLite store or it is corrupt: move it aside (e.g. rename it to results.sqlite.bad) and rerun, "
-        "which rebuilds the results from the cached run folders' frames, or pass another --store PATH"
+        f"{path}: the results store is damaged or not a dpcbench store ({type(err).__name__}: {err}); nothing was "
+        f"read from it; move it aside (mv {path} {path}.bad) and rerun `dpcbench run`, which rebuilds the results "
+        "from the run folders' stored frames, or pass another --store PATH"
     )
 
 
@@ -118,17 +120,54 @@ class ResultsStore:
     what to do.
     """
 
-    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0):
+    def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0,
+                 verify: bool = False):
         self.path = Path(path).expanduser() if path is not None else default_store_path()
         self.readonly = readonly
         self.timeout_s = timeout_s
         if self.path.is_dir():
-            raise ValueError(f"{self.path}: is a folder; the store is a file: pass e.g. {self.path / 'results.sqlite'}")
+            raise UserError(f"{self.path}: is a folder; the store is a file: pass e.g. {self.path / 'results.sqlite'}")
         if readonly and not self.path.is_file():
-            raise ValueError(f"{self.path}: no results store there; run `dpcbench run CONFIG --store {self.path}` first")
+            raise UserError(f"{self.path}: no results store there; run `dpcbench run CONFIG --store {self.path}` first")
         if not readonly:
+            self.check_path(self.path)
             self.path.parent.mkdir(parents=True, exist_ok=True)
+        if verify and self.path.is_file() and self.path.stat().st_size:
+            self.verify()  # before _init writes anything (journal mode) into a damaged file
         self._init()
+
+    @staticmethod
+    def check_path(path: Path) -> None:
+        """UserError unless a store can be created or written at ``path`` (nothing is created):
+        not under a file, not a folder, in a folder that can be written (SQLite's journal goes beside)."""
+        from bench.outputs import _check_writable_folder, _existing_ancestor
+
+        base = _existing_ancestor(path.parent)
+        if not base.is_dir():
+            raise UserError(f"--store {path}: {base} is a file, not a folder; give a store path outside it")
+        if path.exists() and not path.is_file():
+            raise UserError(f"--store {path}: is not a regular file; give the path of a results store")
+        _check_writable_folder(path.parent, "--store", path)
+
+    def verify(self) -> "ResultsStore":
+        """``PRAGMA quick_check``: refuse (UserError) a damaged store before anything is read from or
+        written to it, with the way out. Returns the store."""
+        try:
+            conn = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=self.timeout_s)
+            try:
+                rows = [str(r[0]) for r in conn.execute("PRAGMA quick_check").fetchall()]
+            finally:
+                conn.close()
+        except sqlite3.DatabaseError as err:  # not even the header reads
+            raise UserError(_corrupt_message(self.path, err)) from None
+        rows = [line for row in rows for line in row.splitlines() if line and not line.startswith("***")] or rows
+        if rows != ["ok"]:
+            first = "; ".join(str(r) for r in rows[:2]) + (f" (and {len(rows) - 2} more)" if len(rows) > 2 else "")
+            raise UserError(
+                f"{self.path}: the results store is damaged (SQLite quick_check: {first}); nothing was read from "
+                f"it; move it aside (mv {self.path} {self.path}.bad) and rerun `dpcbench run`, which rebuilds the "
+                "results from the run folders' stored frames, or pass another --store PATH")
+        return self
 
     # -- connection ------------------------------------------------------------------------
     def _connect(self) -> sqlite3.Connection:
@@ -144,14 +183,18 @@ class ResultsStore:
         try:
             conn = self._connect()
         except sqlite3.Error as err:
-            raise ValueError(_corrupt_message(self.path, err)) from err
+            raise UserError(_corrupt_message(self.path, err)) from err
         try:
             yield conn
+        except pd.errors.DatabaseError as err:  # pandas wraps the sqlite3 error of a damaged file
+            if "malformed" in str(err) or "not a database" in str(err):
+                raise UserError(_corrupt_message(self.path, err)) from err
+            raise
         except sqlite3.DatabaseError as err:
             # "file is not a database" / "database disk image is malformed" mean a damaged file;
             # other errors (locked, programming errors) pass through unchanged.
             if type(err) is sqlite3.DatabaseError or "malformed" in str(err) or "not a database" in str(err):
-                raise ValueError(_corrupt_message(self.path, err)) from err
+                raise UserError(_corrupt_message(self.path, err)) from err
             raise
         finally:
             conn.close()
@@ -161,20 +204,20 @@ class ResultsStore:
             tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
             if not tables:
                 if self.readonly:
-                    raise ValueError(f"{self.path}: the file is empty, not a results store; run `dpcbench run` first")
+                    raise UserError(f"{self.path}: the file is empty, not a results store; run `dpcbench run` first")
                 conn.execute("PRAGMA journal_mode = WAL")
                 with conn:
                     conn.executescript(_SCHEMA)
                     conn.execute("INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,))
                 return
             if "schema_version" not in tables or not {"runs", "results"} <= tables:
-                raise ValueError(
+                raise UserError(
                     f"{self.path}: this SQLite file is not a dpcbench results store (tables: {sorted(tables)}); "
                     "pass the store's path, or a new path to start one"
                 )
             row = conn.execute("SELECT MAX(version) FROM schema_version").fetchone()
             if row[0] != SCHEMA_VERSION:
-                raise ValueError(
+                raise UserError(
                     f"{self.path}: store schema version {row[0]}, this dpcbench reads version {SCHEMA_VERSION}; "
                     "use a new --store path (or the dpcbench version that wrote it)"
                 )
@@ -197,7 +240,7 @@ class ResultsStore:
     def _write(self, run_id: str, record: dict, status: str, error: str | None, results: list[dict],
                experiments: list[str]) -> None:
         if self.readonly:
-            raise ValueError(f"{self.path}: opened read-only")
+            raise UserError(f"{self.path}: opened read-only")
         rows = []
         for r in results:
             value = r["value"]

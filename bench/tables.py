@@ -25,13 +25,10 @@ LOWER_IS_BETTER = {"nshd", "hausdorff", "chamfer", "time_s", "peak_mem_mb", "tem
 
 def higher_is_better(metric: str) -> bool:
     """From the metrics registry when it knows the metric, else by name (PSNRs and F-score up)."""
-    try:
-        from metrics.registry import METRICS
+    from metrics.registry import METRICS
 
-        if metric in METRICS and hasattr(METRICS[metric], "higher_is_better"):
-            return bool(METRICS[metric].higher_is_better)
-    except ImportError:
-        pass
+    if metric in METRICS and hasattr(METRICS[metric], "higher_is_better"):
+        return bool(METRICS[metric].higher_is_better)
     return metric not in LOWER_IS_BETTER and not metric.startswith("temporal")
 
 

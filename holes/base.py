@@ -18,6 +18,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from bench.errors import UserError
 from holes.regions import HoleRegion
 
 
@@ -45,6 +46,25 @@ class HoleGenerator:
         kinds = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
         return {p.name: getattr(self, p.name) for p in sig.parameters.values() if p.name != "self" and p.kind in kinds}
 
+    def validate_params(self) -> "HoleGenerator":
+        """Check the parameters without any data (``__init__`` does not call it; the CLI and the
+        config validation do before any work): the types against the ``__init__`` signature
+        (`bench.params.check_param_types`), then the class's own checks (``_check_params``).
+        Raises `bench.errors.UserError` (a ValueError) naming the parameter and what is allowed.
+        """
+        from bench.params import check_param_types
+
+        check_param_types(type(self), self.get_params(), f"hole generator {self.name or type(self).__name__}")
+        hook = getattr(self, "_check_params", None) or getattr(self, "_check", None)
+        if hook is not None:
+            try:
+                hook()
+            except UserError:
+                raise
+            except ValueError as err:  # the hook's own refusal (it only checks parameters)
+                raise UserError(str(err)) from None
+        return self
+
     def damage(self, frames: list[np.ndarray], seed, colors=None) -> DamageResult:
         raise NotImplementedError
 
@@ -54,7 +74,7 @@ def as_generator(seed) -> np.random.Generator:
     if isinstance(seed, np.random.Generator):
         return seed
     if seed is None:
-        raise ValueError("a seed is required: pass an int so that the damage is reproducible")
+        raise UserError("a seed is required: pass an int so that the damage is reproducible")
     return np.random.default_rng(seed)
 
 
@@ -64,17 +84,17 @@ def check_sequence_input(frames, colors=None, what: str = "hole generator") -> t
     from holes.geometry import check_frame
 
     if isinstance(frames, np.ndarray) and frames.ndim == 2:
-        raise ValueError(f"{what}: expected a list of frames (a sequence), got one (N, 3) array; wrap it in a list")
+        raise UserError(f"{what}: expected a list of frames (a sequence), got one (N, 3) array; wrap it in a list")
     frames = [check_frame(f, f"{what}: frame {i}") for i, f in enumerate(frames)]
     if not frames:
-        raise ValueError(f"{what}: the sequence has no frames")
+        raise UserError(f"{what}: the sequence has no frames")
     if colors is not None:
         colors = list(colors)
         if len(colors) != len(frames):
-            raise ValueError(f"{what}: {len(colors)} colour arrays for {len(frames)} frames")
+            raise UserError(f"{what}: {len(colors)} colour arrays for {len(frames)} frames")
         for i, (pts, col) in enumerate(zip(frames, colors)):
             if col is not None and len(col) != len(pts):
-                raise ValueError(f"{what}: frame {i} has {len(pts)} points but {len(col)} colours")
+                raise UserError(f"{what}: frame {i} has {len(pts)} points but {len(col)} colours")
     return frames, colors
 
 
@@ -95,14 +115,14 @@ def make_result(
     for i, (pts, mask) in enumerate(zip(frames, removed)):
         lost = int(mask.sum())
         if lost == 0:
-            raise ValueError(
+            raise UserError(
                 f"{what}: frame {i} would lose no point (holes smaller than the point spacing?); "
                 "use larger holes or a higher fraction"
             )
         if lost == len(pts):
-            raise ValueError(f"{what}: frame {i} would lose all its {len(pts)} points; use fewer or smaller holes")
+            raise UserError(f"{what}: frame {i} would lose all its {len(pts)} points; use fewer or smaller holes")
         if lost > max_fraction * len(pts):
-            raise ValueError(
+            raise UserError(
                 f"{what}: frame {i} would lose {lost / len(pts):.1%} of its points, more than "
                 f"max_fraction={max_fraction:.0%}; use fewer or smaller holes (or raise max_fraction)"
             )

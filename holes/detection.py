@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from holes.geometry import check_frame, estimate_normals, point_spacing, radius_components, tangent_basis
 from holes.regions import HoleRegion
 
@@ -118,13 +119,13 @@ def detect_holes(
     """
     points = check_frame(points, "detect_holes")
     if int(k) != k or k < 5:
-        raise ValueError(f"detect_holes: k must be an integer >= 5, got {k!r}")
+        raise UserError(f"detect_holes: k must be an integer >= 5, got {k!r}")
     if len(points) <= k:
-        raise ValueError(f"detect_holes: the frame has {len(points)} points; need more than k={k}")
+        raise UserError(f"detect_holes: the frame has {len(points)} points; need more than k={k}")
     if not 0 < gap < 2 * np.pi:
-        raise ValueError(f"detect_holes: gap must be an angle in (0, 2 pi) radians, got {gap!r}")
+        raise UserError(f"detect_holes: gap must be an angle in (0, 2 pi) radians, got {gap!r}")
     if not link > 0 or not max_radius > 0 or min_points < 1:
-        raise ValueError("detect_holes: link, max_radius and min_points must be positive")
+        raise UserError("detect_holes: link, max_radius and min_points must be positive")
     tree = cKDTree(points)
     spacing = point_spacing(points, tree)
     on_rim, _, direction = boundary_points(points, int(k), gap, tree, interior_values=False)

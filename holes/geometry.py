@@ -26,6 +26,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from holes.regions import HoleRegion
 
 #: the paper's cube size on 10-bit data, and the grid it refers to
@@ -37,12 +38,12 @@ def check_frame(points, what: str = "frame") -> np.ndarray:
     """``points`` as a float64 (N, 3) array; ValueError for a wrong shape, no points or non-finite values."""
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{what}: expected an (N, 3) array of points, got shape {arr.shape}")
+        raise UserError(f"{what}: expected an (N, 3) array of points, got shape {arr.shape}")
     if len(arr) == 0:
-        raise ValueError(f"{what}: has no points; remove empty frames from the sequence")
+        raise UserError(f"{what}: has no points; remove empty frames from the sequence")
     if not np.isfinite(arr).all():
         bad = int((~np.isfinite(arr).all(axis=1)).sum())
-        raise ValueError(f"{what}: {bad} points have NaN or infinite coordinates; clean the input first")
+        raise UserError(f"{what}: {bad} points have NaN or infinite coordinates; clean the input first")
     return arr
 
 
@@ -53,7 +54,7 @@ def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int =
     """
     points = np.asarray(points, dtype=np.float64)
     if len(points) < 9:
-        raise ValueError(f"need at least 9 points to estimate the point spacing, got {len(points)}")
+        raise UserError(f"need at least 9 points to estimate the point spacing, got {len(points)}")
     tree = tree if tree is not None else cKDTree(points)
     if len(points) > sample:
         query = points[np.random.default_rng(seed).choice(len(points), sample, replace=False)]
@@ -62,7 +63,7 @@ def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int =
     dist, _ = tree.query(query, k=9, workers=-1)
     spacing = float(np.median(dist[:, 8])) / np.sqrt(2.0)
     if not spacing > 0:
-        raise ValueError("the points are (almost all) duplicates: cannot estimate a point spacing")
+        raise UserError("the points are (almost all) duplicates: cannot estimate a point spacing")
     return spacing
 
 
@@ -73,7 +74,7 @@ def cube_size(points: np.ndarray, spacing: float | None = None, tree: cKDTree | 
     points = np.asarray(points, dtype=np.float64)
     extent = float((points.max(axis=0) - points.min(axis=0)).max())
     if not extent > 0:
-        raise ValueError("the frame has zero extent (all points coincide); cannot size holes")
+        raise UserError("the frame has zero extent (all points coincide); cannot size holes")
     spacing = point_spacing(points, tree) if spacing is None else spacing
     return PAPER_CUBE_SIZE * min(spacing, extent / PAPER_GRID)
 

@@ -44,6 +44,7 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
 from holes.geometry import components_to_regions, estimate_normals, point_spacing
 
@@ -180,11 +181,11 @@ class OcclusionHoles(HoleGenerator):
         if self.cameras is not None:
             cams = np.asarray(self.cameras, dtype=np.float64)
             if cams.ndim != 2 or cams.shape[1] != 3 or not np.isfinite(cams).all():
-                raise ValueError(f"occlusion holes: cameras must be a list of [x, y, z] positions, got shape {cams.shape}")
+                raise UserError(f"occlusion holes: cameras must be a list of [x, y, z] positions, got shape {cams.shape}")
             lo, hi = points.min(axis=0), points.max(axis=0)
             inside = ((cams >= lo) & (cams <= hi)).all(axis=1)
             if inside.any():
-                raise ValueError(
+                raise UserError(
                     f"occlusion holes: camera(s) {np.flatnonzero(inside).tolist()} lie inside the subject's "
                     f"bounding box {lo.tolist()} - {hi.tolist()}; place cameras around the subject"
                 )

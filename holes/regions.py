@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.errors import UserError
+
 HOLES_FORMAT = "dpcbench-holes"
 HOLES_VERSION = 1
 
@@ -51,20 +53,20 @@ class HoleRegion:
         object.__setattr__(self, "center", np.asarray(self.center, dtype=np.float64).reshape(3))
         if self.shape == "ball":
             if not self.radius > 0:
-                raise ValueError(f"ball hole region needs a positive radius, got {self.radius}")
+                raise UserError(f"ball hole region needs a positive radius, got {self.radius}")
         elif self.shape == "box":
             if self.half_extents is None:
-                raise ValueError("box hole region needs half_extents")
+                raise UserError("box hole region needs half_extents")
             he = np.asarray(self.half_extents, dtype=np.float64).reshape(3)
             if not (he > 0).all():
-                raise ValueError(f"box hole region needs positive half_extents, got {he}")
+                raise UserError(f"box hole region needs positive half_extents, got {he}")
             rot = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
             object.__setattr__(self, "half_extents", he)
             object.__setattr__(self, "rotation", rot)
         else:
-            raise ValueError(f"unknown hole region shape {self.shape!r}; use 'ball' or 'box'")
+            raise UserError(f"unknown hole region shape {self.shape!r}; use 'ball' or 'box'")
         if not np.isfinite(self.center).all():
-            raise ValueError("hole region centre must be finite")
+            raise UserError("hole region centre must be finite")
 
     @classmethod
     def ball(cls, center, radius: float, **extra) -> "HoleRegion":
@@ -98,15 +100,58 @@ class HoleRegion:
         return out
 
     @classmethod
-    def from_dict(cls, data: dict) -> "HoleRegion":
+    def from_dict(cls, data: dict, where: str = "hole region") -> "HoleRegion":
+        """A region from its JSON form; UserError naming ``where`` and the missing or bad key."""
+        if not isinstance(data, dict):
+            raise UserError(f"{where}: expected an object like {{\"shape\": \"ball\", \"center\": [x, y, z], "
+                            f"\"radius\": r}}, got {type(data).__name__} {_short(data)}")
         data = dict(data)
         shape = data.pop("shape", None)
         center = data.pop("center", None)
         if shape is None or center is None:
-            raise ValueError(f"hole region needs 'shape' and 'center', got keys {sorted(data)}")
-        if shape == "ball":
-            return cls("ball", center, radius=float(data.pop("radius")), extra=data)
-        return cls("box", center, half_extents=data.pop("half_extents"), rotation=data.pop("rotation", None), extra=data)
+            raise UserError(f"{where}: needs 'shape' and 'center', got keys {sorted(data)}")
+        center = _numbers(center, 3, f"{where}.center")
+        try:
+            if shape == "ball":
+                if "radius" not in data:
+                    raise UserError(f"{where}: a ball region needs 'radius'")
+                radius = data.pop("radius")
+                if not _is_number(radius):
+                    raise UserError(f"{where}.radius: expected a number, got {_short(radius)}")
+                return cls("ball", center, radius=float(radius), extra=data)
+            if shape == "box":
+                if "half_extents" not in data:
+                    raise UserError(f"{where}: a box region needs 'half_extents' (three numbers)")
+                half = _numbers(data.pop("half_extents"), 3, f"{where}.half_extents")
+                rotation = data.pop("rotation", None)
+                if rotation is not None:
+                    rotation = _numbers(rotation, 9, f"{where}.rotation").reshape(3, 3)
+                return cls("box", center, half_extents=half, rotation=rotation, extra=data)
+            raise UserError(f"{where}.shape: {_short(shape)} is not a region shape; use \"ball\" or \"box\"")
+        except UserError as err:
+            if str(err).startswith(where):
+                raise
+            raise UserError(f"{where}: {err}") from None
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _short(value) -> str:
+    text = json.dumps(value) if isinstance(value, (dict, list, str, int, float, bool, type(None))) else repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _numbers(value, count: int, where: str) -> np.ndarray:
+    """``count`` finite numbers (a flat or nested list) as a float array; UserError otherwise."""
+    flat = np.asarray(value, dtype=object).ravel() if isinstance(value, list) else None
+    if flat is None or len(flat) != count or not all(_is_number(v) for v in flat):
+        raise UserError(f"{where}: expected {count} numbers, got {_short(value)}")
+    out = np.asarray(flat, dtype=np.float64)
+    if not np.isfinite(out).all():
+        raise UserError(f"{where}: the numbers must be finite, got {_short(value)}")
+    return out
 
 
 def union_mask(regions: list[HoleRegion], points: np.ndarray, margin: float = 0.0) -> np.ndarray:
@@ -117,6 +162,32 @@ def union_mask(regions: list[HoleRegion], points: np.ndarray, margin: float = 0.
     return mask
 
 
+def check_regions_near(frame: np.ndarray, regions: list[HoleRegion], reach: float | list[float], *, tree=None,
+                       who: str = "hole regions", frame_index: int = 0) -> None:
+    """Refuse regions that do not belong to this cloud (UserError).
+
+    A hole region lies on the surface it removed points from, so the point of ``frame`` (N, 3)
+    nearest to its centre is at most ``bounding_radius + reach`` away (``reach``: one float, or one
+    per region). A region farther away would add nothing, or points in empty space: the sign of a
+    holes.json made for another sequence, another frame order, or other coordinates.
+    """
+    if not regions:
+        return
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(frame)
+    reaches = list(reach) if isinstance(reach, (list, tuple, np.ndarray)) else [reach] * len(regions)
+    dist, _ = tree.query(np.array([r.center for r in regions]))
+    for region, d, r in zip(regions, np.atleast_1d(dist), reaches):
+        limit = region.bounding_radius + r
+        if d > limit:
+            raise UserError(
+                f"{who}: frame {frame_index}: hole region centred at {np.round(region.center, 3).tolist()} is "
+                f"{d:.3g} away from the nearest point, farther than its size plus the method's reach "
+                f"({limit:.3g}); the regions do not belong to this cloud (wrong holes.json or wrong frame order?)")
+
+
 def regions_to_json(regions_per_frame: list[list[HoleRegion]], **info) -> dict:
     """The holes.json object: per frame the list of regions; ``info`` adds top-level keys
     (generator, params, seed, removed_fraction per frame, ...)."""
@@ -124,20 +195,79 @@ def regions_to_json(regions_per_frame: list[list[HoleRegion]], **info) -> dict:
     per_frame = info.pop("per_frame", None)
     if per_frame:
         if len(per_frame) != len(frames):
-            raise ValueError(f"per_frame has {len(per_frame)} entries for {len(frames)} frames")
+            raise UserError(f"per_frame has {len(per_frame)} entries for {len(frames)} frames")
         for entry, extra in zip(frames, per_frame):
             clash = {"frame", "regions"} & set(extra)
             if clash:
-                raise ValueError(f"per_frame entries may not use the reserved keys {sorted(clash)}")
+                raise UserError(f"per_frame entries may not use the reserved keys {sorted(clash)}")
             entry.update(extra)
     return {"format": HOLES_FORMAT, "version": HOLES_VERSION, **info, "frames": frames}
 
 
-def regions_from_json(data: dict | str | Path) -> list[list[HoleRegion]]:
-    """Regions per frame from a holes.json object or file path."""
+def regions_from_json(data: dict | str | Path, frame_count: int | None = None, *,
+                      label: str | None = None) -> list[list[HoleRegion]]:
+    """Regions per frame from a holes.json object or file path, in frame order.
+
+    The ``frame`` indices must be distinct integers >= 0; with ``frame_count`` (the frames of the
+    sequence the regions are for) they must be exactly 0 .. frame_count-1, so that regions are never
+    applied to a frame they were not made for. Any problem is a `bench.errors.UserError` that names
+    the file (or ``label``) and the entry (``frames[2].regions[0].radius: expected a number, got "a"``).
+    """
+    if isinstance(data, (str, Path)):
+        path = Path(data)
+        label = label or str(path)
+        try:
+            text = path.read_text()
+        except FileNotFoundError:
+            raise UserError(f"{label}: no such holes file") from None
+        except IsADirectoryError:
+            raise UserError(f"{label}: is a folder; give the holes.json file inside it") from None
+        except UnicodeDecodeError:
+            raise UserError(f"{label}: not a text file, so not a holes.json") from None
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as err:
+            raise UserError(f"{label}: not valid JSON ({err.msg} at line {err.lineno}, column {err.colno}); "
+                            "give the holes.json written by `dpcbench damage` or `dpcbench detect-holes`") from None
+    label = label or "holes.json"
     if not isinstance(data, dict):
-        data = json.loads(Path(data).read_text())
+        raise UserError(f"{label}: holds a JSON {type(data).__name__}, not a holes.json object "
+                            f"({{\"format\": \"{HOLES_FORMAT}\", \"frames\": [...]}}); give the holes.json written by "
+                            "`dpcbench damage` or `dpcbench detect-holes`")
     if data.get("format") != HOLES_FORMAT:
-        raise ValueError(f"not a holes file: 'format' is {data.get('format')!r}, expected {HOLES_FORMAT!r}")
-    frames = sorted(data["frames"], key=lambda f: f["frame"])
-    return [[HoleRegion.from_dict(r) for r in f["regions"]] for f in frames]
+        raise UserError(f"{label}: not a holes file: 'format' is {data.get('format')!r}, expected {HOLES_FORMAT!r}")
+    frames = data.get("frames")
+    if not isinstance(frames, list):
+        raise UserError(f"{label}: 'frames' must be a list of {{\"frame\": i, \"regions\": [...]}} entries, got "
+                        f"{_short(frames)}")
+    entries = {}
+    for k, entry in enumerate(frames):
+        where = f"{label}: frames[{k}]"
+        if not isinstance(entry, dict):
+            raise UserError(f"{where}: expected an object with 'frame' and 'regions', got {_short(entry)}")
+        index = entry.get("frame")
+        if not isinstance(index, int) or isinstance(index, bool) or index < 0:
+            raise UserError(f"{where}.frame: expected a frame index (an integer >= 0), got {_short(index)}")
+        if index in entries:
+            raise UserError(f"{where}.frame: frame {index} is listed twice; give each frame once")
+        regions = entry.get("regions")
+        if not isinstance(regions, list):
+            raise UserError(f"{where}.regions: expected a list of regions, got {_short(regions)}")
+        entries[index] = [HoleRegion.from_dict(r, f"{where}.regions[{j}]") for j, r in enumerate(regions)]
+    order = sorted(entries)
+    if frame_count is not None and order != list(range(frame_count)):
+        missing = [i for i in range(frame_count) if i not in entries]
+        extra = [i for i in order if i >= frame_count]
+        detail = (f"frame(s) {_index_list(extra)} do not exist in the sequence (frames 0..{frame_count - 1})"
+                  if extra else f"it has no entry for frame(s) {_index_list(missing)}")
+        raise UserError(f"{label}: describes {len(order)} frame(s) ({_index_list(order)}) but the sequence has {frame_count} "
+                        f"frame(s): {detail}; use the holes.json made for these frames (same --frames)")
+    if frame_count is None and order != list(range(len(order))):
+        raise UserError(f"{label}: frame indices {_index_list(order)} are not 0..{len(order) - 1}; a holes.json "
+                        "lists every frame of its sequence from 0")
+    return [entries[i] for i in order]
+
+
+def _index_list(indices: list[int]) -> str:
+    shown = ", ".join(str(i) for i in indices[:6])
+    return shown + (f" ... ({len(indices)} in all)" if len(indices) > 6 else "") if indices else "none"

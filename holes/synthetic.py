@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
 from holes.geometry import cube_size, regions_mask
 from holes.regions import HoleRegion
@@ -113,7 +114,7 @@ def hole_overlap(frames: list[np.ndarray], removed: list[np.ndarray]) -> float:
     F-1 pairs (1.0: the same surface is missing in every frame; about 0 for independent holes).
     """
     if len(frames) < 2:
-        raise ValueError("hole_overlap needs at least two frames")
+        raise UserError("hole_overlap needs at least two frames")
     ious = []
     for f in range(len(frames) - 1):
         _, nn = cKDTree(frames[f]).query(frames[f + 1], workers=-1)
@@ -166,26 +167,29 @@ class RegionHoles(HoleGenerator):
 
     def _resolved(self) -> tuple[int, float]:
         if self.preset not in REGION_PRESETS:
-            raise ValueError(f"region holes: unknown preset {self.preset!r}; use one of {sorted(REGION_PRESETS)}")
+            raise UserError(f"region holes: unknown preset {self.preset!r}; use one of {sorted(REGION_PRESETS)}")
         count, radius = REGION_PRESETS[self.preset]
         count = count if self.count is None else self.count
         radius = radius if self.radius is None else self.radius
         if int(count) != count or count < 1:
-            raise ValueError(f"region holes: count must be a positive integer, got {count!r}")
+            raise UserError(f"region holes: count must be a positive integer, got {count!r}")
         if not radius > 0:
-            raise ValueError(f"region holes: radius (in units of M) must be positive, got {radius!r}")
+            raise UserError(f"region holes: radius (in units of M) must be positive, got {radius!r}")
         if self.shape not in ("ball", "cube"):
-            raise ValueError(f"region holes: shape must be 'ball' or 'cube', got {self.shape!r}")
+            raise UserError(f"region holes: shape must be 'ball' or 'cube', got {self.shape!r}")
         if self.fraction is not None and not 0 < self.fraction < 1:
-            raise ValueError(f"region holes: fraction must be in (0, 1), got {self.fraction!r}")
+            raise UserError(f"region holes: fraction must be in (0, 1), got {self.fraction!r}")
         if self.fraction is not None and self.fraction > self.max_fraction:
-            raise ValueError(f"region holes: fraction {self.fraction} exceeds max_fraction {self.max_fraction}; "
+            raise UserError(f"region holes: fraction {self.fraction} exceeds max_fraction {self.max_fraction}; "
                              "ask for less (or raise max_fraction)")
         if self.cube_size is not None and not self.cube_size > 0:
-            raise ValueError(f"region holes: cube_size must be positive, got {self.cube_size!r}")
+            raise UserError(f"region holes: cube_size must be positive, got {self.cube_size!r}")
         if not 0 < self.max_fraction <= 1:
-            raise ValueError(f"region holes: max_fraction must be in (0, 1], got {self.max_fraction!r}")
+            raise UserError(f"region holes: max_fraction must be in (0, 1], got {self.max_fraction!r}")
         return int(count), float(radius)
+
+    def _check_params(self) -> None:
+        self._resolved()
 
     def _place(self, points, tree, rng, count, size, frame_index):
         """Random non-intersecting holes on one frame: (centres, sizes)."""
@@ -193,12 +197,12 @@ class RegionHoles(HoleGenerator):
         if self.fraction is not None:
             n_per_hole = max(1, int(round(self.fraction * len(points) / count)))
             if n_per_hole * count >= len(points):
-                raise ValueError(
+                raise UserError(
                     f"region holes: frame {frame_index} has {len(points)} points, too few for {count} holes "
                     f"removing {self.fraction:.1%}; use fewer holes or a smaller fraction"
                 )
         if count > len(points):
-            raise ValueError(f"region holes: {count} holes requested but frame {frame_index} has {len(points)} points")
+            raise UserError(f"region holes: {count} holes requested but frame {frame_index} has {len(points)} points")
         centers, sizes = [], []
         for idx in rng.permutation(len(points))[:_PLACEMENT_TRIES]:
             center = points[idx]
@@ -208,7 +212,7 @@ class RegionHoles(HoleGenerator):
                 sizes.append(hole_size)
                 if len(centers) == count:
                     return centers, sizes
-        raise ValueError(
+        raise UserError(
             f"region holes: could place only {len(centers)} of {count} non-overlapping holes of size "
             f"{max(sizes, default=size):.4g} on frame {frame_index} (extent "
             f"{np.ptp(points, axis=0).max():.4g}); use fewer or smaller holes"
@@ -260,21 +264,24 @@ class DropoutHoles(HoleGenerator):
         self.hole_points = hole_points
         self.max_fraction = max_fraction
 
+    def _check_params(self) -> None:
+        if not 0 < self.fraction < 1:
+            raise UserError(f"dropout holes: fraction must be in (0, 1), got {self.fraction!r}")
+        if self.fraction > self.max_fraction:
+            raise UserError(f"dropout holes: fraction {self.fraction} exceeds max_fraction {self.max_fraction}")
+        if int(self.hole_points) != self.hole_points or self.hole_points < 1:
+            raise UserError(f"dropout holes: hole_points must be a positive integer, got {self.hole_points!r}")
+
     def damage(self, frames, seed, colors=None):
         frames, colors = check_sequence_input(frames, colors, "dropout holes")
-        if not 0 < self.fraction < 1:
-            raise ValueError(f"dropout holes: fraction must be in (0, 1), got {self.fraction!r}")
-        if self.fraction > self.max_fraction:
-            raise ValueError(f"dropout holes: fraction {self.fraction} exceeds max_fraction {self.max_fraction}")
-        if int(self.hole_points) != self.hole_points or self.hole_points < 1:
-            raise ValueError(f"dropout holes: hole_points must be a positive integer, got {self.hole_points!r}")
+        self._check_params()
         rng = as_generator(seed)
         regions, removed = [], []
         for f, pts in enumerate(frames):
             n = len(pts)
             target = int(np.ceil(self.fraction * n))
             if 1.5 * self.hole_points >= n - target:
-                raise ValueError(
+                raise UserError(
                     f"dropout holes: frame {f} has {n} points, too few for holes of ~{self.hole_points} points "
                     f"removing {self.fraction:.1%}; use smaller holes or a lower fraction"
                 )

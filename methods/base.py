@@ -19,6 +19,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from bench.errors import UserError
+
 
 class InpaintingMethod:
     name: ClassVar[str] = ""
@@ -47,8 +49,29 @@ class InpaintingMethod:
         valid = set(self._param_names())
         for key, value in params.items():
             if key not in valid:
-                raise ValueError(f"{self.name}: unknown parameter {key!r}; valid parameters: {sorted(valid)}")
+                raise UserError(f"{self.name}: unknown parameter {key!r}; valid parameters: {sorted(valid)}")
             setattr(self, key, value)
+        return self
+
+    def validate_params(self) -> "InpaintingMethod":
+        """Check the parameters without any data (scikit-learn style: ``__init__`` does not call it;
+        `inpaint` does, and so do the harness's checks before a run grid starts).
+
+        First the types against the ``__init__`` signature (`bench.params.check_param_types`), then
+        the class's own range checks (its ``_validate_params``, or ``_validate``). Raises
+        `bench.errors.UserError` (a ValueError) naming the parameter, the value and what is allowed.
+        """
+        from bench.params import check_param_types
+
+        check_param_types(type(self), self.get_params(), f"method {self.name or type(self).__name__}")
+        hook = getattr(self, "_validate_params", None) or getattr(self, "_validate", None)
+        if hook is not None:
+            try:
+                hook()
+            except UserError:
+                raise
+            except ValueError as err:  # the hook's own refusal (it only checks parameters)
+                raise UserError(str(err)) from None
         return self
 
     def __repr__(self) -> str:
@@ -87,28 +110,28 @@ def check_sequence(frames, regions=None, *, method: str = "method", needs_region
                    detects_holes: bool = True):
     """Shared input validation with messages that say what is wrong and what to do."""
     if isinstance(frames, np.ndarray) and frames.ndim == 2:
-        raise ValueError(f"{method}: expected a list of (N, 3) frames, got one array; wrap it: [frame]")
+        raise UserError(f"{method}: expected a list of (N, 3) frames, got one array; wrap it: [frame]")
     frames = list(frames)
     if not frames:
-        raise ValueError(f"{method}: the sequence has no frames")
+        raise UserError(f"{method}: the sequence has no frames")
     checked = []
     for i, frame in enumerate(frames):
         arr = np.asarray(frame, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 3:
-            raise ValueError(f"{method}: frame {i} must be an (N, 3) array, got shape {arr.shape}")
+            raise UserError(f"{method}: frame {i} must be an (N, 3) array, got shape {arr.shape}")
         if len(arr) == 0:
-            raise ValueError(f"{method}: frame {i} has zero points; drop empty frames before inpainting")
+            raise UserError(f"{method}: frame {i} has zero points; drop empty frames before inpainting")
         if not np.isfinite(arr).all():
-            raise ValueError(f"{method}: frame {i} has NaN or infinite coordinates; remove those points first")
+            raise UserError(f"{method}: frame {i} has NaN or infinite coordinates; remove those points first")
         checked.append(arr)
     if regions is None:
         if needs_regions or not detects_holes:
-            raise ValueError(
+            raise UserError(
                 f"{method}: needs the hole regions (regions=None is the blind protocol, which this method "
                 "does not support); pass regions from holes.json or run hole detection first"
             )
         return checked, None
     regions = list(regions)
     if len(regions) != len(checked):
-        raise ValueError(f"{method}: got {len(regions)} region lists for {len(checked)} frames; give one list per frame")
+        raise UserError(f"{method}: got {len(regions)} region lists for {len(checked)} frames; give one list per frame")
     return checked, [list(r) for r in regions]

@@ -65,6 +65,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from holes.geometry import point_spacing
 from methods.base import PerFrameMethod
 from methods.reference import detect_regions
@@ -97,18 +98,18 @@ class LozesPDE(PerFrameMethod):
     # -- parameters -----------------------------------------------------------------------------
     def _validate_params(self) -> None:
         if self.p not in (1, 2):
-            raise ValueError(f"lozes-pde: p must be 1 (total variation) or 2 (Laplacian), got {self.p!r}")
+            raise UserError(f"lozes-pde: p must be 1 (total variation) or 2 (Laplacian), got {self.p!r}")
         if self.solver not in ("direct", "jacobi"):
-            raise ValueError(f"lozes-pde: solver must be 'direct' or 'jacobi', got {self.solver!r}")
+            raise UserError(f"lozes-pde: solver must be 'direct' or 'jacobi', got {self.solver!r}")
         if int(self.k_neighbours) < 2:
-            raise ValueError(f"lozes-pde: k_neighbours must be >= 2, got {self.k_neighbours}")
+            raise UserError(f"lozes-pde: k_neighbours must be >= 2, got {self.k_neighbours}")
         for key in ("sigma_spacings", "ring_spacings", "gap_spacings", "epsilon", "tolerance"):
             if not getattr(self, key) > 0:
-                raise ValueError(f"lozes-pde: {key} must be > 0, got {getattr(self, key)!r}")
+                raise UserError(f"lozes-pde: {key} must be > 0, got {getattr(self, key)!r}")
         if int(self.max_iterations) < 1:
-            raise ValueError(f"lozes-pde: max_iterations must be >= 1, got {self.max_iterations}")
+            raise UserError(f"lozes-pde: max_iterations must be >= 1, got {self.max_iterations}")
         if int(self.max_new_points) < 1:
-            raise ValueError(f"lozes-pde: max_new_points must be >= 1, got {self.max_new_points}")
+            raise UserError(f"lozes-pde: max_new_points must be >= 1, got {self.max_new_points}")
 
     def inpaint(self, frames, regions=None):
         self._validate_params()
@@ -145,7 +146,7 @@ class LozesPDE(PerFrameMethod):
         extent = region.bounding_radius + ring_width
         steps = int(np.ceil(extent / spacing))
         if (2 * steps + 1) ** 2 > 4 * int(self.max_new_points):
-            raise ValueError(
+            raise UserError(
                 f"lozes-pde: a hole region of radius {region.bounding_radius:.4g} is {extent / spacing:.0f} point "
                 f"spacings across; seeding it would exceed max_new_points={self.max_new_points}. Use smaller "
                 "regions or raise max_new_points")
@@ -157,7 +158,7 @@ class LozesPDE(PerFrameMethod):
         gap, _ = cKDTree(ring_2d).query(grid_2d[keep], k=1)
         seeds = grid_3d[keep][gap > self.gap_spacings * spacing]
         if len(seeds) > int(self.max_new_points):
-            raise ValueError(f"lozes-pde: {len(seeds)} points to seed in one hole exceed max_new_points="
+            raise UserError(f"lozes-pde: {len(seeds)} points to seed in one hole exceed max_new_points="
                              f"{self.max_new_points}; use smaller regions or raise max_new_points")
         return seeds, ring
 

@@ -65,6 +65,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from methods.base import PerFrameMethod
 from methods.lozes_pde import sampling_step
 
@@ -96,21 +97,21 @@ class MeshlabFill(PerFrameMethod):
 
     def _validate_params(self) -> None:
         if self.reconstruction not in ("ball-pivoting", "poisson"):
-            raise ValueError(f"meshlab: reconstruction must be 'ball-pivoting' or 'poisson', got {self.reconstruction!r}")
+            raise UserError(f"meshlab: reconstruction must be 'ball-pivoting' or 'poisson', got {self.reconstruction!r}")
         if self.output not in ("whole", "holes-only"):
-            raise ValueError(f"meshlab: output must be 'whole' or 'holes-only', got {self.output!r}")
+            raise UserError(f"meshlab: output must be 'whole' or 'holes-only', got {self.output!r}")
         if int(self.normal_neighbours) < 3:
-            raise ValueError(f"meshlab: normal_neighbours must be >= 3, got {self.normal_neighbours}")
+            raise UserError(f"meshlab: normal_neighbours must be >= 3, got {self.normal_neighbours}")
         if not self.ball_radius >= 0:
-            raise ValueError(f"meshlab: ball_radius must be >= 0 (0 = automatic), got {self.ball_radius}")
+            raise UserError(f"meshlab: ball_radius must be >= 0 (0 = automatic), got {self.ball_radius}")
         if not 1 <= int(self.poisson_depth) <= 16:
-            raise ValueError(f"meshlab: poisson_depth must be in 1..16, got {self.poisson_depth}")
+            raise UserError(f"meshlab: poisson_depth must be in 1..16, got {self.poisson_depth}")
         if int(self.max_hole_size) < 3:
-            raise ValueError(f"meshlab: max_hole_size (boundary edges) must be >= 3, got {self.max_hole_size}")
+            raise UserError(f"meshlab: max_hole_size (boundary edges) must be >= 3, got {self.max_hole_size}")
         if int(self.max_points) != self.max_points or not (self.max_points == 0 or self.max_points >= 1000):
-            raise ValueError(f"meshlab: max_points must be 0 (no clustering) or an integer >= 1000, got {self.max_points!r}")
+            raise UserError(f"meshlab: max_points must be 0 (no clustering) or an integer >= 1000, got {self.max_points!r}")
         if not self.region_margin_spacings >= 0:
-            raise ValueError(f"meshlab: region_margin_spacings must be >= 0, got {self.region_margin_spacings}")
+            raise UserError(f"meshlab: region_margin_spacings must be >= 0, got {self.region_margin_spacings}")
 
     def inpaint(self, frames, regions=None):
         self._validate_params()
@@ -120,7 +121,7 @@ class MeshlabFill(PerFrameMethod):
         import pymeshlab  # lazily: heavy import, only this method needs it
 
         if len(points) < 4:
-            raise ValueError(f"meshlab: a frame needs at least 4 points to build a mesh, got {len(points)}")
+            raise UserError(f"meshlab: a frame needs at least 4 points to build a mesh, got {len(points)}")
         step = sampling_step(points)
         support = cluster_points(points, int(self.max_points), step) if self.max_points else points
         ms = pymeshlab.MeshSet()

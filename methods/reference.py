@@ -12,6 +12,8 @@ import warnings
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
+from holes.regions import check_regions_near
 from methods.base import InpaintingMethod
 
 
@@ -81,7 +83,7 @@ def median_neighbour_distance(points: np.ndarray, sample: int = 20000, tree: cKD
     `methods.lozes_pde.sampling_step`): temporal-copy uses it to tell a copied point that duplicates
     an existing one (closer than half of it) from one that fills a gap."""
     if len(points) < 2:
-        raise ValueError("need at least 2 points to estimate the point spacing")
+        raise UserError("need at least 2 points to estimate the point spacing")
     step = max(1, len(points) // sample)
     probe = points[::step]
     dist, _ = (tree if tree is not None else cKDTree(points)).query(probe, k=2, workers=-1)
@@ -132,13 +134,13 @@ class TemporalCopy(InpaintingMethod):
 
     def _validate_params(self) -> None:
         if not self.shell_factor >= 0:
-            raise ValueError(f"temporal-copy: shell_factor must be >= 0, got {self.shell_factor}")
+            raise UserError(f"temporal-copy: shell_factor must be >= 0, got {self.shell_factor}")
         if not self.min_shell_spacings > 0:
-            raise ValueError(f"temporal-copy: min_shell_spacings must be > 0, got {self.min_shell_spacings}")
+            raise UserError(f"temporal-copy: min_shell_spacings must be > 0, got {self.min_shell_spacings}")
         if int(self.icp_iterations) < 0:
-            raise ValueError(f"temporal-copy: icp_iterations must be >= 0, got {self.icp_iterations}")
+            raise UserError(f"temporal-copy: icp_iterations must be >= 0, got {self.icp_iterations}")
         if not self.overlap_spacings >= 0:
-            raise ValueError(f"temporal-copy: overlap_spacings must be >= 0, got {self.overlap_spacings}")
+            raise UserError(f"temporal-copy: overlap_spacings must be >= 0, got {self.overlap_spacings}")
 
     def inpaint(self, frames, regions=None):
         self._validate_params()
@@ -159,12 +161,17 @@ class TemporalCopy(InpaintingMethod):
         spacing = median_neighbour_distance(target, tree=target_tree)
         neighbours = [n for n in (f - 1, f + 1) if 0 <= n < len(frames)]
         fills = []
+        shells = [max(self.shell_factor * r.bounding_radius, self.min_shell_spacings * spacing) for r in frame_regions]
+        # a region farther from the cloud than its shell reaches finds nothing to align: refuse it
+        # (like temporal-graph) rather than add 0 points and look successful
+        check_regions_near(target, frame_regions, [2 * s for s in shells], tree=target_tree, who=self.name,
+                           frame_index=f)
         for k, region in enumerate(frame_regions):
             counts = [int(region.contains(frames[n]).sum()) for n in neighbours]
             if max(counts) == 0:
                 continue
             source = frames[neighbours[int(np.argmax(counts))]]  # argmax takes the first on ties: f-1
-            shell = max(self.shell_factor * region.bounding_radius, self.min_shell_spacings * spacing)
+            shell = shells[k]
 
             source_near = source[region.contains(source, margin=2 * shell)]
             target_near = target[region.contains(target, margin=2 * shell)]
@@ -193,11 +200,8 @@ class TemporalCopy(InpaintingMethod):
 
 def detect_regions(frames, method: str) -> list:
     """Blind protocol: hole regions of every frame from `holes.detection.detect_holes`."""
-    try:
-        from holes.detection import detect_holes
-    except ImportError as err:
-        raise ValueError(f"{method}: regions=None needs hole detection (holes.detection.detect_holes), "
-                         f"which is not available here ({err}); pass the hole regions instead") from err
+    from holes.detection import detect_holes
+
     return [list(detect_holes(frame)) for frame in frames]
 
 

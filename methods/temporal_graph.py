@@ -84,6 +84,7 @@ import warnings
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
 from holes.geometry import point_spacing
 from methods._cubes import CellGrid, best_window, block_sums, in_box
 from methods._graph import knn_laplacian, solve_cube
@@ -138,6 +139,16 @@ class _CubeGraphInpainting(InpaintingMethod):
         run = copy.copy(self)
         run.__dict__.update(self.get_params())
         return run
+
+    def validate_params(self) -> "_CubeGraphInpainting":
+        """As `InpaintingMethod.validate_params`, on the switches as the variant resolves them (a switch
+        left at None takes the variant's value, so None itself is never checked)."""
+        try:
+            run = self._configured()
+        except ValueError as err:  # an unknown variant
+            raise UserError(str(err)) from None
+        InpaintingMethod.validate_params(run)
+        return self
 
     def _validate(self) -> None:
         def positive(name):
@@ -220,7 +231,7 @@ class _CubeGraphInpainting(InpaintingMethod):
             # the largest bounding-box side (M = 20 on a body 1023 units tall)
             extent = float(np.ptp(frames[largest], axis=0).max())
             if not extent > 0:
-                raise ValueError(f"{self.name}: the frames have zero extent; pass spacing=<length of one unit>")
+                raise UserError(f"{self.name}: the frames have zero extent; pass spacing=<length of one unit>")
             unit = extent / 1024.0
         if regions is None:
             from holes.detection import detect_holes  # lazily: blind protocol only
@@ -279,14 +290,14 @@ class _CubeGraphInpainting(InpaintingMethod):
         for region in frame_regions:
             dist, _ = tree.query(region.center)
             if dist > region.bounding_radius + reach:
-                raise ValueError(
+                raise UserError(
                     f"{self.name}: frame {f}: hole region centred at {np.round(region.center, 3).tolist()} "
                     f"is {dist:.3g} away from the nearest point, farther than its size plus one cube "
                     f"({region.bounding_radius + reach:.3g}); the regions do not belong to this cloud "
                     "(wrong holes.json or wrong frame order?)")
             inside |= region.contains(frame)
         if inside.all():
-            raise ValueError(f"{self.name}: frame {f}: the hole regions cover every point of the frame; "
+            raise UserError(f"{self.name}: frame {f}: the hole regions cover every point of the frame; "
                              "nothing is left to fill from")
 
     # -- one frame --------------------------------------------------------------------------

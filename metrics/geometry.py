@@ -42,6 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.errors import UserError
+
 from metrics.pairs import CloudPair
 
 #: Default F-score threshold, in multiples of the reference's median nearest-neighbour spacing.
@@ -214,7 +216,7 @@ def fscore_threshold(pair: CloudPair, settings: Settings | None = None) -> float
     spacing = pair.reference_spacing
     spacing = spacing[np.isfinite(spacing)]
     if spacing.size == 0:
-        raise ValueError("the default F-score threshold needs at least two reference points; pass fscore_threshold")
+        raise UserError("the default F-score threshold needs at least two reference points; pass fscore_threshold")
     return FSCORE_SPACING_FACTOR * float(np.median(spacing))
 
 

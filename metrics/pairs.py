@@ -47,6 +47,8 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench.errors import UserError
+
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
 #: than this are "at the same distance".
 SIMILAR_SQ_DISTANCE = 1e-8
@@ -62,12 +64,12 @@ def check_points(points, label: str) -> np.ndarray:
     """``points`` as a float64 (N, 3) array with N >= 1 and finite values, else a ValueError naming ``label``."""
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{label}: coordinates must be an (N, 3) array, got shape {arr.shape}")
+        raise UserError(f"{label}: coordinates must be an (N, 3) array, got shape {arr.shape}")
     if len(arr) == 0:
-        raise ValueError(f"{label}: the cloud has zero points; a metric needs at least one point on each side")
+        raise UserError(f"{label}: the cloud has zero points; a metric needs at least one point on each side")
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
-        raise ValueError(
+        raise UserError(
             f"{label}: {int(bad.sum())} point(s) have NaN or infinite coordinates (first at index "
             f"{int(np.flatnonzero(bad)[0])}); drop them before scoring"
         )
@@ -424,7 +426,7 @@ def estimate_normals(points: np.ndarray, neighbours: int = DEFAULT_NORMAL_NEIGHB
 
     pts = check_points(points, "normal estimation")
     if len(pts) < 3:
-        raise ValueError(f"normal estimation needs at least 3 points, got {len(pts)}; pass reference normals")
+        raise UserError(f"normal estimation needs at least 3 points, got {len(pts)}; pass reference normals")
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
     cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=int(min(neighbours, len(pts)))))
     return np.asarray(cloud.normals).copy()
@@ -561,7 +563,7 @@ class CloudPair:
         valid = spacing[spacing * spacing > _INTRINSIC_MIN_SQ]
         valid = valid[np.isfinite(valid)]
         if valid.size == 0:
-            raise ValueError(
+            raise UserError(
                 "the intrinsic-resolution peak needs at least two distinct reference points; "
                 "pass a numeric peak (e.g. peak=1023) instead"
             )

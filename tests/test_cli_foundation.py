@@ -126,7 +126,7 @@ def bad_inputs(root: Path) -> dict[str, tuple[list, list[str]]]:
         "generate unknown": (["generate", "dragon", "--out", root / "g"], ["dragon", "human, bunny"]),
         "generate paper": (["generate", "soldier", "--out", root / "g"], ["soldier", "--data-dir"]),
         "paper no data": (["info", "soldier"], ["Soldier", "plenodb.jpeg.org", "soldier_vox10_0536.ply"]),
-        "bad param": (["generate", "human", "--out", root / "g", "--param", "size"], ["NAME=VALUE"]),
+        "bad param": (["generate", "human", "--out", root / "g", "--param", "size"], ["KEY=VALUE"]),
         "unknown param": (["info", "human", "--param", "colour=red"], ["colour", "accepted"]),
         "bad value": (["generate", "human", "--out", root / "g", "--param", "motion=fly"], ["fly", "walk"]),
         "bad frames": (["render", "human", "--frames", "x", "--out", root / "x.png"], ["--frames"]),

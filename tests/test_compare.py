@@ -199,7 +199,7 @@ def test_direction_comes_from_the_metric_registry_when_present():
     registry = pytest.importorskip("metrics.registry")
     for name, metric in registry.METRICS.items():
         assert compare.higher_is_better(name) == bool(metric.higher_is_better)
-    with pytest.raises(KeyError, match="unknown direction"):
+    with pytest.raises(ValueError, match="unknown direction"):  # a bench.errors.UserError
         compare.higher_is_better("no_such_metric")
 
 
@@ -297,7 +297,7 @@ def test_cli_compare_errors(tmp_path, capsys):
     corrupt = tmp_path / "corrupt.sqlite"
     corrupt.write_bytes(b"this is not sqlite" * 100)
     assert cli_main(["compare", str(base), str(corrupt)]) == 2
-    assert "results store is unreadable" in capsys.readouterr().err
+    assert "results store is damaged" in capsys.readouterr().err
     bad_tol = tmp_path / "t.toml"
     bad_tol.write_text("[tolerances]\nnshd = -1\n")
     assert cli_main(["compare", str(base), str(store), "--tolerances", str(bad_tol)]) == 2

@@ -143,7 +143,7 @@ def test_real_capture_reads(shared_dir):
 def test_cli_value_parsing():
     assert parse_params(["size=tiny", "bit_depth=9", "fps=24.5", "height=none", "cache=false"]) == {
         "size": "tiny", "bit_depth": 9, "fps": 24.5, "height": None, "cache": False}
-    with pytest.raises(UserError, match="NAME=VALUE"):
+    with pytest.raises(UserError, match="KEY=VALUE"):
         parse_params(["size"])
     assert parse_frames("5") == 5
     assert parse_frames("0,3-5,9") == [0, 3, 4, 5, 9]

@@ -87,7 +87,7 @@ def test_missing_input_is_a_clear_error(tmp_path, capsys):
 
 def test_detect_holes_bad_parameter(tmp_path, capsys):
     assert main(["detect-holes", "human", *TINY, "--param", "radius=3", "--out", str(tmp_path / "h.json")]) == 2
-    assert "unknown detector parameter" in capsys.readouterr().err
+    assert "unknown parameter(s) radius" in capsys.readouterr().err
 
 
 def _red_pixels(png) -> int:

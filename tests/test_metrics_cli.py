@@ -101,7 +101,7 @@ def test_errors(sequences, capsys, tmp_path):
     not_holes.write_text("{}")
     assert main(["score", str(folder / "ref" / "ref_0000.ply"), str(folder / "ref" / "ref_0000.ply"),
                  "--region", str(not_holes)]) == 2
-    assert "not a valid holes.json" in capsys.readouterr().err
+    assert "not a holes file" in capsys.readouterr().err
     assert main(["score", str(folder / "ref" / "ref_0000.ply"), str(folder / "ref" / "ref_0000.ply"),
                  "--peak", "loud"]) == 2
     assert "unknown peak" in capsys.readouterr().err

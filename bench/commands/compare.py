@@ -42,23 +42,19 @@ def register(subparsers) -> None:
                         help="write the current summary (with code version and environment) to FILE; "
                              "this is how results/regression-baseline.csv is made")
     parser.add_argument("--out", metavar="FILE", default=None, help="also write the comparison table as CSV")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing --out / --save-current file that dpcbench did not write")
     parser.set_defaults(func=run)
 
 
 def current_from_store(store_path, experiment: str | None):
     """(summary, meta) of the latest runs of `experiment` in a results store."""
     from bench import compare
+    from bench.store import ResultsStore
 
-    try:
-        from bench.store import ResultsStore
-    except ImportError as err:
-        raise UserError(f"cannot read a results store here ({err}); pass a summary file as CURRENT") from None
-    try:
-        store = ResultsStore(store_path, readonly=True)
-        results = store.results_frame()
-        runs = store.runs_frame()
-    except (ValueError, OSError, KeyError) as err:
-        raise UserError(str(err)) from None
+    store = ResultsStore(store_path, readonly=True, verify=True)
+    results = store.results_frame()
+    runs = store.runs_frame()
     if results.empty:
         where = store_path or "the default results store"
         raise UserError(f"{where} holds no results; run `dpcbench run bench/presets/regression.toml` first")
@@ -66,10 +62,7 @@ def current_from_store(store_path, experiment: str | None):
         known = ", ".join(sorted(map(str, results["experiment"].dropna().unique())))
         raise UserError(f"no runs of experiment {experiment!r} in the store (it has: {known}); "
                         "pass --experiment NAME")
-    try:
-        summary = compare.summarize(results, experiment=experiment or None)
-    except ValueError as err:
-        raise UserError(str(err)) from None
+    summary = compare.summarize(results, experiment=experiment or None)
     chosen = results if not experiment else results[results["experiment"] == experiment]
     environment = _run_environment(runs, set(chosen["run_id"]))
     meta = compare.summary_meta(results=chosen, environment=environment,
@@ -105,10 +98,7 @@ def load_side(path: str | None, *, store: str | None, experiment: str | None, ro
     from bench import compare
 
     if path is not None and Path(path).suffix.lower() in SUMMARY_SUFFIXES:
-        try:
-            return compare.read_summary(path)
-        except ValueError as err:
-            raise UserError(str(err)) from None
+        return compare.read_summary(path)
     if path is not None and not Path(path).exists():
         raise UserError(f"{path}: no such {role} file; give a summary .csv/.json or a results store")
     return current_from_store(path if path is not None else store, experiment)
@@ -116,16 +106,20 @@ def load_side(path: str | None, *, store: str | None, experiment: str | None, ro
 
 def run(args) -> int:
     from bench import compare
+    from bench.outputs import Outputs, record_written
 
     baseline_path = args.baseline or str(DEFAULT_BASELINE)
     if Path(baseline_path).suffix.lower() not in SUMMARY_SUFFIXES:
         raise UserError(f"{baseline_path}: BASELINE must be a summary .csv or .json")
+    guard = Outputs(args.overwrite, inputs=[p for p in (args.baseline, args.current) if p])
+    if args.save_current:
+        guard.file(args.save_current, "--save-current", suffixes=SUMMARY_SUFFIXES)
+    if args.out:
+        guard.file(args.out, "--out", suffixes=(".csv",))
     current, current_meta = load_side(args.current, store=args.store, experiment=args.experiment, role="current")
     if args.save_current:
-        try:
-            written = compare.write_summary(current, args.save_current, current_meta)
-        except ValueError as err:
-            raise UserError(str(err)) from None
+        written = compare.write_summary(current, args.save_current, current_meta)
+        record_written([written])
         print(f"current summary ({len(current)} rows, code {current_meta.get('code_version')}) written to {written}")
         if args.baseline is None and not DEFAULT_BASELINE.is_file():
             return 0  # making the first baseline: nothing to compare against yet
@@ -135,11 +129,8 @@ def run(args) -> int:
     baseline, baseline_meta = load_side(baseline_path, store=None, experiment=None, role="baseline")
 
     tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
-    try:
-        tolerances = compare.load_tolerances(tolerance_file)
-        result = compare.compare_summaries(baseline, current, tolerances, gate_time=args.gate_time)
-    except (ValueError, KeyError) as err:
-        raise UserError(str(err).strip('"')) from None
+    tolerances = compare.load_tolerances(tolerance_file)
+    result = compare.compare_summaries(baseline, current, tolerances, gate_time=args.gate_time)
     result.baseline_meta, result.current_meta = baseline_meta, current_meta
 
     print(f"baseline: {baseline_path}  (code {baseline_meta.get('code_version', '?')}, "
@@ -152,4 +143,5 @@ def run(args) -> int:
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         result.table.to_csv(args.out, index=False)
+        record_written([args.out])
     return 1 if result.failed else 0

@@ -19,20 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import UserError
-
-
-def parse_params(items: list[str] | None) -> dict:
-    """``["k=v", ...]`` -> dict; values parsed as JSON (numbers, true/false, lists) else kept as text."""
-    params = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise UserError(f"--param {item!r}: expected KEY=VALUE, e.g. --param preset=large")
-        try:
-            params[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key.strip()] = value
-    return params
+from bench.params import parse_params
 
 
 def load_input(source: str, frames=None, data_dir=None, dataset_params=None):
@@ -42,10 +29,7 @@ def load_input(source: str, frames=None, data_dir=None, dataset_params=None):
     """
     from bench.datasets import load_dataset, parse_frames
 
-    try:
-        return load_dataset(source, frames=parse_frames(frames), data_dir=data_dir, **(dataset_params or {}))
-    except (ValueError, KeyError) as err:
-        raise UserError(f"{source}: {err}") from None
+    return load_dataset(source, frames=parse_frames(frames), data_dir=data_dir, **(dataset_params or {}))
 
 
 def add_input_options(parser) -> None:
@@ -69,41 +53,38 @@ def register(subparsers) -> None:
     parser.add_argument("--holes", required=True, metavar="GENERATOR",
                         help=f"hole generator: {', '.join(sorted(GENERATORS))}")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE",
-                        help="generator parameter (repeatable), e.g. --param preset=large --param coherent=true")
+                        help="generator parameter (repeatable), e.g. --param preset=large --param coherent=true; "
+                             "values: true/false, none, numbers, JSON lists, else text (see bench/params.py)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0): same seed, same holes")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     add_input_options(parser)
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing holes.json in DIR")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace existing files in DIR that dpcbench did not write (files it wrote are "
+                             "replaced anyway)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from bench.sequences import Sequence, save_sequence
-    import inspect
-
-    from holes.registry import generator_class
+    from bench.outputs import Outputs, record_written
+    from bench.sequences import Sequence, save_sequence, sequence_file_names
+    from holes.registry import GENERATORS, generator_class
     from holes.regions import regions_to_json
 
-    out = Path(args.out)
-    if (out / "holes.json").exists() and not args.overwrite:
-        raise UserError(f"{out} already holds a holes.json; choose another --out or pass --overwrite")
-    params = parse_params(args.param)
-    try:
-        cls = generator_class(args.holes)
-    except KeyError as err:
-        raise UserError(str(err).strip("\"'")) from None
-    valid = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
-    unknown = sorted(set(params) - set(valid))
-    if unknown:
-        raise UserError(f"--holes {args.holes}: unknown parameter(s) {', '.join(unknown)}; "
-                        f"valid parameters: {', '.join(valid)}")
-    generator = cls(**params)
-    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param))
+    if args.holes not in GENERATORS:
+        raise UserError(f"--holes: unknown hole generator {args.holes!r}; known: {', '.join(sorted(GENERATORS))} "
+                        "(see `dpcbench list`)")
+    cls = generator_class(args.holes)
+    generator = cls(**_known_params(cls, parse_params(args.param), f"--holes {args.holes}"))
+    generator.validate_params()
+    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param, "--dataset-param"))
+    if (Path(args.out) / "holes.json").exists() and not args.overwrite:
+        # even one dpcbench wrote: it is the ground truth of whatever was inpainted and scored from it
+        raise UserError(f"--out {args.out} already holds a holes.json (the ground truth of an earlier damage); "
+                        "choose another --out or pass --overwrite")
+    names = sequence_file_names(seq.name, len(seq)) + ["masks.npz", "holes.json"]
+    out = Outputs(args.overwrite, inputs=[args.input]).folder(args.out, "--out", names, sequence=True)
     colors = seq.colors if seq.frames[0].colors is not None else None
-    try:
-        result = generator.damage(seq.points, args.seed, colors=colors)
-    except ValueError as err:
-        raise UserError(str(err)) from None
+    result = generator.damage(seq.points, args.seed, colors=colors)
     damaged = Sequence(seq.name, [frame.subset(~mask) for frame, mask in zip(seq.frames, result.removed)],
                        seq.bit_depth, meta=dict(seq.meta))
     files = save_sequence(damaged, out)
@@ -122,13 +103,26 @@ def run(args) -> int:
             for m, frac, p in zip(result.removed, fractions, files)
         ],
     )
+    from bench.errors import RECORDED
+
+    if RECORDED:
+        record["warnings"] = list(RECORDED)  # the notes printed while it was made (e.g. which input was taken)
     tmp = out / "holes.json.tmp"
     tmp.write_text(json.dumps(record, indent=1, default=_jsonable))
     tmp.replace(out / "holes.json")
+    record_written(files + [out / "masks.npz", out / "holes.json"])
     print(f"{len(files)} frames -> {out}: removed {np.mean(fractions):.2%} of the points on average "
           f"(min {min(fractions):.2%}, max {max(fractions):.2%}), "
           f"{sum(len(r) for r in result.regions)} hole regions")
     return 0
+
+
+def _known_params(cls, params: dict, who: str) -> dict:
+    """``params`` when every name is a parameter of ``cls``; UserError listing the valid ones otherwise."""
+    from bench.params import check_param_types
+
+    check_param_types(cls, params, who)
+    return params
 
 
 def _jsonable(value):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -31,6 +30,7 @@ def register(subparsers) -> None:
                              "the previous code version")
     parser.add_argument("--tolerances", default=None, help="TOML file with a [tolerances] table")
     parser.add_argument("--title", default="dpcbench regression dashboard")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE.html that dpcbench did not write")
     parser.set_defaults(func=run)
 
 
@@ -43,12 +43,9 @@ def load_stores(paths, experiment):
     results, runs = [], []
     paths = paths or [None]
     for i, path in enumerate(paths):
-        try:
-            store = ResultsStore(path, readonly=True)
-            store_results = store.results_frame(experiment)
-            store_runs = store.runs_frame(experiment)
-        except ValueError as err:
-            raise UserError(str(err)) from None
+        store = ResultsStore(path, readonly=True, verify=True)
+        store_results = store.results_frame(experiment)
+        store_runs = store.runs_frame(experiment)
         if len(paths) > 1:
             # run ids hash the spec, not the commit: the same run in two stores (e.g. one per commit)
             # is two runs here
@@ -66,38 +63,29 @@ def run(args) -> int:
     from bench.commands.compare import TOLERANCES_FILE
     from bench.store import RESULT_COLUMNS
 
-    out = Path(args.out)
-    if out.suffix.lower() not in (".html", ".htm"):
-        raise UserError(f"{out}: --out must name an .html file")
+    from bench.outputs import Outputs, record_written
+
+    guard = Outputs(args.overwrite, inputs=(args.store or []) + (args.summary or []) + (args.benchmarks or []))
+    out = guard.file(args.out, "--out", suffixes=(".html", ".htm"))
     if args.summary and not args.store:
         results, runs = pd.DataFrame(columns=RESULT_COLUMNS), None
     else:
         results, runs = load_stores(args.store, args.experiment)
     for i, path in enumerate(args.summary or []):
-        try:
-            table, meta = compare.read_summary(path)
-        except ValueError as err:
-            raise UserError(str(err)) from None
+        table, meta = compare.read_summary(path)
         results = pd.concat([results, dashboard.summary_as_results(table, meta, run_prefix=f"summary{i}")],
                             ignore_index=True)
     benchmarks = None
     bench_paths = args.benchmarks or ([".benchmarks"] if Path(".benchmarks").is_dir() else [])
     if bench_paths:
-        try:
-            benchmarks = benchsuite.load_benchmark_runs(bench_paths)
-        except ValueError as err:
-            raise UserError(str(err)) from None
-    try:  # bad input files: one-line errors
-        baseline = compare.read_summary(args.baseline) if args.baseline else None
-        tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
-        tolerances = compare.load_tolerances(tolerance_file)
-    except (ValueError, KeyError) as err:
-        raise UserError(str(err).strip('"')) from None
+        benchmarks = benchsuite.load_benchmark_runs(bench_paths)
+    baseline = compare.read_summary(args.baseline) if args.baseline else None
+    tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
+    tolerances = compare.load_tolerances(tolerance_file)
     sources = [str(p) for p in (args.store or ["default results store"])] + [str(p) for p in bench_paths]
-    # rendering is our own code on validated data: an exception here is a bug and keeps its traceback
-    # (it was once reported as a one-line "user error": issue 11)
     written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
                                         tolerances=tolerances, title=args.title, sources=sources)
+    record_written([written])
     n_versions = results["code_version"].nunique() if len(results) else 0
     print(f"dashboard written to {written} ({n_versions} code version(s), {results['run_id'].nunique()} runs"
           f"{', ' + str(benchmarks['fullname'].nunique()) + ' benchmarks' if benchmarks is not None else ''})")

@@ -9,10 +9,9 @@ The file can be handed to methods like the regions of a damaged sequence ("blind
 from __future__ import annotations
 
 import json
-from pathlib import Path
-
-from bench.commands.damage import add_input_options, load_input, parse_params
+from bench.commands.damage import add_input_options, load_input
 from bench.errors import UserError
+from bench.params import parse_params
 
 
 def register(subparsers) -> None:
@@ -22,7 +21,9 @@ def register(subparsers) -> None:
         description=__doc__.split("\n", 2)[2],
     )
     parser.add_argument("input", help="embedded name, paper sequence, or PLY folder/glob/file")
-    parser.add_argument("--out", required=True, metavar="FILE", help="holes.json to write")
+    parser.add_argument("--out", required=True, metavar="FILE", help="holes.json to write (a .json file)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing FILE that dpcbench did not write")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE",
                         help="detector parameter (repeatable): k, gap, link, min_points, min_inward, max_radius")
     add_input_options(parser)
@@ -30,27 +31,22 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    import inspect
-
+    from bench.outputs import Outputs, record_written
+    from bench.params import check_param_types
     from bench.progress import progress_bar
     from holes.detection import detect_holes
     from holes.regions import regions_to_json
 
     params = parse_params(args.param)
-    known = [p for p in inspect.signature(detect_holes).parameters if p != "points"]
-    unknown = sorted(set(params) - set(known))
-    if unknown:
-        raise UserError(f"--param: unknown detector parameter(s) {', '.join(unknown)}; known: {', '.join(known)}")
-    out = Path(args.out)
-    if out.is_dir():
-        raise UserError(f"--out {out} is a folder; give the path of the holes.json file to write")
-    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param))
+    if "points" in params:  # the first argument of detect_holes, not a parameter
+        raise UserError("--param points: not a detector parameter (the points are the input frames); "
+                        "parameters: k, gap, link, min_points, min_inward, max_radius")
+    check_param_types(detect_holes, params, "--param (detector)")
+    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param, "--dataset-param"))
+    out = Outputs(args.overwrite, inputs=[args.input]).file(args.out, "--out", suffixes=(".json",))
     regions = []
-    for i, points in enumerate(progress_bar(seq.points, desc="detecting holes", unit="frame")):
-        try:
-            regions.append(detect_holes(points, **params))
-        except ValueError as err:
-            raise UserError(f"frame {i}: {err}") from None
+    for points in progress_bar(seq.points, desc="detecting holes", unit="frame"):
+        regions.append(detect_holes(points, **params))
     record = regions_to_json(
         regions,
         detector="holes.detection.detect_holes",
@@ -58,10 +54,15 @@ def run(args) -> int:
         source=str(args.input),
         per_frame=[{"points": int(len(p)), "region_count": len(r)} for p, r in zip(seq.points, regions)],
     )
+    from bench.errors import RECORDED
+
+    if RECORDED:
+        record["warnings"] = list(RECORDED)  # the notes printed while it was made
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text(json.dumps(record, indent=1))
     tmp.replace(out)
+    record_written([out])
     print(f"{len(regions)} frames: {sum(len(r) for r in regions)} hole regions "
           f"({', '.join(str(len(r)) for r in regions[:10])}{' ...' if len(regions) > 10 else ''} per frame) -> {out}")
     return 0

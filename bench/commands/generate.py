@@ -23,13 +23,17 @@ def register(subparsers) -> None:
                              "bit_depth=10|none, seed=0, oversampling=8")
     parser.add_argument("--data-dir", default=None, help="folder holding mesh sequences such as mit_samba/")
     parser.add_argument("--no-cache", action="store_true", help="regenerate instead of reading the frame cache")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace existing files in the output folder that dpcbench did not write")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from bench.datasets import EMBEDDED, MESHES, PAPER, load_dataset, parse_params
+    from bench.datasets import EMBEDDED, MESHES, PAPER, load_dataset
     from bench.meshseq import list_mesh_files
-    from bench.sequences import save_sequence
+    from bench.outputs import Outputs, record_written
+    from bench.params import parse_params
+    from bench.sequences import save_sequence, sequence_file_names
 
     name = args.name.lower()
     mesh = name in MESHES or (not Path(args.name).is_file() and list_mesh_files(args.name) is not None)
@@ -40,17 +44,20 @@ def run(args) -> int:
     if args.frames is not None and args.frames < 1:
         raise UserError(f"--frames must be at least 1, got {args.frames}")
     params = parse_params(args.param)
+    guard = Outputs(args.overwrite)
+    if name in EMBEDDED:
+        count = args.frames if args.frames is not None else EMBEDDED[name].default_frames
+        guard.folder(args.out, "--out", sequence_file_names(name, count), sequence=True)
+        seq = load_dataset(name, frames=args.frames, cache=not args.no_cache, name_only=True, **params)
+    else:
+        guard.folder(args.out, "--out", sequence=True)  # file names follow the mesh sequence's name
+        seq = load_dataset(args.name if name not in MESHES else name, frames=args.frames, data_dir=args.data_dir,
+                           cache=not args.no_cache, **params)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    seq = load_dataset(args.name if mesh and name not in MESHES else name, frames=args.frames,
-                       data_dir=args.data_dir, cache=not args.no_cache, **params)
-    try:
-        paths = save_sequence(seq, out, prefix=seq.name)
-    except OSError as err:
-        raise UserError(f"--out {out}: cannot write frames ({err})") from None
+    paths = save_sequence(seq, out, prefix=seq.name)
+    record_written(paths)
     counts = [len(f) for f in seq.frames]
     depth = f", {seq.bit_depth}-bit integer coordinates" if seq.bit_depth else ""
-    normals = ", normals from the mesh faces" if seq.frames[0].normals is not None else ""
+    normals = ", with normals" if seq.frames[0].normals is not None else ""
     print(f"wrote {len(paths)} frames to {out} ({min(counts)}..{max(counts)} points per frame{depth}{normals})")
     return 0

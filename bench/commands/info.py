@@ -15,7 +15,7 @@ def register(subparsers) -> None:
                                    description=__doc__)
     parser.add_argument("source", metavar="PATH_OR_NAME", help="folder / glob / PLY file, or a dataset name")
     parser.add_argument("--frames", default=None, help="frames to read: a count (10), list (0,5) or range (0-9)")
-    parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter")
+    parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter (repeatable; values as in every command: see bench/params.py)")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper's sequences")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.set_defaults(func=run)
@@ -53,7 +53,8 @@ def describe(seq) -> dict:
 
 
 def run(args) -> int:
-    from bench.datasets import load_dataset, parse_frames, parse_params
+    from bench.datasets import load_dataset, parse_frames
+    from bench.params import parse_params
 
     seq = load_dataset(args.source, frames=parse_frames(args.frames), data_dir=args.data_dir,
                        **parse_params(args.param))

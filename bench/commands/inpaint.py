@@ -12,15 +12,14 @@ parameters, input, regions file, seconds per frame). DIR may not be INPUT, nor l
 
 from __future__ import annotations
 
-import inspect
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 
-from bench.commands.damage import add_input_options, load_input, parse_params
-from bench.errors import UserError
+from bench.commands.damage import add_input_options, load_input
+from bench.errors import RECORDED, UserError
+from bench.params import parse_params
 
 
 def register(subparsers) -> None:
@@ -34,69 +33,54 @@ def register(subparsers) -> None:
     parser.add_argument("input", help="embedded name (human, bunny), paper sequence, or PLY folder/glob/file")
     parser.add_argument("--method", required=True, help=f"method: {', '.join(sorted(METHODS))}")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE",
-                        help="method parameter (repeatable; values read as JSON when they parse: numbers, "
-                             "true/false, null), e.g. --param beta=0.5 --param known_points=free")
+                        help="method parameter (repeatable), e.g. --param beta=0.5 --param known_points=free; values: "
+                             "true/false, none, numbers, JSON lists, else text (see bench/params.py)")
     parser.add_argument("--regions", metavar="HOLES_JSON", default=None,
                         help="hole regions per frame (holes.json of `dpcbench damage`); omit for the blind protocol")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (not INPUT)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace existing files in DIR that dpcbench did not write")
     add_input_options(parser)
     parser.set_defaults(func=run)
 
 
-def _refuse_input_folder(source: str, out: Path) -> None:
-    """UserError when ``out`` is the input folder (or a folder inside it, or the folder of an input file)."""
-    path = Path(source)
-    if not path.exists():
-        return  # a dataset name or a glob: nothing on disk to protect by that name
-    folder = (path if path.is_dir() else path.parent).resolve()
-    target = out.resolve()
-    if target == folder or folder in target.parents:
-        raise UserError(f"--out {out} is inside the input {source}; the input is never overwritten: "
-                        "choose another output folder")
-
-
 def make_method(name: str, params: dict):
-    """The configured method; UserError for an unknown name or parameter."""
+    """The configured method, its parameters checked (`validate_params`); UserError for an unknown
+    name or a bad parameter."""
+    from bench.params import check_param_types
     from methods.registry import METHODS, method_class
 
+    if name not in METHODS:
+        raise UserError(f"--method: unknown method {name!r}; known methods: {', '.join(sorted(METHODS))} "
+                        "(see `dpcbench list`)")
     try:
         cls = method_class(name)
-    except KeyError:
-        raise UserError(f"unknown method {name!r}; known methods: {', '.join(sorted(METHODS))} "
-                        "(see `dpcbench list`)") from None
-    except ImportError as err:
-        raise UserError(f"method {name!r} cannot be used here: {err}") from None
-    valid = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
-    unknown = sorted(set(params) - set(valid))
-    if unknown:
-        raise UserError(f"--method {name}: unknown parameter(s) {', '.join(unknown)}; "
-                        f"valid parameters: {', '.join(valid) or '(none)'}")
-    return cls(**params)
+    except ImportError as err:  # an optional dependency of this method is missing here
+        raise UserError(f"--method {name}: cannot be used here: {err}") from None
+    check_param_types(cls, params, f"--method {name}")
+    return cls(**params).validate_params()
 
 
 def run(args) -> int:
+    from bench.outputs import Outputs, record_written
     from bench.plyio import PointCloud
-    from bench.sequences import Sequence, save_sequence
+    from bench.sequences import Sequence, save_sequence, sequence_file_names
     from holes.regions import regions_from_json
+    from methods.base import check_sequence
 
-    out = Path(args.out)
-    _refuse_input_folder(args.input, out)
     method = make_method(args.method, parse_params(args.param))
-    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param))
+    seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param, "--dataset-param"))
     regions = None
     if args.regions:
-        try:
-            regions = regions_from_json(args.regions)
-        except (OSError, ValueError, KeyError, json.JSONDecodeError) as err:
-            raise UserError(f"--regions {args.regions}: cannot read hole regions ({err})") from None
-        if len(regions) != len(seq):
-            raise UserError(f"--regions {args.regions} describes {len(regions)} frames but {args.input} has "
-                            f"{len(seq)}; use the holes.json made for these frames (or the same --frames)")
+        regions = regions_from_json(args.regions, frame_count=len(seq), label=f"--regions {args.regions}")
+    elif getattr(method, "needs_regions", False) or not getattr(method, "detects_holes", True):
+        raise UserError(f"--method {args.method} needs the hole regions: pass --regions HOLES_JSON (from "
+                        "`dpcbench damage` or `dpcbench detect-holes`)")
+    check_sequence(seq.points, regions, method=args.method)
+    names = sequence_file_names(seq.name, len(seq)) + ["inpaint.json"]
+    out = Outputs(args.overwrite, inputs=[args.input, args.regions]).folder(args.out, "--out", names, sequence=True)
     started = time.perf_counter()
-    try:
-        results = method.inpaint(seq.points, regions)
-    except (ValueError, KeyError) as err:
-        raise UserError(str(err).strip("\"'")) from None
+    results = method.inpaint(seq.points, regions)
     seconds = time.perf_counter() - started
     frames = []
     for frame, points in zip(seq.frames, results):
@@ -121,9 +105,12 @@ def run(args) -> int:
         "input_points": [int(len(f.points)) for f in seq.frames],
         "files": [p.name for p in files],
     }
+    if RECORDED:
+        record["warnings"] = list(RECORDED)
     tmp = out / "inpaint.json.tmp"
     tmp.write_text(json.dumps(record, indent=1, default=str))
     tmp.replace(out / "inpaint.json")
+    record_written(files + [out / "inpaint.json"])
     added = sum(record["points"]) - sum(record["input_points"])
     print(f"{args.method}: {len(files)} frames -> {out} ({added:+d} points, {seconds:.1f} s)")
     return 0

@@ -5,6 +5,7 @@ inside the regions of a holes.json)."""
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ def register(subparsers) -> None:
                                    description=__doc__)
     parser.add_argument("source", metavar="PATH_OR_NAME", help="folder / glob / PLY file, or a dataset name")
     parser.add_argument("--out", required=True, help="PNG file to write")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing PNG that dpcbench did not write")
     parser.add_argument("--frames", default=None,
                         help="frame indices: a list (0,6,12), a range (0-3) or one index (5); default: the first 4")
     parser.add_argument("--zoom", default=None, metavar="X0,Y0,Z0,X1,Y1,Z1",
@@ -30,7 +32,7 @@ def register(subparsers) -> None:
                         help="paint holes red: a `dpcbench damage` output folder or its masks.npz (render the "
                              "ground truth it was made from: the removed points turn red), or a holes.json "
                              "(the points inside its regions turn red, e.g. the rims found by detect-holes)")
-    parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter")
+    parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter (repeatable; values as in every command: see bench/params.py)")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper's sequences")
     parser.set_defaults(func=run)
 
@@ -61,7 +63,9 @@ def _numbers(text: str, count: int | None, option: str) -> list[float]:
 
 
 def run(args) -> int:
-    from bench.datasets import load_dataset, parse_frames, parse_params
+    from bench.datasets import load_dataset, parse_frames
+    from bench.outputs import Outputs, record_written
+    from bench.params import parse_params
     from bench.render import VIEWS, render_clouds
 
     frames = parse_frames(args.frames)
@@ -71,24 +75,23 @@ def run(args) -> int:
         frames = list(range(min(DEFAULT_FRAMES, _frame_count(args.source))))
     view = args.view if args.view in VIEWS else _numbers(args.view, 2, "--view")
     zoom = _numbers(args.zoom, 6, "--zoom") if args.zoom else None
+    if zoom is not None and not all(lo < hi for lo, hi in zip(zoom[:3], zoom[3:])):
+        raise UserError(f"--zoom {args.zoom}: give the box as X0,Y0,Z0,X1,Y1,Z1 with each lower corner value "
+                        "below the upper one")
     if args.point_size is not None and not 0 <= args.point_size <= 20:
         raise UserError(f"--point-size must be in 0..20 pixels, got {args.point_size}")
     if not 32 <= args.height <= 4000:
         raise UserError(f"--height must be in 32..4000 pixels, got {args.height}")
-    if not str(args.out).lower().endswith(".png"):
-        raise UserError(f"--out {args.out}: the output must be a .png file")
+    guard = Outputs(args.overwrite, inputs=[args.source, args.holes])
+    out = guard.file(args.out, "--out", suffixes=(".png",))
     seq = load_dataset(args.source, frames=frames, data_dir=args.data_dir, **parse_params(args.param))
     indices = seq.meta.get("frame_indices") or frames
     titles = [f"{seq.name} frame {i}" for i in indices]
     highlight = _hole_masks(args.holes, seq.points, indices) if args.holes else None
-    try:
-        out = render_clouds(seq.frames, args.out, titles=titles, zoom=zoom, view=view, shading=args.shading,
+    written = render_clouds(seq.frames, out, titles=titles, zoom=zoom, view=view, shading=args.shading,
                             point_size=args.point_size, panel_height=args.height, highlight=highlight)
-    except ValueError as err:
-        raise UserError(str(err)) from None
-    except OSError as err:
-        raise UserError(f"--out {args.out}: cannot write ({err})") from None
-    print(f"wrote {out} ({len(seq.frames)} frames)")
+    record_written([written])
+    print(f"wrote {written} ({len(seq.frames)} frames)")
     return 0
 
 
@@ -108,8 +111,9 @@ def _hole_masks(source: str, points: list, indices: list[int]) -> list:
         try:
             with np.load(path) as data:
                 masks = {key: data[key] for key in data.files}
-        except (OSError, ValueError) as err:
-            raise UserError(f"--holes {path}: not a readable masks file ({err})") from None
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:  # a corrupt or foreign .npz
+            raise UserError(f"--holes {path}: not a readable masks file ({type(err).__name__}: {err}); give the "
+                            "masks.npz written by `dpcbench damage`") from None
         out = []
         for i, pts in zip(indices, points):
             mask = masks.get(f"frame_{i:04d}")
@@ -120,10 +124,7 @@ def _hole_masks(source: str, points: list, indices: list[int]) -> list:
                                 "render the ground truth the damage was made from, not the damaged frames")
             out.append(mask.astype(bool))
         return out
-    try:
-        regions = regions_from_json(path)
-    except (OSError, ValueError, KeyError) as err:
-        raise UserError(f"--holes {path}: not a readable holes.json ({err})") from None
+    regions = regions_from_json(path, label=f"--holes {path}")
     for i in indices:
         if i >= len(regions):
             raise UserError(f"--holes {path}: has no regions for frame {i} (it has {len(regions)} frames)")

@@ -18,6 +18,8 @@ def register(subparsers) -> None:
     p.add_argument("--experiment", default=None, help="experiment name (default: the only one, else required)")
     p.add_argument("--metrics", default=None, help="comma-separated metrics (default: all stored)")
     p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace existing files in the output folder that dpcbench did not write")
     p.set_defaults(func=main)
 
 
@@ -37,14 +39,12 @@ def resolve_store(text: str) -> Path:
 
 
 def main(args) -> int:
+    from bench.outputs import Outputs
     from bench.reports import write_comparison_report
     from bench.store import ResultsStore
 
-    try:
-        store = ResultsStore(resolve_store(args.results), readonly=True)
-        experiments = store.experiments()
-    except ValueError as err:
-        raise UserError(str(err)) from err
+    store = ResultsStore(resolve_store(args.results), readonly=True, verify=True)
+    experiments = store.experiments()
     experiment = args.experiment
     if experiment is None:
         if len(experiments) != 1:
@@ -63,7 +63,10 @@ def main(args) -> int:
         if unknown:
             raise UserError(f"--metrics: {', '.join(unknown)} not stored for {experiment!r}; stored: "
                             f"{', '.join(sorted(set(df['metric'])))}")
-    report = write_comparison_report(df, runs, args.out, title=f"Method comparison: experiment {experiment}",
-                                     metrics=metrics)
-    print(f"report: {report}")
+    guard = Outputs(args.overwrite, inputs=[store.path])
+    out = guard.folder(args.out, "--out")
+    with guard.staged(out) as staged:  # written aside, moved in once no file of the user's would be replaced
+        report = write_comparison_report(df, runs, staged, title=f"Method comparison: experiment {experiment}",
+                                         metrics=metrics)
+    print(f"report: {out / Path(report).relative_to(staged)}")
     return 0

@@ -34,6 +34,8 @@ def register(subparsers) -> None:
     p.add_argument("--seeds", default=None, metavar="LIST",
                    help="hole seeds of the synthetic-hole runs, e.g. 0,1,2 or 0-2 (default: the preset's)")
     p.add_argument("--out", default="dpcbench-paper", help="folder for tables, figures and REPORT.md")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace existing files in the output folder that dpcbench did not write")
     p.add_argument("--store", default=None,
                    help="results store; default $DPCBENCH_STORE or ~/.cache/dpcbench/results.sqlite")
     p.add_argument("--executor", choices=("serial", "pool", "dask"), default="pool")
@@ -63,7 +65,7 @@ def _parse_seeds(text: str | None) -> list[int] | None:
 
 def main(args) -> int:
     from bench import paper
-    from bench.reports import write_paper_report
+    from bench.outputs import Outputs
     from bench.runner import run_experiment
     from bench.store import ResultsStore
 
@@ -71,23 +73,18 @@ def main(args) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise UserError("--jobs: must be at least 1")
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
-    try:
-        protocol = paper.paper_protocol(quick=args.quick, data_dir=args.data_dir, size=args.size, frames=args.frames,
-                                        seeds=_parse_seeds(args.seeds))
-        store = ResultsStore(args.store)
-    except (ValueError, KeyError) as err:
-        raise UserError(str(err).strip("'\"")) from err
+    protocol = paper.paper_protocol(quick=args.quick, data_dir=args.data_dir, size=args.size, frames=args.frames,
+                                    seeds=_parse_seeds(args.seeds))
+    guard = Outputs(args.overwrite)
+    out = guard.folder(args.out, "--out")
+    store = ResultsStore(args.store, verify=True)
     specs = protocol.synthetic + protocol.real
     if not quiet:
         where = "embedded STAND-INS (not the paper's data)" if protocol.standins else "the paper's sequences"
         print(f"reproduce-paper ({protocol.preset}): {len(protocol.synthetic)} synthetic-hole runs and "
               f"{len(protocol.real)} real-hole runs on {where}; store {store.path}", file=sys.stderr)
-    try:
-        summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
-                                 force=args.force, retry_failed=args.retry_failed, quiet=quiet)
-    except ValueError as err:
-        raise UserError(str(err)) from err
-    out = Path(args.out)
+    summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
+                             force=args.force, retry_failed=args.retry_failed, quiet=quiet)
     results = store.results_frame()
     runs = store.runs_frame()
     synthetic_ids = {s.run_id for s in protocol.synthetic}
@@ -98,16 +95,24 @@ def main(args) -> int:
     if df.empty:
         raise UserError("no synthetic-hole run finished, so there is nothing to tabulate; see the failed runs above "
                         f"and their logs in {Path(store.path).parent / 'runs' / 'logs'}")
+    with guard.staged(out) as staged:  # written aside, moved in once no file of the user's would be replaced
+        _write_outputs(args, protocol, store, staged, df, run_rows, real_df, t0)
+    print(f"{len(summary.done)} run(s) done, {len(summary.cached)} cached, {len(summary.failed)} failed")
+    print((out / "tables" / "table1_gpsnr.md").read_text())
+    print((out / "tables" / "table2_nshd.md").read_text())
+    print(f"report: {out / 'REPORT.md'}")
+    return 1 if summary.failed else 0
+
+
+def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0) -> None:
+    from bench import paper
+    from bench.reports import write_paper_report
+
     figure_notes = paper.paper_figures(protocol, store, out / "figures")
     command = "dpcbench reproduce-paper" + "".join(
         f" {flag}" + ("" if value is True else f" {shlex.quote(str(value))}")
         for flag, value in [("--quick", args.quick), ("--data-dir", args.data_dir), ("--size", args.size),
                             ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out)] if value)
-    report = write_paper_report(df, run_rows, out, standins=protocol.standins, preset=protocol.preset,
-                                command=command, elapsed_s=time.perf_counter() - t0, figure_notes=figure_notes,
-                                real_df=real_df)
-    print(f"{len(summary.done)} run(s) done, {len(summary.cached)} cached, {len(summary.failed)} failed")
-    print((out / "tables" / "table1_gpsnr.md").read_text())
-    print((out / "tables" / "table2_nshd.md").read_text())
-    print(f"report: {report}")
-    return 1 if summary.failed else 0
+    write_paper_report(df, run_rows, out, standins=protocol.standins, preset=protocol.preset,
+                       command=command, elapsed_s=time.perf_counter() - t0, figure_notes=figure_notes,
+                       real_df=real_df)

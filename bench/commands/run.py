@@ -38,42 +38,46 @@ def resolve_config_path(text: str) -> Path:
     path = Path(text)
     if path.is_file():
         return path
-    preset = Path(__file__).resolve().parents[1] / "presets" / f"{text.removesuffix('.toml')}.toml"
-    if preset.is_file():
+    if path.is_dir():
+        raise UserError(f"{text}: is a folder; give an experiment TOML file or a preset name")
+    presets = Path(__file__).resolve().parents[1] / "presets"
+    stem = path.name.removesuffix(".toml")
+    preset = presets / f"{stem}.toml"
+    if stem and path.name == text and preset.is_file():  # a bare name, like `paper-quick`
         return preset
-    raise UserError(f"{text}: no such config file (nor a preset in {preset.parent}); give the path of a TOML config")
+    names = ", ".join(sorted(p.stem for p in presets.glob("*.toml")))
+    raise UserError(f"{text}: no such config file, and no preset of that name (presets: {names}); "
+                    "give the path of an experiment TOML file or one of the preset names")
 
 
 def main(args) -> int:
     from bench.config import load_config
     from bench.runner import run_experiment
-    from bench.store import ResultsStore
+    from bench.store import ResultsStore, default_store_path
 
     if args.jobs is not None and args.jobs < 1:
         raise UserError("--jobs: must be at least 1")
     if args.timeout is not None and args.timeout <= 0:
         raise UserError("--timeout: must be a positive number of seconds")
     overrides = {"experiment": {"data_dir": args.data_dir}} if args.data_dir else None
-    try:
-        cfg = load_config(resolve_config_path(args.config), overrides)
-        specs = cfg.expand()
-        store = ResultsStore(args.store)
-    except (ValueError, KeyError) as err:
-        raise UserError(str(err).strip("'\"")) from err
-    if args.dry_run:
-        statuses = store.statuses([s.run_id for s in specs])
+    cfg = load_config(resolve_config_path(args.config), overrides)
+    specs = cfg.expand()
+    if args.dry_run:  # reads the store if there is one; creates nothing
+        path = Path(args.store).expanduser() if args.store else default_store_path()
+        ResultsStore.check_path(path)
+        store = ResultsStore(path, readonly=True, verify=True) if path.is_file() else None
+        statuses = store.statuses([s.run_id for s in specs]) if store is not None else {}
         for spec in specs:
             print(f"{statuses.get(spec.run_id, 'todo'):7s} {spec.summary()}")
         todo = sum(1 for s in specs if s.run_id not in statuses)
-        print(f"{len(specs)} runs in experiment {cfg.name!r}: {todo} to do, {len(specs) - todo} stored; store {store.path}")
+        print(f"{len(specs)} runs in experiment {cfg.name!r}: {todo} to do, {len(specs) - todo} stored; store {path}"
+              f"{'' if store is not None else ' (not created yet)'}")
         return 0
+    store = ResultsStore(args.store, verify=True)
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
-    try:
-        summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
-                                 scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
-                                 quiet=quiet, timeout_s=args.timeout)
-    except ValueError as err:
-        raise UserError(str(err)) from err
+    summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
+                             scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
+                             quiet=quiet, timeout_s=args.timeout)
     print(f"experiment {cfg.name!r}: {len(summary.done)} run(s) done, {len(summary.cached)} cached, "
           f"{len(summary.failed)} failed; store {store.path}")
     for run_id in summary.failed:

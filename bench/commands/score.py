@@ -3,7 +3,8 @@
 REFERENCE and RESULT are two PLY files or two sequence folders (or globs) with the same number of
 frames. Normals stored in the reference PLY are used for D2 (else they are estimated). Prints a
 table (one row per frame and the mean), or with --json the object
-{"frames": [{"frame": i, "<metric>": value, ...}], "mean": {...}, "capped": [...], "settings": {...}}
+{"frames": [{"frame": i, "<metric>": value, ...}], "mean": {...}, "capped": [...], "settings": {...},
+"warnings": [...]} (warnings: the one-line notes also printed on stderr, e.g. frames whose regions hold no point)
 (NaN, an undefined value, is written as null).
 """
 
@@ -49,13 +50,26 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    import numpy as np
+
     import metrics
+    from metrics.geometry import resolve_peak
     from metrics.scoring import DEFAULT_MAX_PSNR
 
+    from bench.errors import RECORDED, warn
     from bench.sequences import load_sequence
 
     if not (args.jobs >= 1 or args.jobs == -1):
         raise UserError(f"--jobs {args.jobs}: give a positive number of threads, or -1 for all cores")
+    if not (math.isfinite(args.region_margin) and args.region_margin >= 0):
+        raise UserError(f"--region-margin {args.region_margin:g}: must be a distance >= 0 (coordinate units); "
+                        "a negative margin would shrink the regions and score nothing")
+    if args.region_margin and not args.region:
+        raise UserError("--region-margin: only used with --region HOLES_JSON")
+    if args.fscore_threshold is not None and not (math.isfinite(args.fscore_threshold) and args.fscore_threshold > 0):
+        raise UserError(f"--fscore-threshold {args.fscore_threshold:g}: must be a positive distance")
+    if args.max_psnr is not None and not args.max_psnr > 0:
+        raise UserError(f"--max-psnr {args.max_psnr:g}: must be a positive number of dB (or inf)")
     reference = load_sequence(args.reference, colors=False)
     result = load_sequence(args.result, colors=False)
     if len(reference) != len(result):
@@ -72,35 +86,41 @@ def run(args) -> int:
                 "depth; give it explicitly (--peak bitdepth:10) or use a number"
             )
         bit_depth = reference.bit_depth
+    elif peak.strip().lower() != "intrinsic":
+        try:
+            resolve_peak(peak, None, None)  # only parses the text: its ValueError is a refusal of --peak
+        except ValueError as err:
+            raise UserError(f"--peak {peak}: {err}") from None
     regions = None
     if args.region:
-        from holes.regions import regions_from_json
+        from holes.regions import regions_from_json, union_mask
 
-        try:
-            regions = regions_from_json(args.region)
-        except FileNotFoundError:
-            raise UserError(f"{args.region}: no such holes file") from None
-        except (ValueError, KeyError, TypeError) as err:
-            raise UserError(f"{args.region}: not a valid holes.json ({err})") from None
-        if len(regions) != len(reference):
+        regions = regions_from_json(args.region, frame_count=len(reference), label=f"--region {args.region}")
+        empty = [i for i, (frame, regs) in enumerate(zip(reference.frames, regions))
+                 if regs and not union_mask(regs, frame.points, args.region_margin).any()]
+        holeless = [i for i, regs in enumerate(regions) if not regs]
+        if len(empty) + len(holeless) == len(regions):
+            why = "; ".join(part for part in (
+                f"the regions of frame(s) {_frames(empty)} contain none" if empty else "",
+                f"frame(s) {_frames(holeless)} have no region" if holeless else "") if part)
             raise UserError(
-                f"{args.region} describes {len(regions)} frame(s) but the sequences have {len(reference)}; "
-                "use the holes.json written with this damaged sequence"
-            )
+                f"--region {args.region}: no frame has a reference point inside its regions ({why}), so there is "
+                "nothing to score; use the holes.json made for this reference (or grow --region-margin)")
+        if empty:
+            warn(f"--region {args.region}: the regions of frame(s) {_frames(empty)} contain no reference point, so "
+                 "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
+                 "for this reference?")
     normals = [f.normals for f in reference.frames]
     options = {"max_psnr": DEFAULT_MAX_PSNR if args.max_psnr is None else args.max_psnr, "workers": args.jobs}
     if args.fscore_threshold is not None:
         options["fscore_threshold"] = args.fscore_threshold
     if bit_depth is not None:
         options["bit_depth"] = bit_depth
-    try:
-        scores = metrics.score_sequence(
-            reference.points, result.points, args.metrics, peak=peak,
-            reference_normals=None if all(n is None for n in normals) else normals,
-            regions=regions, region_margin=args.region_margin, **options,
-        )
-    except (ValueError, KeyError) as err:
-        raise UserError(str(err).strip("'\"")) from None
+    scores = metrics.score_sequence(
+        reference.points, result.points, args.metrics, peak=peak,
+        reference_normals=None if all(n is None for n in normals) else normals,
+        regions=regions, region_margin=args.region_margin, **options,
+    )
     scores["settings"] = {
         "reference": args.reference,
         "result": args.result,
@@ -109,11 +129,21 @@ def run(args) -> int:
         "region_margin": args.region_margin if regions is not None else None,
         "reference_normals": "given" if any(n is not None for n in normals) else "estimated",
     }
+    undefined = sorted({k for f in scores["frames"] for k, v in f.items()
+                        if k != "frame" and isinstance(v, float) and np.isnan(v)})
+    if undefined and not empty:
+        warn(f"undefined (NaN) values of {', '.join(undefined)} in some frames; they are left out of the mean")
+    scores["warnings"] = list(RECORDED)
     if args.json:
         sys.stdout.write(json.dumps(_clean(scores)) + "\n")
         return 0
     _print_table(scores)
     return 0
+
+
+def _frames(indices: list[int]) -> str:
+    shown = ", ".join(str(i) for i in indices[:8])
+    return (shown + (" ..." if len(indices) > 8 else "")) if indices else "none"
 
 
 def _clean(obj):
