@@ -144,7 +144,7 @@ class RunSpec:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict) -> "RunSpec":
+    def from_dict(cls, data: dict) -> RunSpec:
         return cls(**data)
 
     @property
@@ -253,10 +253,8 @@ def _check_dataset_name(name, where: str) -> None:
 
 def _check_dataset_params(name: str, params: dict, where: str) -> None:
     """Parameters of an embedded dataset: known names and types (paper sequences take none)."""
-    from bench.datasets import EMBEDDED
+    from bench.datasets import EMBEDDED, MESHES
     from bench.params import check_param_types
-
-    from bench.datasets import MESHES
 
     if name.lower() in MESHES:  # mesh sampling parameters are checked by the mesh loader
         return

@@ -26,14 +26,12 @@ from __future__ import annotations
 import datetime as _dt
 import html
 import io
-import json
 import math
 import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from bench import compare

@@ -8,9 +8,10 @@ propagates with its traceback, so that it can be reported and fixed; code must t
 a broad ``except ValueError`` / ``except Exception`` around computation into a `UserError`, only
 the refusals of its own checks.
 
-`UserError` subclasses `ValueError`, so the numpy-level API of ``methods/``, ``holes/`` and
-``metrics/`` (scikit-learn convention: bad parameters or data raise ValueError) can raise it at
-its checks without changing what callers catch.
+`UserError` subclasses `ValueError` and is defined in `metrics.errors`, the lowest layer, so that
+the numpy-level API of ``methods/``, ``holes/`` and ``metrics/`` (scikit-learn convention: bad
+parameters or data raise ValueError) raises it at its checks without importing ``bench``; this
+module re-exports it for the harness.
 
 Messages say it in the user's terms: which parameter or file, which value, what is allowed, and
 what to do.
@@ -24,18 +25,9 @@ from __future__ import annotations
 
 import warnings
 
+from metrics.errors import UserError
 
-class UserError(ValueError):
-    """Bad input from the user: a missing file, a corrupt PLY, an unknown name, a bad parameter.
-
-    The message must say what is wrong and what to do about it.
-    """
-
-    def __init__(self, message: str):
-        super().__init__(message)
-
-    def __str__(self) -> str:  # a KeyError-like repr never reaches the user: the text, as written
-        return str(self.args[0]) if self.args else ""
+__all__ = ["RECORDED", "InputWarning", "UserError", "warn"]
 
 
 class InputWarning(UserWarning):

@@ -191,9 +191,11 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     capture holes (no hole generator, no ground truth, not scored), regions detected likewise.
     """
     import copy
-    from bench.config import tomllib  # stdlib tomllib, or tomli on Python 3.10
 
-    from bench.config import parse_config
+    from bench.config import (
+        parse_config,
+        tomllib,  # stdlib tomllib, or tomli on Python 3.10
+    )
 
     preset = "paper-quick" if quick else "paper"
     base = tomllib.loads((PRESETS_DIR / f"{preset}.toml").read_text())

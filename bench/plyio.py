@@ -33,7 +33,7 @@ class PointCloud:
     def __len__(self) -> int:
         return len(self.points)
 
-    def subset(self, mask_or_index: np.ndarray) -> "PointCloud":
+    def subset(self, mask_or_index: np.ndarray) -> PointCloud:
         """The points selected by a boolean mask or index array, with their attributes."""
         return PointCloud(
             self.points[mask_or_index],

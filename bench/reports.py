@@ -15,8 +15,16 @@ import pandas as pd
 
 from bench import figures, paper
 from bench.compare import newest_runs
-from bench.tables import (ComparisonTable, comparison_table, config_labels, d2_normals_note, given_labels, method_labels,
-                          runtime_table, uses_d2)
+from bench.tables import (
+    ComparisonTable,
+    comparison_table,
+    config_labels,
+    d2_normals_note,
+    given_labels,
+    method_labels,
+    runtime_table,
+    uses_d2,
+)
 
 
 def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, Path]:
@@ -275,8 +283,8 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
              "'(ours)' is our tuned method, '(reference)' a reference method. Parameters as given in the "
              "experiment, and every parameter value as the method resolves it at this code version:", "",
              columns_markdown(), "",
-             "## Table 1 — GPSNR", "", t1.markdown(), f"![Table 1](figures/table1_gpsnr.png)", "",
-             "## Table 2 — NSHD", "", t2.markdown(), f"![Table 2](figures/table2_nshd.png)", "",
+             "## Table 1 — GPSNR", "", t1.markdown(), "![Table 1](figures/table1_gpsnr.png)", "",
+             "## Table 2 — NSHD", "", t2.markdown(), "![Table 2](figures/table2_nshd.png)", "",
              "## Ranking against the paper", "", ranking_markdown(t1, t2), "",
              "## Per-frame curves", "", "![GPSNR per frame](figures/per_frame_gpsnr.png)", "",
              "![NSHD per frame](figures/per_frame_nshd.png)", "",

@@ -149,7 +149,7 @@ class ResultsStore:
             raise UserError(f"--store {path}: is not a regular file; give the path of a results store")
         _check_writable_folder(path.parent, "--store", path)
 
-    def verify(self) -> "ResultsStore":
+    def verify(self) -> ResultsStore:
         """``PRAGMA quick_check``: refuse (UserError) a damaged store before anything is read from or
         written to it, with the way out. Returns the store."""
         try:

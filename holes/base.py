@@ -12,14 +12,14 @@ parameters that would remove all points, or none, or do not fit the frame.
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from bench.errors import UserError
 from holes.regions import HoleRegion
+from metrics.errors import UserError
+from metrics.params import Parameterized
 
 
 @dataclass
@@ -36,34 +36,18 @@ class DamageResult:
         return [float(mask.mean()) for mask in self.removed]
 
 
-class HoleGenerator:
+class HoleGenerator(Parameterized):
+    """A hole generator: ``__init__`` stores keyword parameters; `damage` does the work.
+
+    ``get_params`` / ``validate_params`` come from `metrics.params.Parameterized`; a generator's
+    own parameter checks go in ``_check_params`` (or ``_check``), run by ``validate_params``.
+    """
+
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     version: ClassVar[str] = "1"
-
-    def get_params(self) -> dict:
-        sig = inspect.signature(type(self).__init__)
-        kinds = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
-        return {p.name: getattr(self, p.name) for p in sig.parameters.values() if p.name != "self" and p.kind in kinds}
-
-    def validate_params(self) -> "HoleGenerator":
-        """Check the parameters without any data (``__init__`` does not call it; the CLI and the
-        config validation do before any work): the types against the ``__init__`` signature
-        (`bench.params.check_param_types`), then the class's own checks (``_check_params``).
-        Raises `bench.errors.UserError` (a ValueError) naming the parameter and what is allowed.
-        """
-        from bench.params import check_param_types
-
-        check_param_types(type(self), self.get_params(), f"hole generator {self.name or type(self).__name__}")
-        hook = getattr(self, "_check_params", None) or getattr(self, "_check", None)
-        if hook is not None:
-            try:
-                hook()
-            except UserError:
-                raise
-            except ValueError as err:  # the hook's own refusal (it only checks parameters)
-                raise UserError(str(err)) from None
-        return self
+    _kind: ClassVar[str] = "hole generator"
+    _param_hooks: ClassVar[tuple[str, ...]] = ("_check_params", "_check")
 
     def damage(self, frames: list[np.ndarray], seed, colors=None) -> DamageResult:
         raise NotImplementedError

@@ -18,8 +18,9 @@ Algorithm (``detect_holes``), for one (N, 3) frame:
    hemisphere scores -0.07, the outline rims of the ricardo9 capture -0.48 to 0.03, rims of
    synthetic holes on the embedded human mostly 0.5-0.97 but 0.08-0.2 where a hole cuts through
    a thin limb; on the embedded human 0.1 instead of 0.2 raised recall on "large" holes from 0.63
-   to 0.87 (tiny) at precision 0.97 vs 0.98; scratch/measure_detection2.py). Rims larger than ``max_radius`` (fraction of
-   the bounding-box diagonal) are dropped as well: they are the open ends of the scan, not holes.
+   to 0.87 (tiny) at precision 0.97 vs 0.98; a one-off measurement whose script was not kept).
+   Rims larger than ``max_radius`` (fraction of the bounding-box diagonal) are dropped as well:
+   they are the open ends of the scan, not holes.
 4. Each kept rim becomes a ball at its centroid, radius = largest distance of a rim point to the
    centroid + one point spacing, so the ball covers the whole missing patch the rim surrounds.
 
@@ -31,10 +32,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.geometry import check_frame, estimate_normals, point_spacing, radius_components, tangent_basis
 from holes.regions import HoleRegion
-
+from metrics.errors import UserError
 
 #: Points handled per block in `boundary_points` (bounds the (block, k, 3) temporaries to ~50 MB at k = 32).
 _BLOCK = 1 << 16
@@ -141,7 +141,8 @@ def detect_holes(
         dist = np.linalg.norm(to_centre, axis=1)
         radius = float(dist.max()) + spacing
         ok = dist > 0
-        inward = float(np.mean(np.einsum("ij,ij->i", direction[idx][ok], to_centre[ok]) / dist[ok])) if ok.any() else 0.0
+        inward = (float(np.mean(np.einsum("ij,ij->i", direction[idx][ok], to_centre[ok]) / dist[ok]))
+                  if ok.any() else 0.0)
         if inward < min_inward or radius > max_radius * diag:
             continue
         regions.append(HoleRegion.ball(centroid, radius, rim_points=int(len(idx)), inward=round(inward, 4)))

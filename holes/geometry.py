@@ -26,8 +26,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.regions import HoleRegion
+from metrics.errors import UserError
 
 #: the paper's cube size on 10-bit data, and the grid it refers to
 PAPER_CUBE_SIZE = 20.0
@@ -172,7 +172,8 @@ def regions_mask(regions: list[HoleRegion], points: np.ndarray, tree: cKDTree | 
     tree = tree if tree is not None else cKDTree(points)
     mask = np.zeros(len(points), dtype=bool)
     for region in regions:
-        cand = np.asarray(tree.query_ball_point(region.center, region.bounding_radius * (1 + 1e-9) + 1e-12), dtype=np.int64)
+        reach = region.bounding_radius * (1 + 1e-9) + 1e-12
+        cand = np.asarray(tree.query_ball_point(region.center, reach), dtype=np.int64)
         if len(cand):
             mask[cand[region.contains(points[cand])]] = True
     return mask

@@ -44,9 +44,9 @@ import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
 from holes.geometry import components_to_regions, estimate_normals, point_spacing
+from metrics.errors import UserError
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -181,7 +181,8 @@ class OcclusionHoles(HoleGenerator):
         if self.cameras is not None:
             cams = np.asarray(self.cameras, dtype=np.float64)
             if cams.ndim != 2 or cams.shape[1] != 3 or not np.isfinite(cams).all():
-                raise UserError(f"occlusion holes: cameras must be a list of [x, y, z] positions, got shape {cams.shape}")
+                raise UserError(
+                    f"occlusion holes: cameras must be a list of [x, y, z] positions, got shape {cams.shape}")
             lo, hi = points.min(axis=0), points.max(axis=0)
             inside = ((cams >= lo) & (cams <= hi)).all(axis=1)
             if inside.any():
@@ -202,7 +203,8 @@ class OcclusionHoles(HoleGenerator):
         regions, removed = [], []
         for f, pts in enumerate(frames):
             if len(pts) < self.normal_k:
-                raise ValueError(f"occlusion holes: frame {f} has {len(pts)} points, fewer than normal_k={self.normal_k}")
+                raise ValueError(
+                    f"occlusion holes: frame {f} has {len(pts)} points, fewer than normal_k={self.normal_k}")
             tree = cKDTree(pts)
             normals = estimate_normals(pts, int(self.normal_k))
             seen = visible_mask(pts, normals, self._cameras(pts, azimuth), self.min_cos)
@@ -213,7 +215,8 @@ class OcclusionHoles(HoleGenerator):
                 # one but is no hole; keep unseen points lying next to a seen point
                 near, _ = cKDTree(pts[seen]).query(pts[mask], distance_upper_bound=self.seen_within * spacing)
                 mask[np.flatnonzero(mask)[np.isfinite(near)]] = False
-            frame_regions, _ = components_to_regions(pts[mask], 3 * spacing, margin=spacing) if mask.any() else ([], None)
+            frame_regions, _ = (components_to_regions(pts[mask], 3 * spacing, margin=spacing)
+                                if mask.any() else ([], None))
             regions.append(frame_regions)
             removed.append(mask)
         return make_result(frames, removed, regions, colors, what="occlusion holes", max_fraction=self.max_fraction)

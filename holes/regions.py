@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import UserError
+from metrics.errors import UserError
 
 HOLES_FORMAT = "dpcbench-holes"
 HOLES_VERSION = 1
@@ -69,11 +69,11 @@ class HoleRegion:
             raise UserError("hole region centre must be finite")
 
     @classmethod
-    def ball(cls, center, radius: float, **extra) -> "HoleRegion":
+    def ball(cls, center, radius: float, **extra) -> HoleRegion:
         return cls("ball", np.asarray(center), radius=float(radius), extra=extra)
 
     @classmethod
-    def box(cls, center, half_extents, rotation=None, **extra) -> "HoleRegion":
+    def box(cls, center, half_extents, rotation=None, **extra) -> HoleRegion:
         return cls("box", np.asarray(center), half_extents=np.asarray(half_extents), rotation=rotation, extra=extra)
 
     @property
@@ -100,7 +100,7 @@ class HoleRegion:
         return out
 
     @classmethod
-    def from_dict(cls, data: dict, where: str = "hole region") -> "HoleRegion":
+    def from_dict(cls, data: dict, where: str = "hole region") -> HoleRegion:
         """A region from its JSON form; UserError naming ``where`` and the missing or bad key."""
         if not isinstance(data, dict):
             raise UserError(f"{where}: expected an object like {{\"shape\": \"ball\", \"center\": [x, y, z], "
@@ -210,7 +210,7 @@ def regions_from_json(data: dict | str | Path, frame_count: int | None = None, *
 
     The ``frame`` indices must be distinct integers >= 0; with ``frame_count`` (the frames of the
     sequence the regions are for) they must be exactly 0 .. frame_count-1, so that regions are never
-    applied to a frame they were not made for. Any problem is a `bench.errors.UserError` that names
+    applied to a frame they were not made for. Any problem is a `metrics.errors.UserError` that names
     the file (or ``label``) and the entry (``frames[2].regions[0].radius: expected a number, got "a"``).
     """
     if isinstance(data, (str, Path)):
@@ -260,8 +260,8 @@ def regions_from_json(data: dict | str | Path, frame_count: int | None = None, *
         extra = [i for i in order if i >= frame_count]
         detail = (f"frame(s) {_index_list(extra)} do not exist in the sequence (frames 0..{frame_count - 1})"
                   if extra else f"it has no entry for frame(s) {_index_list(missing)}")
-        raise UserError(f"{label}: describes {len(order)} frame(s) ({_index_list(order)}) but the sequence has {frame_count} "
-                        f"frame(s): {detail}; use the holes.json made for these frames (same --frames)")
+        raise UserError(f"{label}: describes {len(order)} frame(s) ({_index_list(order)}) but the sequence has "
+                        f"{frame_count} frame(s): {detail}; use the holes.json made for these frames (same --frames)")
     if frame_count is None and order != list(range(len(order))):
         raise UserError(f"{label}: frame indices {_index_list(order)} are not 0..{len(order) - 1}; a holes.json "
                         "lists every frame of its sequence from 0")

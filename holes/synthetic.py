@@ -28,10 +28,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
 from holes.geometry import cube_size, regions_mask
 from holes.regions import HoleRegion
+from metrics.errors import UserError
 
 #: preset -> (holes per frame, radius in units of M)
 REGION_PRESETS: dict[str, tuple[int, float]] = {

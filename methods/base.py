@@ -14,15 +14,15 @@ the parameters back from the ``__init__`` signature, so configs and result recor
 
 from __future__ import annotations
 
-import inspect
 from typing import ClassVar
 
 import numpy as np
 
-from bench.errors import UserError
+from metrics.errors import UserError
+from metrics.params import Parameterized
 
 
-class InpaintingMethod:
+class InpaintingMethod(Parameterized):
     name: ClassVar[str] = ""
     #: short human description shown by `dpcbench list`
     summary: ClassVar[str] = ""
@@ -35,44 +35,9 @@ class InpaintingMethod:
     #: True when the method can find the missing data itself (blind protocol, regions=None)
     detects_holes: ClassVar[bool] = False
 
-    @classmethod
-    def _param_names(cls) -> list[str]:
-        sig = inspect.signature(cls.__init__)
-        kinds = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
-        return [p.name for p in sig.parameters.values() if p.name != "self" and p.kind in kinds]
-
-    def get_params(self) -> dict:
-        """The constructor parameters and their current values."""
-        return {name: getattr(self, name) for name in self._param_names()}
-
-    def set_params(self, **params) -> "InpaintingMethod":
-        valid = set(self._param_names())
-        for key, value in params.items():
-            if key not in valid:
-                raise UserError(f"{self.name}: unknown parameter {key!r}; valid parameters: {sorted(valid)}")
-            setattr(self, key, value)
-        return self
-
-    def validate_params(self) -> "InpaintingMethod":
-        """Check the parameters without any data (scikit-learn style: ``__init__`` does not call it;
-        `inpaint` does, and so do the harness's checks before a run grid starts).
-
-        First the types against the ``__init__`` signature (`bench.params.check_param_types`), then
-        the class's own range checks (its ``_validate_params``, or ``_validate``). Raises
-        `bench.errors.UserError` (a ValueError) naming the parameter, the value and what is allowed.
-        """
-        from bench.params import check_param_types
-
-        check_param_types(type(self), self.get_params(), f"method {self.name or type(self).__name__}")
-        hook = getattr(self, "_validate_params", None) or getattr(self, "_validate", None)
-        if hook is not None:
-            try:
-                hook()
-            except UserError:
-                raise
-            except ValueError as err:  # the hook's own refusal (it only checks parameters)
-                raise UserError(str(err)) from None
-        return self
+    _kind: ClassVar[str] = "method"
+    #: the class's own parameter checks (``validate_params`` runs the first one it defines)
+    _param_hooks: ClassVar[tuple[str, ...]] = ("_validate_params", "_validate")
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())

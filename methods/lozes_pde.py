@@ -65,10 +65,10 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.geometry import point_spacing
 from methods.base import PerFrameMethod
 from methods.reference import detect_regions
+from metrics.errors import UserError
 
 
 class LozesPDE(PerFrameMethod):

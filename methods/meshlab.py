@@ -65,9 +65,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from methods.base import PerFrameMethod
 from methods.lozes_pde import sampling_step
+from metrics.errors import UserError
 
 
 class MeshlabError(RuntimeError):
@@ -97,7 +97,8 @@ class MeshlabFill(PerFrameMethod):
 
     def _validate_params(self) -> None:
         if self.reconstruction not in ("ball-pivoting", "poisson"):
-            raise UserError(f"meshlab: reconstruction must be 'ball-pivoting' or 'poisson', got {self.reconstruction!r}")
+            raise UserError(
+                f"meshlab: reconstruction must be 'ball-pivoting' or 'poisson', got {self.reconstruction!r}")
         if self.output not in ("whole", "holes-only"):
             raise UserError(f"meshlab: output must be 'whole' or 'holes-only', got {self.output!r}")
         if int(self.normal_neighbours) < 3:
@@ -109,7 +110,8 @@ class MeshlabFill(PerFrameMethod):
         if int(self.max_hole_size) < 3:
             raise UserError(f"meshlab: max_hole_size (boundary edges) must be >= 3, got {self.max_hole_size}")
         if int(self.max_points) != self.max_points or not (self.max_points == 0 or self.max_points >= 1000):
-            raise UserError(f"meshlab: max_points must be 0 (no clustering) or an integer >= 1000, got {self.max_points!r}")
+            raise UserError(
+                f"meshlab: max_points must be 0 (no clustering) or an integer >= 1000, got {self.max_points!r}")
         if not self.region_margin_spacings >= 0:
             raise UserError(f"meshlab: region_margin_spacings must be >= 0, got {self.region_margin_spacings}")
 

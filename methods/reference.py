@@ -12,9 +12,9 @@ import warnings
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.regions import check_regions_near
 from methods.base import InpaintingMethod
+from metrics.errors import UserError
 
 
 class NoFill(InpaintingMethod):
@@ -49,8 +49,9 @@ def icp_align(source: np.ndarray, target: np.ndarray, max_distance: float, *,
     point-to-plane, by measurement: 24 random ball holes (radius 25/40/60) in
     dfaust_50004_punching (spacing 1.35) copied from a neighbour frame, mean distance from the
     true points to the fill: no alignment 3.21, point-to-point 0.88, point-to-plane 0.98; with the
-    3 shell re-selection rounds of `TemporalCopy` point-to-point 0.78 (scratch/icp_choice.py). Starts from the identity (consecutive frames); returns the identity
-    when either cloud has fewer than ``min_points`` points, ``max_iterations`` is 0, or fewer than
+    3 shell re-selection rounds of `TemporalCopy` point-to-point 0.78 (a one-off measurement whose
+    script was not kept). Starts from the identity (consecutive frames); returns the identity when
+    either cloud has fewer than ``min_points`` points, ``max_iterations`` is 0, or fewer than
     ``min_points`` pairs were within ``max_distance``. Deterministic (checked: repeated calls give
     bitwise equal transforms).
     """

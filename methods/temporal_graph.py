@@ -84,12 +84,12 @@ import warnings
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
 from holes.geometry import point_spacing
 from methods._cubes import CellGrid, best_window, block_sums, in_box
 from methods._graph import knn_laplacian, solve_cube
 from methods._registration import align_to_partial, alignment_residual
 from methods.base import InpaintingMethod
+from metrics.errors import UserError
 
 _KNOWN_MODES = ("fixed", "free")
 _NEW_POINT_MODES = ("pending-cells", "empty-slots")

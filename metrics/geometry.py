@@ -42,8 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.errors import UserError
-
+from metrics.errors import UserError
 from metrics.pairs import CloudPair
 
 #: Default F-score threshold, in multiples of the reference's median nearest-neighbour spacing.
@@ -59,7 +58,7 @@ class Selection:
     result: np.ndarray | None = None
 
     @classmethod
-    def of(cls, pair: CloudPair, regions=None, margin: float = 0.0) -> "Selection":
+    def of(cls, pair: CloudPair, regions=None, margin: float = 0.0) -> Selection:
         if regions is None:
             return cls()
         ref_mask, res_mask = pair.masks(regions, margin)

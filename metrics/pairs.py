@@ -47,7 +47,7 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
+from metrics.errors import UserError
 
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
 #: than this are "at the same distance".
@@ -143,7 +143,7 @@ def sort_with_order(keys: np.ndarray, key_bits: int = 64) -> tuple[np.ndarray, n
     return packed, order, shift
 
 
-def distinct_points(points: np.ndarray) -> tuple[np.ndarray | None, "SortedKeys"]:
+def distinct_points(points: np.ndarray) -> tuple[np.ndarray | None, SortedKeys]:
     """(first occurrences as `first_occurrences`, the `SortedKeys` of the distinct points)."""
     n = len(points)
     sorted_keys, order, shift = sort_with_order(point_keys(points))
@@ -198,7 +198,9 @@ class SortedKeys:
     def __init__(self, keys: np.ndarray, order: np.ndarray, shift: int = 0):
         self.keys, self.order, self.shift = keys, order, shift
 
-    def exact_matches(self, other: "SortedKeys", queries: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def exact_matches(
+        self, other: SortedKeys, queries: np.ndarray, targets: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(hit (n,) bool, index (n,) int): which ``queries`` (the cloud of ``other``) equal a point of
         ``targets`` (the cloud of ``self``), and that point's row (meaningful where hit). The queries
         are looked up in key order (numpy's binary search is several times faster on sorted
@@ -313,7 +315,7 @@ class Neighbours:
 
     @property
     def index(self) -> np.ndarray:
-        self._ties  # tied queries take the first of pc_error's sorted neighbour list
+        _ = self._ties  # resolving the ties rewrites _nearest: tied queries take pc_error's first neighbour
         return self._nearest
 
     @cached_property
@@ -343,7 +345,8 @@ class Neighbours:
             nearest[rows] = nb_idx[:, 0]
             exact = nb_sq == nb_sq[:, :1]
             close = np.abs(np.diff(nb_sq, axis=1)) < SIMILAR_SQ_DISTANCE
-            same = np.concatenate([np.ones((len(rows), 1), dtype=bool), np.logical_and.accumulate(close, axis=1)], axis=1)
+            same = np.concatenate([np.ones((len(rows), 1), dtype=bool), np.logical_and.accumulate(close, axis=1)],
+                                  axis=1)
             row_grid = np.broadcast_to(rows[:, None], nb_idx.shape)
             exact_r.append(row_grid[exact])
             exact_c.append(nb_idx[exact])
@@ -644,13 +647,15 @@ class CloudPair:
     def plane_ref_to_res(self) -> np.ndarray:
         """(N,) point-to-plane error of each reference point against the result (result normals)."""
         nb = self.ref_to_res
-        return self._plane_errors(self.reference, self.result, self.result_normals, nb.same_rows, nb.same_cols, len(self.reference))
+        return self._plane_errors(self.reference, self.result, self.result_normals, nb.same_rows, nb.same_cols,
+                                  len(self.reference))
 
     @cached_property
     def plane_res_to_ref(self) -> np.ndarray:
         """(M,) point-to-plane error of each result point against the reference (reference normals)."""
         nb = self.res_to_ref
-        return self._plane_errors(self.result, self.reference, self.reference_normals, nb.same_rows, nb.same_cols, len(self.result))
+        return self._plane_errors(self.result, self.reference, self.reference_normals, nb.same_rows, nb.same_cols,
+                                  len(self.result))
 
     # -- region masks -------------------------------------------------------------------------
     def masks(self, regions, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

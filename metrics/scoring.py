@@ -158,7 +158,7 @@ def score_sequence(references, results, metrics=None, *, peak="intrinsic", refer
                 pair, frame_names, peak=peak, regions=None if regions is None else regions[i],
                 region_margin=region_margin, **options,
             ) if frame_names else ({}, [])
-        except ValueError as err:  # same class (a refusal stays a bench.errors.UserError), frame named
+        except ValueError as err:  # same class (a refusal stays a metrics.errors.UserError), frame named
             raise type(err)(f"frame {i}: {err}") from err
         frames.append({"frame": i, **values})
         capped += [{"frame": i, "metric": n} for n in capped_names]

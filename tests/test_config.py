@@ -6,8 +6,8 @@ import copy
 
 import pytest
 
-from bench.config import ConfigError, load_config, parse_config, stable_hash
-from tests import test_runner_helpers as helpers
+from bench.config import ConfigError, canonical_json, load_config, parse_config, stable_hash
+from tests import runner_fixtures as helpers
 
 
 @pytest.fixture
@@ -85,6 +85,14 @@ def test_key_order_numbers_and_labels_do_not_change_ids(seq_dir):
     assert stable_hash({"a": 1, "b": [1.0, 2.5]}) == stable_hash({"b": [1, 2.5], "a": 1.0})
 
 
+def test_stable_hash_is_pinned():
+    """Run ids and store keys are stable_hash values: a change to the canonical JSON or the digest
+    silently orphans every stored result, so one value is pinned literally."""
+    value = {"d": None, "c": "text", "b": [1.0, 2.5], "a": 1}
+    assert canonical_json(value) == '{"a":1,"b":[1,2.5],"c":"text","d":null}'
+    assert stable_hash(value) == "bbf57cfc3d7358ce"
+
+
 def test_method_version_and_data_change_ids(seq_dir, monkeypatch):
     base = _config(seq_dir)
     ids = _ids(base)
@@ -121,7 +129,7 @@ def test_validation_names_the_offending_key(seq_dir, mutate, key):
 
 def test_toml_file_and_syntax_errors(seq_dir, tmp_path):
     path = tmp_path / "exp.toml"
-    path.write_text(f'''
+    path.write_text('''
 [experiment]
 name = "file"
 
@@ -135,7 +143,7 @@ seed = 3
 
 [[methods]]
 name = "test-identity"
-params = {{ shift = [0.0, 1.0] }}
+params = { shift = [0.0, 1.0] }
 
 [metrics]
 names = ["gpsnr_d1"]

@@ -1,7 +1,7 @@
 """Conformance of every registered inpainting method to the interface in `methods/base.py`.
 
 Parametrized over every name in `methods.registry.METHODS`, so a new method is checked as soon as it
-is registered. A method whose module (or class) is not there yet is skipped with the reason.
+is registered. A registered name whose module or class cannot be imported fails (never skips).
 
 The data is a tiny synthetic sequence (3 frames of a bumpy sphere, ~2k points each, radius 50, so
 the spacing is ~4 units) with two ball holes per frame, small enough for the slow methods. Each
@@ -11,7 +11,6 @@ frames) plus a one-frame run, to keep the suite well under a minute.
 
 from __future__ import annotations
 
-import importlib
 import inspect
 import warnings
 
@@ -23,20 +22,6 @@ from methods.base import InpaintingMethod
 from methods.registry import METHODS, method_class
 
 N_FRAMES = 3
-
-
-def load_or_skip(name: str):
-    """The method class, or skip when its module/class has not landed yet."""
-    module_name, _, attr = METHODS[name].partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as err:
-        if err.name == module_name:
-            pytest.skip(f"{name}: module {module_name} is not there yet")
-        raise
-    if not hasattr(module, attr):
-        pytest.skip(f"{name}: {module_name} has no class {attr} yet")
-    return method_class(name)
 
 
 def bumpy_sphere(n_points: int, frame: int) -> np.ndarray:
@@ -82,7 +67,7 @@ def outputs(damaged_sequence):
 
     def get(name):
         if name not in cache:
-            cache[name] = run_quietly(load_or_skip(name)(), frames, regions)
+            cache[name] = run_quietly(method_class(name)(), frames, regions)
         return cache[name]
 
     return get
@@ -93,7 +78,7 @@ NAMES = sorted(METHODS)
 
 @pytest.mark.parametrize("name", NAMES)
 def test_class_facts(name):
-    cls = load_or_skip(name)
+    cls = method_class(name)
     assert issubclass(cls, InpaintingMethod)
     assert cls.name == name, f"class fact `name` is {cls.name!r}, registry key is {name!r}"
     assert isinstance(cls.summary, str) and cls.summary.strip()
@@ -106,7 +91,7 @@ def test_class_facts(name):
 @pytest.mark.parametrize("name", NAMES)
 def test_inpaint_takes_only_frames_and_regions(name):
     """The interface gives a method no way to receive the ground truth."""
-    cls = load_or_skip(name)
+    cls = method_class(name)
     params = list(inspect.signature(cls.inpaint).parameters)
     assert params == ["self", "frames", "regions"], params
     assert inspect.signature(cls.inpaint).parameters["regions"].default is None
@@ -114,7 +99,7 @@ def test_inpaint_takes_only_frames_and_regions(name):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_init_only_stores_parameters(name):
-    cls = load_or_skip(name)
+    cls = method_class(name)
     method = cls()
     params = method.get_params()
     assert set(vars(method)) == set(params), "__init__ must store its parameters and nothing else"
@@ -140,7 +125,7 @@ def test_output_is_a_list_of_finite_float_frames(name, outputs, damaged_sequence
 @pytest.mark.parametrize("name", NAMES)
 def test_inputs_are_not_mutated_and_same_parameters_give_the_same_output(name, outputs, damaged_sequence):
     frames, regions = damaged_sequence
-    cls = load_or_skip(name)
+    cls = method_class(name)
     given = [frame.copy() for frame in frames]
     region_dicts = [[r.to_dict() for r in frame_regions] for frame_regions in regions]
     again = run_quietly(cls(**cls().get_params()), given, regions)
@@ -161,14 +146,14 @@ def test_read_only_frames_are_accepted(name, damaged_sequence):
         arr = frame.copy()
         arr.flags.writeable = False
         readonly.append(arr)
-    out = run_quietly(load_or_skip(name)(), readonly, regions[:2])
+    out = run_quietly(method_class(name)(), readonly, regions[:2])
     assert len(out) == 2
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_empty_hole_lists_return_the_input_unchanged(name, damaged_sequence):
     frames, _ = damaged_sequence
-    out = run_quietly(load_or_skip(name)(), frames, [[] for _ in frames])
+    out = run_quietly(method_class(name)(), frames, [[] for _ in frames])
     assert len(out) == len(frames)
     for a, b in zip(out, frames):
         np.testing.assert_array_equal(a, b)
@@ -179,7 +164,7 @@ def test_blind_protocol_works_or_is_refused(name, damaged_sequence):
     """regions=None: a method that detects holes itself returns finite frames of the right count
     (whether it finds the holes is each method's own test); one that cannot refuses clearly."""
     frames, _ = damaged_sequence
-    cls = load_or_skip(name)
+    cls = method_class(name)
     if not (cls.detects_holes and not cls.needs_regions):
         with pytest.raises(ValueError, match="regions"):
             cls().inpaint(frames, None)
@@ -193,7 +178,7 @@ def test_blind_protocol_works_or_is_refused(name, damaged_sequence):
 @pytest.mark.parametrize("name", NAMES)
 def test_one_frame_sequence_works_or_says_why(name, damaged_sequence):
     frames, regions = damaged_sequence
-    cls = load_or_skip(name)
+    cls = method_class(name)
     try:
         out = run_quietly(cls(), frames[:1], regions[:1])
     except ValueError as err:
@@ -216,4 +201,4 @@ def test_bad_input_raises_a_clear_value_error(name, defect, damaged_sequence):
     else:
         regions = regions[:-1]
     with pytest.raises(ValueError, match="frame|region"):
-        run_quietly(load_or_skip(name)(), frames, regions)
+        run_quietly(method_class(name)(), frames, regions)

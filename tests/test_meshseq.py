@@ -5,7 +5,6 @@ primitives written as OBJ / PLY / OFF), so nothing needs ../shared except the sa
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import open3d as o3d

@@ -11,7 +11,6 @@ import metrics
 from holes.regions import HoleRegion
 from metrics.pairs import SIMILAR_SQ_DISTANCE, CloudPair
 
-
 # -- a brute-force pc_error, written from its description (all pairs, python loops) --------------------
 
 def _dedup(points, normals=None):

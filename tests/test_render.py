@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 
 from bench.plyio import PointCloud
-from bench.render import (HIGHLIGHT_COLOR, panel_colours, rasterize, render_clouds, shade_normals, view_rotation,
-                          zoom_box)
+from bench.render import (
+    HIGHLIGHT_COLOR,
+    panel_colours,
+    rasterize,
+    render_clouds,
+    shade_normals,
+    view_rotation,
+    zoom_box,
+)
 
 RED, BLUE = np.array([255, 0, 0], np.uint8), np.array([0, 0, 255], np.uint8)
 

@@ -16,7 +16,7 @@ import pytest
 from bench.config import parse_config
 from bench.runner import read_run_folder, run_experiment
 from bench.store import ResultsStore
-from tests import test_runner_helpers as helpers
+from tests import runner_fixtures as helpers
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture
 def env(tmp_path, monkeypatch):
     helpers.register(monkeypatch)
-    monkeypatch.chdir(REPO)  # workers import tests.test_runner_helpers from the repo root
+    monkeypatch.chdir(REPO)  # workers import tests.runner_fixtures from the repo root
     seq = helpers.write_sequence(tmp_path / "seq", n_frames=3, n_points=600)
     return {"seq": seq, "store": ResultsStore(tmp_path / "store.sqlite"), "tmp": tmp_path}
 
@@ -76,7 +76,6 @@ def test_failures_are_recorded_while_others_finish(env):
     assert all(len(d) < 600 for d in content["damaged"])
     # the stored scores are metrics.score_frame of the frames as written, against the ground truth
     import metrics
-
     from bench.sequences import load_sequence
 
     truth = load_sequence(env["seq"]).points
@@ -165,7 +164,7 @@ def test_kill_9_mid_sweep_then_rerun_loses_and_duplicates_nothing(env):
     cfg = _cfg(env["seq"], [{"name": "test-identity"}, {"name": "test-hang", "params": {"flag": str(flag)}},
                             {"name": "test-identity", "params": {"shift": 0.02}}])
     config = _write_toml(tmp / "exp.toml", cfg)
-    cmd = [sys.executable, "-m", "tests.test_runner_helpers", "run", str(config), "--store", str(store.path),
+    cmd = [sys.executable, "-m", "tests.runner_fixtures", "run", str(config), "--store", str(store.path),
            "--executor", "serial", "--quiet"]
     driver = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     deadline = time.time() + 60

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from bench.standins import bunny, cache, human
-from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, smooth_min, surface_voxels
+from bench.standins.sdf import Ellipsoid, RoundCone, smooth_min, surface_voxels
 
 
 @pytest.fixture(autouse=True)

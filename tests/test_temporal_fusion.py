@@ -11,8 +11,14 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from holes.regions import HoleRegion
-from methods.temporal_fusion import (TemporalFusion, disagreeing, interpolate_displacement, mls_project,
-                                     rim_displacement, snap_to_voxels)
+from methods.temporal_fusion import (
+    TemporalFusion,
+    disagreeing,
+    interpolate_displacement,
+    mls_project,
+    rim_displacement,
+    snap_to_voxels,
+)
 
 
 def sphere(n: int, radius: float = 50.0) -> np.ndarray:

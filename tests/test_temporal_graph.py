@@ -16,7 +16,6 @@ from methods._registration import align_to_partial, kabsch
 from methods.registry import get_method
 from methods.temporal_graph import FuNonlocal, TemporalGraph
 
-
 # -- synthetic surfaces -------------------------------------------------------------------------
 
 def voxel_plane(size=48, shift=(0.0, 0.0, 0.0)):
@@ -305,7 +304,6 @@ def test_free_known_points_output_the_final_position_of_a_point_filled_earlier()
 
 
 def test_blind_mode_detects_and_fills_a_sphere_hole():
-    pytest.importorskip("holes.detection")
     sphere = fibonacci_sphere(radius=25.0)
     region = HoleRegion.ball([0.0, 0.0, 25.0], 6.0)
     damaged, removed = punch([sphere], [[region]])

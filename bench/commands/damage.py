@@ -67,8 +67,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from bench.outputs import Outputs, record_written
     from bench.sequences import Sequence, save_sequence, sequence_file_names
-    from holes.registry import GENERATORS, generator_class
     from holes.regions import regions_to_json
+    from holes.registry import GENERATORS, generator_class
 
     if args.holes not in GENERATORS:
         raise UserError(f"--holes: unknown hole generator {args.holes!r}; known: {', '.join(sorted(GENERATORS))} "

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 
-
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "dashboard",
@@ -61,9 +60,8 @@ def run(args) -> int:
 
     from bench import benchsuite, compare, dashboard
     from bench.commands.compare import TOLERANCES_FILE
-    from bench.store import RESULT_COLUMNS
-
     from bench.outputs import Outputs, record_written
+    from bench.store import RESULT_COLUMNS
 
     guard = Outputs(args.overwrite, inputs=(args.store or []) + (args.summary or []) + (args.benchmarks or []))
     out = guard.file(args.out, "--out", suffixes=(".html", ".htm"))

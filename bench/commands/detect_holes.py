@@ -9,6 +9,7 @@ The file can be handed to methods like the regions of a damaged sequence ("blind
 from __future__ import annotations
 
 import json
+
 from bench.commands.damage import add_input_options, load_input
 from bench.errors import UserError
 from bench.params import parse_params

@@ -53,11 +53,10 @@ def run(args) -> int:
     import numpy as np
 
     import metrics
-    from metrics.geometry import resolve_peak
-    from metrics.scoring import DEFAULT_MAX_PSNR
-
     from bench.errors import RECORDED, warn
     from bench.sequences import load_sequence
+    from metrics.geometry import resolve_peak
+    from metrics.scoring import DEFAULT_MAX_PSNR
 
     if not (args.jobs >= 1 or args.jobs == -1):
         raise UserError(f"--jobs {args.jobs}: give a positive number of threads, or -1 for all cores")

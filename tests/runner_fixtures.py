@@ -1,5 +1,6 @@
 """Test-only methods and a hole generator that worker processes can import by name
-(``tests.test_runner_helpers:Class``), plus tiny synthetic sequences. No tests here.
+(``tests.runner_fixtures:Class``), plus tiny synthetic sequences. Fixtures only: the name does not
+start with ``test_``, so pytest does not collect it; the runner tests exercise every class here.
 
 Registering them: tests monkeypatch ``methods.registry.METHODS`` / ``holes.registry.GENERATORS`` in
 the driver; the run spec carries the import string, so spawned workers (which never see the
@@ -19,7 +20,7 @@ from holes.base import DamageResult, HoleGenerator, as_generator
 from holes.regions import HoleRegion
 from methods.base import PerFrameMethod
 
-HERE = "tests.test_runner_helpers"
+HERE = "tests.runner_fixtures"
 
 
 class IdentityFill(PerFrameMethod):
@@ -131,7 +132,7 @@ def register_global() -> None:
     holes.registry.GENERATORS[BallHoles.name] = f"{HERE}:BallHoles"
 
 
-if __name__ == "__main__":  # a driver with the test entries registered: python -m tests.test_runner_helpers run ...
+if __name__ == "__main__":  # a driver with the test entries registered: python -m tests.runner_fixtures run ...
     import sys
 
     from bench.cli import main

@@ -1,0 +1,96 @@
+"""A method's source cannot change without its ``version`` (asv-style source hashes, methods/VERSIONS.toml).
+
+Stored results are reused by (method, version): a change that alters a method's output without a
+version bump would silently mix old and new numbers. The first test is the guard; the others check
+that the guard sees what it must (private helpers, lazy imports) and says what to do.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from methods import versions
+from methods.registry import METHODS
+
+
+def test_recorded_versions_and_hashes_match_the_sources():
+    found = versions.problems(versions.current(), versions.recorded())
+    assert not found, "methods/VERSIONS.toml is out of date:\n" + "\n".join(found)
+
+
+def test_every_registered_method_is_recorded():
+    assert set(versions.recorded()) == set(METHODS)
+
+
+def test_source_files_follow_private_helpers_and_lazy_imports():
+    graph = versions.source_files("temporal-graph")
+    assert "methods/temporal_graph.py" in graph
+    for helper in ("methods/_cubes.py", "methods/_graph.py", "methods/_registration.py"):
+        assert helper in graph
+    assert "methods/base.py" not in graph and "methods/registry.py" not in graph
+    # temporal-fusion imports temporal_graph inside a function (its spatial fallback): still counted
+    assert set(graph) <= set(versions.source_files("temporal-fusion"))
+    assert versions.source_files("none") == ["methods/reference.py"]
+    with pytest.raises(KeyError, match="unknown method"):
+        versions.source_files("no-such-method")
+
+
+def test_source_hash_depends_on_content_and_path(tmp_path, monkeypatch):
+    monkeypatch.setattr(versions, "ROOT", tmp_path)
+    (tmp_path / "a.py").write_bytes(b"x = 1\n")
+    (tmp_path / "b.py").write_bytes(b"x = 1\r\n")
+    first = versions.source_hash(["a.py"])
+    assert versions.source_hash(["b.py"]) != first  # the path is part of what is hashed
+    assert versions.source_hash(["a.py"]) == first
+    (tmp_path / "a.py").write_bytes(b"x = 2\n")
+    assert versions.source_hash(["a.py"]) != first
+    (tmp_path / "a.py").write_bytes(b"x = 1\r\n")  # only the line endings differ: same hash
+    assert versions.source_hash(["a.py"]) == first
+
+
+def test_a_changed_source_without_a_bump_fails_with_the_command_to_run():
+    now = versions.current()
+    stored = dict(now)
+    old = now["lozes-pde"]
+    stored["lozes-pde"] = dataclasses.replace(old, sha256="0" * 64)
+    (message,) = versions.problems(now, stored)
+    assert message.startswith("lozes-pde: the source") and f"version is still {old.version}" in message
+    assert "bump version and update the hash with `python -m methods.versions --update`" in message
+
+    stored["lozes-pde"] = dataclasses.replace(old, sha256="0" * 64, version="0")  # bumped, hash not updated
+    (message,) = versions.problems(now, stored)
+    assert f"version 0 -> {old.version}" in message and "update the hash" in message
+
+    stored = {k: v for k, v in now.items() if k != "meshlab"}
+    stored["gone"] = old
+    assert versions.problems(now, stored) == [
+        "gone: recorded in methods/VERSIONS.toml but no longer registered; drop it with "
+        "`python -m methods.versions --update`",
+        "meshlab: not recorded in methods/VERSIONS.toml; record it with `python -m methods.versions --update`",
+    ]
+
+
+def test_update_round_trip_and_refusal_without_a_bump(tmp_path):
+    path = tmp_path / "VERSIONS.toml"
+    changes = versions.update(path=path)
+    assert len(changes) == len(METHODS)
+    assert versions.recorded(path) == versions.current()
+    assert versions.update(path=path) == []  # nothing changed: nothing reported
+
+    text = path.read_text()
+    meshlab = versions.current()["meshlab"]
+    sha = meshlab.sha256
+    path.write_text(text.replace(sha, "f" * 64, 1))  # as if meshlab's source had changed since
+    with pytest.raises(ValueError, match="meshlab changed but the version did not"):
+        versions.update(path=path)
+    assert "f" * 64 in path.read_text()  # a refused update writes nothing
+    assert versions.update(same_output=True, path=path) == [
+        f"meshlab: version {meshlab.version}, sha256 {sha[:12]}, {len(meshlab.files)} file(s)"]
+    assert versions.recorded(path) == versions.current()
+
+
+def test_check_command_exit_status(capsys):
+    assert versions.main(["--check"]) == 0
+    assert "up to date" in capsys.readouterr().out
