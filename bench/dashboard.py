@@ -47,7 +47,7 @@ METHOD_ORDER = ["temporal-graph", "fu-nonlocal", "lozes-pde", "meshlab", "tempor
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
            "#bcbd22", "#17becf"]
 
-# The paper's Tables 1 and 2 (Fu, Hu, Guo, ICME 2020; /work/shared/SPEC.md section 1), used when
+# The paper's Tables 1 and 2 (Fu, Hu, Guo, ICME 2020), used when
 # bench.paper is absent. Columns map to our method names; NSHD is in units of 1e-7.
 _PAPER_METHODS = {"Meshlab": "meshlab", "Lozes": "lozes-pde", "Hu": "fu-nonlocal", "Proposed": "temporal-graph"}
 _PAPER_GPSNR = {

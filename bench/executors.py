@@ -84,7 +84,7 @@ class DaskExecutor:
 
     def __init__(self, jobs: int | None = None, scheduler: str | None = None):
         try:
-            import distributed  # noqa: F401
+            import distributed  # noqa: F401  (imported only to refuse early when it is missing)
         except ImportError as err:
             raise UserError("the dask executor needs dask and distributed: pip install 'dpcbench[dask]'") from err
         self.jobs = max(1, int(jobs or os.cpu_count() or 1))

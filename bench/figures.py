@@ -10,7 +10,7 @@ from pathlib import Path
 import matplotlib
 import matplotlib.ticker
 
-matplotlib.use("Agg")
+matplotlib.use("Agg")  # before pyplot is imported (no display on servers): hence the E402s below
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402

@@ -1,6 +1,6 @@
 """Where commands write, checked before any work is done.
 
-Rules (issue 16), for every command:
+Rules, for every command:
 
 - an output path must be writable: not an existing file where a folder is expected (or a folder
   where a file is), not under a file, not in a folder that cannot be written;

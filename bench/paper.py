@@ -3,7 +3,7 @@
 
 Source: Fu, Hu, Guo, "3D Dynamic Point Cloud Inpainting via Temporal Consistency on Graphs", ICME 2020,
 Tables 1 (GPSNR, dB, higher is better) and 2 (NSHD, x1e-7, lower is better), averaged over the frames
-of each sequence with synthetic holes (copied from /work/shared/SPEC.md section 1).
+of each sequence with synthetic holes.
 """
 
 from __future__ import annotations

@@ -12,6 +12,7 @@ parameters that would remove all points, or none, or do not fit the frame.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -20,6 +21,11 @@ import numpy as np
 from holes.regions import HoleRegion
 from metrics.errors import UserError
 from metrics.params import Parameterized
+
+#: a seed: an int, or a numpy Generator passed through
+Seed = int | np.random.Generator
+#: optional per-frame colours: F arrays (N_f, 3) uint8 (an entry may be None), or None
+Colors = Sequence[np.ndarray | None] | None
 
 
 @dataclass
@@ -49,11 +55,11 @@ class HoleGenerator(Parameterized):
     _kind: ClassVar[str] = "hole generator"
     _param_hooks: ClassVar[tuple[str, ...]] = ("_check_params", "_check")
 
-    def damage(self, frames: list[np.ndarray], seed, colors=None) -> DamageResult:
+    def damage(self, frames: list[np.ndarray], seed: Seed, colors: Colors = None) -> DamageResult:
         raise NotImplementedError
 
 
-def as_generator(seed) -> np.random.Generator:
+def as_generator(seed: Seed | None) -> np.random.Generator:
     """A numpy Generator from an int seed (or pass a Generator through)."""
     if isinstance(seed, np.random.Generator):
         return seed
@@ -62,7 +68,8 @@ def as_generator(seed) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
-def check_sequence_input(frames, colors=None, what: str = "hole generator") -> tuple[list[np.ndarray], list | None]:
+def check_sequence_input(frames: Sequence[np.ndarray], colors: Colors = None,
+                         what: str = "hole generator") -> tuple[list[np.ndarray], list | None]:
     """Validate a sequence for damage: a non-empty list of finite (N_f, 3) arrays with optional
     matching (N_f, 3) colours. Returns float64 frames and the colours (or None). ValueError otherwise."""
     from holes.geometry import check_frame
@@ -86,7 +93,7 @@ def make_result(
     frames: list[np.ndarray],
     removed: list[np.ndarray],
     regions: list[list[HoleRegion]],
-    colors=None,
+    colors: Colors = None,
     *,
     what: str = "hole generator",
     max_fraction: float = 1.0,

@@ -30,6 +30,7 @@ Regions carry ``rim_points`` (boundary points in the rim) and ``inward`` (the sc
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from holes.geometry import check_frame, estimate_normals, point_spacing, radius_components, tangent_basis
@@ -55,7 +56,7 @@ def _octants_all_occupied(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, tree: cKDTree | None = None,
-                    *, interior_values: bool = True):
+                    *, interior_values: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per point: is it on a boundary, and the unit tangent direction into the empty side.
 
     points: (N, 3). k: neighbours (including the point itself). gap: angular gap threshold (radians).
@@ -97,7 +98,7 @@ def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, t
 
 
 def detect_holes(
-    points,
+    points: ArrayLike,
     *,
     k: int = 32,
     gap: float = 0.6 * np.pi,

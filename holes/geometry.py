@@ -21,7 +21,10 @@ Scale conventions, used everywhere in `holes/`:
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -34,7 +37,7 @@ PAPER_CUBE_SIZE = 20.0
 PAPER_GRID = 1024.0
 
 
-def check_frame(points, what: str = "frame") -> np.ndarray:
+def check_frame(points: ArrayLike, what: str = "frame") -> np.ndarray:
     """``points`` as a float64 (N, 3) array; ValueError for a wrong shape, no points or non-finite values."""
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -91,7 +94,7 @@ def radius_components(points: np.ndarray, radius: float) -> tuple[int, np.ndarra
     return connected_components(graph, directed=False)
 
 
-def bounding_box_region(points: np.ndarray, margin: float, **extra) -> HoleRegion:
+def bounding_box_region(points: np.ndarray, margin: float, **extra: Any) -> HoleRegion:
     """An oriented box around ``points`` (M, 3): axes from PCA of the points, half extents from the
     largest absolute projection on each axis plus ``margin`` (> 0, so a single point gets a box)."""
     center = points.mean(axis=0)

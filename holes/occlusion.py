@@ -40,18 +40,20 @@ everything.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import open3d as o3d
 from scipy.spatial import cKDTree
 
-from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
+from holes.base import Colors, DamageResult, HoleGenerator, Seed, as_generator, check_sequence_input, make_result
 from holes.geometry import components_to_regions, estimate_normals, point_spacing
 from metrics.errors import UserError
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def stage_cameras(points: np.ndarray, rings=(0.3, 0.8), per_ring: int = 6, distance: float = 1.5,
+def stage_cameras(points: np.ndarray, rings: Sequence[float] = (0.3, 0.8), per_ring: int = 6, distance: float = 1.5,
                   up: str = "y", azimuth: float = 0.0) -> np.ndarray:
     """Camera positions (rings * per_ring, 3) of a capture stage around ``points``.
 
@@ -101,8 +103,8 @@ def visible_mask(points: np.ndarray, normals: np.ndarray, cameras: np.ndarray, m
     seen = np.zeros(len(points), dtype=bool)
     for cam in cameras:
         far = float(np.sqrt(((points - cam) ** 2).sum(axis=1).max()))
-        _, kept = cloud.hidden_point_removal(cam, far * hpr_factor)
-        kept = np.asarray(kept, dtype=np.int64)
+        _, visible = cloud.hidden_point_removal(cam, far * hpr_factor)
+        kept = np.asarray(visible, dtype=np.int64)
         view = cam - points[kept]
         view /= np.linalg.norm(view, axis=1, keepdims=True)
         cos = np.abs(np.einsum("ij,ij->i", view, normals[kept]))
@@ -139,7 +141,8 @@ class OcclusionHoles(HoleGenerator):
     summary = "acquisition holes: points no camera of a simulated capture rig sees (open3d HPR + grazing angle)"
     version = "1"
 
-    def __init__(self, rig: str = "stage", cameras=None, rings=(0.3, 0.8), per_ring: int = 6, count: int = 20,
+    def __init__(self, rig: str = "stage", cameras: Sequence[Sequence[float]] | None = None,
+                 rings: Sequence[float] = (0.3, 0.8), per_ring: int = 6, count: int = 20,
                  distance: float = 1.5, up: str = "y", min_cos: float = 0.2, random_azimuth: bool = False,
                  normal_k: int = 16, seen_within: float = 1.5, max_fraction: float = 0.5):
         self.rig = rig
@@ -155,7 +158,7 @@ class OcclusionHoles(HoleGenerator):
         self.seen_within = seen_within
         self.max_fraction = max_fraction
 
-    def _check(self):
+    def _check(self) -> None:
         if self.rig not in ("stage", "sphere"):
             raise ValueError(f"occlusion holes: rig must be 'stage' or 'sphere', got {self.rig!r}")
         if self.up not in _AXES:
@@ -195,7 +198,7 @@ class OcclusionHoles(HoleGenerator):
             return sphere_cameras(points, int(self.count), self.distance)
         return stage_cameras(points, tuple(self.rings), int(self.per_ring), self.distance, self.up, azimuth)
 
-    def damage(self, frames, seed, colors=None):
+    def damage(self, frames: list[np.ndarray], seed: Seed, colors: Colors = None) -> DamageResult:
         frames, colors = check_sequence_input(frames, colors, "occlusion holes")
         self._check()
         rng = as_generator(seed)

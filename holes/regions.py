@@ -31,8 +31,11 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
 
 from metrics.errors import UserError
 
@@ -49,7 +52,7 @@ class HoleRegion:
     rotation: np.ndarray | None = None
     extra: dict = field(default_factory=dict, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "center", np.asarray(self.center, dtype=np.float64).reshape(3))
         if self.shape == "ball":
             if not self.radius > 0:
@@ -69,33 +72,42 @@ class HoleRegion:
             raise UserError("hole region centre must be finite")
 
     @classmethod
-    def ball(cls, center, radius: float, **extra) -> HoleRegion:
+    def ball(cls, center: ArrayLike, radius: float, **extra: Any) -> HoleRegion:
         return cls("ball", np.asarray(center), radius=float(radius), extra=extra)
 
     @classmethod
-    def box(cls, center, half_extents, rotation=None, **extra) -> HoleRegion:
-        return cls("box", np.asarray(center), half_extents=np.asarray(half_extents), rotation=rotation, extra=extra)
+    def box(cls, center: ArrayLike, half_extents: ArrayLike, rotation: ArrayLike | None = None,
+            **extra: Any) -> HoleRegion:
+        return cls("box", np.asarray(center), half_extents=np.asarray(half_extents),
+                   rotation=None if rotation is None else np.asarray(rotation), extra=extra)
 
     @property
     def bounding_radius(self) -> float:
         """Radius of a ball around the centre that encloses the region."""
-        return self.radius if self.shape == "ball" else float(np.linalg.norm(self.half_extents))
+        return self.radius if self.shape == "ball" else float(np.linalg.norm(self._box()[0]))
+
+    def _box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(half_extents, rotation) of a box region (``__post_init__`` sets both for every box)."""
+        if self.half_extents is None or self.rotation is None:
+            raise TypeError(f"a {self.shape} region has no box extents")
+        return self.half_extents, self.rotation
 
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Boolean mask (N,) of the points inside the region grown by ``margin``."""
         d = np.asarray(points, dtype=np.float64) - self.center
         if self.shape == "ball":
             return np.einsum("ij,ij->i", d, d) <= (self.radius + margin) ** 2
-        local = d @ self.rotation
-        return (np.abs(local) <= self.half_extents + margin).all(axis=1)
+        half_extents, rotation = self._box()
+        return (np.abs(d @ rotation) <= half_extents + margin).all(axis=1)
 
     def to_dict(self) -> dict:
         out = {"shape": self.shape, "center": self.center.tolist()}
         if self.shape == "ball":
             out["radius"] = float(self.radius)
         else:
-            out["half_extents"] = self.half_extents.tolist()
-            out["rotation"] = self.rotation.tolist()
+            half_extents, rotation = self._box()
+            out["half_extents"] = half_extents.tolist()
+            out["rotation"] = rotation.tolist()
         out.update(self.extra)
         return out
 
@@ -162,7 +174,8 @@ def union_mask(regions: list[HoleRegion], points: np.ndarray, margin: float = 0.
     return mask
 
 
-def check_regions_near(frame: np.ndarray, regions: list[HoleRegion], reach: float | list[float], *, tree=None,
+def check_regions_near(frame: np.ndarray, regions: list[HoleRegion], reach: float | list[float], *,
+                       tree: cKDTree | None = None,
                        who: str = "hole regions", frame_index: int = 0) -> None:
     """Refuse regions that do not belong to this cloud (UserError).
 
@@ -174,8 +187,6 @@ def check_regions_near(frame: np.ndarray, regions: list[HoleRegion], reach: floa
     if not regions:
         return
     if tree is None:
-        from scipy.spatial import cKDTree
-
         tree = cKDTree(frame)
     reaches = list(reach) if isinstance(reach, (list, tuple, np.ndarray)) else [reach] * len(regions)
     dist, _ = tree.query(np.array([r.center for r in regions]))
@@ -188,7 +199,7 @@ def check_regions_near(frame: np.ndarray, regions: list[HoleRegion], reach: floa
                 f"({limit:.3g}); the regions do not belong to this cloud (wrong holes.json or wrong frame order?)")
 
 
-def regions_to_json(regions_per_frame: list[list[HoleRegion]], **info) -> dict:
+def regions_to_json(regions_per_frame: list[list[HoleRegion]], **info: Any) -> dict:
     """The holes.json object: per frame the list of regions; ``info`` adds top-level keys
     (generator, params, seed, removed_fraction per frame, ...)."""
     frames = [{"frame": i, "regions": [r.to_dict() for r in regs]} for i, regs in enumerate(regions_per_frame)]

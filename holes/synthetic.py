@@ -6,8 +6,8 @@ the 8i 10-bit bodies), so a preset gives holes of the same size relative to the 
 small data, and relative to the method's cube on data denser than the paper's.
 
 ``region`` presets (ball radius, or half side of a cube, in units of M; holes per frame) and the
-fraction of points they removed per frame (mean [min-max] over 5 frames x 3 seeds; command:
-``scratch/measure_presets.py``, kept out of the repo because it reads ../shared):
+fraction of points they removed per frame (mean [min-max] over 5 frames x 3 seeds; measured once
+with a script that was not kept, as it read data outside the repository):
 
 =======  =====  ========  ===========================  ===========================
 preset   count  radius    DFAUST punching, M = 20.0    embedded human small, M = 7.3
@@ -18,7 +18,7 @@ medium   4      1.5 M     ball 1.52 % [1.33-1.73]      ball 2.37 % [2.25-2.49]
 large    5      3 M       ball 8.1 % [6.8-10.0]        ball 13.5 % [11.5-15.6]
 =======  =====  ========  ===========================  ===========================
 
-"medium" is what the method issues evaluate on (1-3 % of the points in 4 holes of 1.5 M, like
+"medium" is what the method comparisons evaluate on (1-3 % of the points in 4 holes of 1.5 M, like
 holes a cube-based method must bridge); "large" gives the bigger, more complex holes of the
 paper's Soldier figure; "small" holes fit inside one cube.
 """
@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.base import HoleGenerator, as_generator, check_sequence_input, make_result
+from holes.base import Colors, DamageResult, HoleGenerator, Seed, as_generator, check_sequence_input, make_result
 from holes.geometry import cube_size, regions_mask
 from holes.regions import HoleRegion
 from metrics.errors import UserError
@@ -218,7 +218,7 @@ class RegionHoles(HoleGenerator):
             f"{np.ptp(points, axis=0).max():.4g}); use fewer or smaller holes"
         )
 
-    def damage(self, frames, seed, colors=None):
+    def damage(self, frames: list[np.ndarray], seed: Seed, colors: Colors = None) -> DamageResult:
         frames, colors = check_sequence_input(frames, colors, "region holes")
         count, radius_m = self._resolved()
         rng = as_generator(seed)
@@ -226,7 +226,8 @@ class RegionHoles(HoleGenerator):
         m = self.cube_size if self.cube_size is not None else cube_size(frames[0], tree=trees[0])
         size = radius_m * m
         regions, removed = [], []
-        centers = sizes = None
+        centers: list = []
+        sizes: list = []
         for f, (pts, tree) in enumerate(zip(frames, trees)):
             if f == 0 or not self.coherent:
                 centers, sizes = self._place(pts, tree, rng, count, size, f)
@@ -272,7 +273,7 @@ class DropoutHoles(HoleGenerator):
         if int(self.hole_points) != self.hole_points or self.hole_points < 1:
             raise UserError(f"dropout holes: hole_points must be a positive integer, got {self.hole_points!r}")
 
-    def damage(self, frames, seed, colors=None):
+    def damage(self, frames: list[np.ndarray], seed: Seed, colors: Colors = None) -> DamageResult:
         frames, colors = check_sequence_input(frames, colors, "dropout holes")
         self._check_params()
         rng = as_generator(seed)

@@ -14,12 +14,17 @@ the parameters back from the ``__init__`` signature, so configs and result recor
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
 
+from holes.regions import HoleRegion
 from metrics.errors import UserError
 from metrics.params import Parameterized
+
+#: the hole regions of each frame (F lists), or None (blind: the method finds the holes itself)
+Regions = Sequence[Sequence[HoleRegion]] | None
 
 
 class InpaintingMethod(Parameterized):
@@ -43,11 +48,11 @@ class InpaintingMethod(Parameterized):
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
         return f"{type(self).__name__}({args})"
 
-    def inpaint(self, frames: list[np.ndarray], regions: list | None = None) -> list[np.ndarray]:
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         raise NotImplementedError
 
     # -- helpers shared by every method ------------------------------------------------------
-    def _check_inputs(self, frames, regions) -> tuple[list[np.ndarray], list | None]:
+    def _check_inputs(self, frames: Sequence[np.ndarray], regions: Regions) -> tuple[list[np.ndarray], list | None]:
         """Validate the sequence and regions; return float64 views (inputs are never written)."""
         return check_sequence(frames, regions, method=self.name, needs_regions=self.needs_regions,
                               detects_holes=self.detects_holes)
@@ -56,7 +61,7 @@ class InpaintingMethod(Parameterized):
 class PerFrameMethod(InpaintingMethod):
     """A method that inpaints each frame on its own: implement `inpaint_frame`."""
 
-    def inpaint(self, frames, regions=None):
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         frames, regions = self._check_inputs(frames, regions)
         out = []
         for i, frame in enumerate(frames):
@@ -67,12 +72,12 @@ class PerFrameMethod(InpaintingMethod):
             out.append(np.asarray(self.inpaint_frame(frame, frame_regions), dtype=np.float64))
         return out
 
-    def inpaint_frame(self, points: np.ndarray, regions: list | None) -> np.ndarray:
+    def inpaint_frame(self, points: np.ndarray, regions: Sequence[HoleRegion] | None) -> np.ndarray:
         raise NotImplementedError
 
 
-def check_sequence(frames, regions=None, *, method: str = "method", needs_regions: bool = False,
-                   detects_holes: bool = True):
+def check_sequence(frames: Sequence[np.ndarray], regions: Regions = None, *, method: str = "method",
+                   needs_regions: bool = False, detects_holes: bool = True) -> tuple[list[np.ndarray], list | None]:
     """Shared input validation with messages that say what is wrong and what to do."""
     if isinstance(frames, np.ndarray) and frames.ndim == 2:
         raise UserError(f"{method}: expected a list of (N, 3) frames, got one array; wrap it: [frame]")

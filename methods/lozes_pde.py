@@ -43,7 +43,7 @@ Our design (the papers leave it open or work on other data):
     in `tests/test_baselines.py` (both reach the same points on the planar hole).
   * New vertices in a graph component with no known vertex (nothing to anchor them) are dropped.
 
-What to expect (measured on dfaust_50004_punching, medium holes, scratch/eval_baselines.py): with
+What to expect (measured on dfaust_50004_punching, medium holes; a one-off script, not kept): with
 the rim fixed and no data term inside the hole, p = 2 gives a harmonic, nearly flat patch spanning
 the rim (the "planar structures" the ICME paper notes for Lozes), so on a curved body part it sits
 inside the surface (mean distance of the new points to the truth 3.8 units in a knee hole, point
@@ -58,6 +58,7 @@ hole); p = 2 is the default.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -66,7 +67,8 @@ from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from holes.geometry import point_spacing
-from methods.base import PerFrameMethod
+from holes.regions import HoleRegion
+from methods.base import PerFrameMethod, Regions
 from methods.reference import detect_regions
 from metrics.errors import UserError
 
@@ -111,7 +113,7 @@ class LozesPDE(PerFrameMethod):
         if int(self.max_new_points) < 1:
             raise UserError(f"lozes-pde: max_new_points must be >= 1, got {self.max_new_points}")
 
-    def inpaint(self, frames, regions=None):
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         self._validate_params()
         if regions is None:
             frames, _ = self._check_inputs(frames, None)
@@ -119,7 +121,9 @@ class LozesPDE(PerFrameMethod):
         return super().inpaint(frames, regions)
 
     # -- one frame --------------------------------------------------------------------------------
-    def inpaint_frame(self, points: np.ndarray, regions) -> np.ndarray:
+    def inpaint_frame(self, points: np.ndarray, regions: Sequence[HoleRegion] | None) -> np.ndarray:
+        if not regions:  # `inpaint` detects the regions when none are given: nothing to fill here
+            return points.copy()
         spacing = sampling_step(points)
         new_parts = []
         for k, region in enumerate(regions):

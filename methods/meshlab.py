@@ -48,7 +48,7 @@ pymeshlab's ``generate_sampling_montecarlo`` / ``_poisson_disk``: those are not 
 runs on the same mesh in one process gave different samples) and Poisson-disk with an exact count
 took 483 s for 100k samples (Monte Carlo 0.5 s).
 
-Known limitation (measured, scratch/diag_meshlab_human.py): on voxelized frames (the embedded human,
+Known limitation (measured once; the diagnosis script was not kept): on voxelized frames (the embedded human,
 size small, 93k points) ball pivoting with the automatic radius leaves a mesh with 54k boundary
 edges of 285k and non-manifold vertices, so the synthetic holes are not separate boundary loops
 and close-holes puts only 9-100 faces in them (with or without its self-intersection check,
@@ -62,10 +62,13 @@ medium synthetic hole: radius 30 on a 1023-unit body is ~190 boundary edges at 1
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-from methods.base import PerFrameMethod
+from holes.regions import HoleRegion
+from methods.base import PerFrameMethod, Regions
 from methods.lozes_pde import sampling_step
 from metrics.errors import UserError
 
@@ -115,11 +118,11 @@ class MeshlabFill(PerFrameMethod):
         if not self.region_margin_spacings >= 0:
             raise UserError(f"meshlab: region_margin_spacings must be >= 0, got {self.region_margin_spacings}")
 
-    def inpaint(self, frames, regions=None):
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         self._validate_params()
         return super().inpaint(frames, regions)
 
-    def inpaint_frame(self, points: np.ndarray, regions) -> np.ndarray:
+    def inpaint_frame(self, points: np.ndarray, regions: Sequence[HoleRegion] | None) -> np.ndarray:
         import pymeshlab  # lazily: heavy import, only this method needs it
 
         if len(points) < 4:

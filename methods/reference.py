@@ -8,12 +8,13 @@ These are not methods from the paper. They bracket it: `none` is what every meth
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.regions import check_regions_near
-from methods.base import InpaintingMethod
+from holes.regions import HoleRegion, check_regions_near
+from methods.base import InpaintingMethod, Regions
 from metrics.errors import UserError
 
 
@@ -29,10 +30,10 @@ class NoFill(InpaintingMethod):
     version = "1"
     detects_holes = True
 
-    def __init__(self):
+    def __init__(self) -> None:
         pass
 
-    def inpaint(self, frames, regions=None):
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         frames, _ = self._check_inputs(frames, regions)
         return [frame.copy() for frame in frames]
 
@@ -143,7 +144,7 @@ class TemporalCopy(InpaintingMethod):
         if not self.overlap_spacings >= 0:
             raise UserError(f"temporal-copy: overlap_spacings must be >= 0, got {self.overlap_spacings}")
 
-    def inpaint(self, frames, regions=None):
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         self._validate_params()
         frames, regions = self._check_inputs(frames, regions)
         if len(frames) == 1:
@@ -199,7 +200,7 @@ class TemporalCopy(InpaintingMethod):
         return np.concatenate([target, *fills], axis=0)
 
 
-def detect_regions(frames, method: str) -> list:
+def detect_regions(frames: Sequence[np.ndarray], method: str) -> list[list[HoleRegion]]:
     """Blind protocol: hole regions of every frame from `holes.detection.detect_holes`."""
     from holes.detection import detect_holes
 

@@ -32,9 +32,9 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-try:  # Python >= 3.11
+if sys.version_info >= (3, 11):
     import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10 (tomli is a dependency there)
+else:  # Python 3.10: tomli is a dependency there
     import tomli as tomllib
 
 from methods.registry import METHODS, method_class

@@ -19,6 +19,11 @@ Public API::
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from numpy.typing import ArrayLike
+
 from metrics.geometry import psnr, resolve_peak
 from metrics.pairs import CloudPair, estimate_normals
 from metrics.registry import DEFAULT_METRICS, METRICS, Metric, get_metric
@@ -32,10 +37,13 @@ from metrics.scoring import (
     score_sequence,
 )
 from metrics.temporal import temporal_consistency, temporal_consistency_per_pair
+from metrics.types import Region
 
 
-def _single(name: str):
-    def fn(reference, result, *, peak="intrinsic", reference_normals=None, regions=None, region_margin=0.0, **options):
+def _single(name: str) -> Callable[..., float]:
+    def fn(reference: ArrayLike, result: ArrayLike, *, peak: str | float = "intrinsic",
+           reference_normals: ArrayLike | None = None, regions: Sequence[Region] | None = None,
+           region_margin: float = 0.0, **options: Any) -> float:
         return score_frame(
             reference, result, [name], peak=peak, reference_normals=reference_normals, regions=regions,
             region_margin=region_margin, **options,

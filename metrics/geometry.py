@@ -38,12 +38,14 @@ PSNR values are +inf when the error is exactly 0 (identical clouds), as pc_error
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from metrics.errors import UserError
 from metrics.pairs import CloudPair
+from metrics.types import Region
 
 #: Default F-score threshold, in multiples of the reference's median nearest-neighbour spacing.
 FSCORE_SPACING_FACTOR = 2.0
@@ -58,7 +60,7 @@ class Selection:
     result: np.ndarray | None = None
 
     @classmethod
-    def of(cls, pair: CloudPair, regions=None, margin: float = 0.0) -> Selection:
+    def of(cls, pair: CloudPair, regions: Sequence[Region] | None = None, margin: float = 0.0) -> Selection:
         if regions is None:
             return cls()
         ref_mask, res_mask = pair.masks(regions, margin)
@@ -88,7 +90,7 @@ def psnr(error: float, peak: float) -> float:
     return 10.0 * math.log10(3.0 * peak * peak / error)
 
 
-def resolve_peak(peak, pair: CloudPair | None = None, bit_depth: int | None = None) -> float:
+def resolve_peak(peak: str | float, pair: CloudPair | None = None, bit_depth: int | None = None) -> float:
     """The PSNR peak p as a number.
 
     ``peak`` is one of: ``"intrinsic"`` (pc_error's default ``--resolution=0``: the largest
@@ -103,12 +105,12 @@ def resolve_peak(peak, pair: CloudPair | None = None, bit_depth: int | None = No
                 raise ValueError("peak='intrinsic' needs the reference cloud")
             return pair.intrinsic_resolution
         if text.startswith("bitdepth"):
-            depth = text.partition(":")[2] or bit_depth
+            given = text.partition(":")[2] or bit_depth
             try:
-                depth = int(depth)
+                depth = int(str(given))  # no depth given: int("None") raises, refused below
             except (TypeError, ValueError):
                 raise ValueError(
-                    f"peak {peak!r}: give the bit depth as 'bitdepth:10' (or bit_depth=10); got {depth!r}"
+                    f"peak {peak!r}: give the bit depth as 'bitdepth:10' (or bit_depth=10); got {given!r}"
                 ) from None
             if not 1 <= depth <= 32:
                 raise ValueError(f"peak {peak!r}: bit depth must be in 1..32, got {depth}")
@@ -137,7 +139,7 @@ def resolve_peak(peak, pair: CloudPair | None = None, bit_depth: int | None = No
 class Settings:
     """Parameters shared by the metrics of one frame."""
 
-    peak: object = "intrinsic"
+    peak: str | float = "intrinsic"
     bit_depth: int | None = None
     fscore_threshold: float | None = None
 

@@ -42,12 +42,15 @@ last digits of D2.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import cached_property
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from metrics.errors import UserError
+from metrics.types import Region
 
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
 #: than this are "at the same distance".
@@ -60,7 +63,7 @@ _INTRINSIC_MIN_SQ = 1e-10
 DEFAULT_NORMAL_NEIGHBOURS = 12
 
 
-def check_points(points, label: str) -> np.ndarray:
+def check_points(points: ArrayLike, label: str) -> np.ndarray:
     """``points`` as a float64 (N, 3) array with N >= 1 and finite values, else a ValueError naming ``label``."""
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -295,7 +298,7 @@ class Neighbours:
         nearest = np.empty(n, dtype=np.intp)
         nearest_sq = np.empty(n)
         check = np.empty(0, dtype=np.intp)
-        if matched is not None and matched.any():
+        if matched is not None and matched_index is not None and matched.any():
             nearest[matched] = matched_index[matched]
             nearest_sq[matched] = 0.0
             order = order[~matched[order]]
@@ -450,9 +453,9 @@ class CloudPair:
 
     def __init__(
         self,
-        reference,
-        result,
-        reference_normals=None,
+        reference: ArrayLike,
+        result: ArrayLike,
+        reference_normals: ArrayLike | None = None,
         *,
         drop_duplicates: bool = True,
         normal_neighbours: int = DEFAULT_NORMAL_NEIGHBOURS,
@@ -658,7 +661,7 @@ class CloudPair:
                                   len(self.result))
 
     # -- region masks -------------------------------------------------------------------------
-    def masks(self, regions, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def masks(self, regions: Sequence[Region], margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Boolean masks (N,), (M,) of the reference and result points inside any of ``regions``.
 
         ``regions`` is a list of objects with ``contains(points, margin) -> (K,) bool`` (e.g.

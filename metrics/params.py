@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar, cast
 
 from metrics.errors import UserError
 
@@ -55,7 +55,7 @@ def _describe(kinds: set[str]) -> str:
 
 def signature_params(func: Callable[..., Any]) -> dict[str, inspect.Parameter]:
     """Keyword parameters of a function or of a class's ``__init__`` (``self`` left out)."""
-    sig = inspect.signature(func.__init__ if isinstance(func, type) else func)
+    sig = inspect.signature(cast(Any, func).__init__ if isinstance(func, type) else func)
     kinds = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
     return {n: p for n, p in sig.parameters.items() if n != "self" and p.kind in kinds}
 

@@ -15,13 +15,22 @@ about 1e-19) and `score_sequence` lists the capped (frame, metric) pairs under `
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from metrics import geometry
 from metrics.geometry import Selection, Settings, psnr, resolve_peak
 from metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
 from metrics.registry import DEFAULT_METRICS, METRICS, get_metric
+from metrics.types import Frames, Region, RegionsPerFrame
+
+#: metric names: one name, several, or None for `DEFAULT_METRICS`
+MetricNames = str | Sequence[str] | None
+#: the PSNR peak: "intrinsic", "bitdepth:B", or a number (see `metrics.geometry.resolve_peak`)
+Peak = str | float
 
 DEFAULT_MAX_PSNR = 200.0
 _OPTIONS = ("bit_depth", "fscore_threshold", "normal_neighbours", "drop_duplicates", "max_psnr", "workers")
@@ -69,14 +78,16 @@ def _evaluate(pair: CloudPair, names, selection: Selection, settings: Settings, 
     return values, capped
 
 
-def make_pair(reference, result, reference_normals=None, **options) -> CloudPair:
+def make_pair(reference: ArrayLike, result: ArrayLike, reference_normals: ArrayLike | None = None,
+              **options: Any) -> CloudPair:
     """A `CloudPair` built with the pair-related scoring options (drop_duplicates, normal_neighbours)."""
     _, pair_kw, _ = _split_options(options)
     return CloudPair(reference, result, reference_normals, **pair_kw)
 
 
-def score_pair(pair: CloudPair, metrics=None, *, peak="intrinsic", regions=None, region_margin: float = 0.0,
-               **options) -> tuple[dict, list[str]]:
+def score_pair(pair: CloudPair, metrics: MetricNames = None, *, peak: Peak = "intrinsic",
+               regions: Sequence[Region] | None = None, region_margin: float = 0.0,
+               **options: Any) -> tuple[dict[str, float], list[str]]:
     """Like `score_frame` on an existing `CloudPair` (reuse it for several scopes or peaks); returns
     (values by name, names of the PSNRs capped at ``max_psnr``)."""
     names = _frame_metric_names(metrics)
@@ -85,8 +96,9 @@ def score_pair(pair: CloudPair, metrics=None, *, peak="intrinsic", regions=None,
     return _evaluate(pair, names, selection, settings, max_psnr)
 
 
-def score_frame(reference, result, metrics=None, *, peak="intrinsic", reference_normals=None, regions=None,
-                region_margin: float = 0.0, **options) -> dict[str, float]:
+def score_frame(reference: ArrayLike, result: ArrayLike, metrics: MetricNames = None, *, peak: Peak = "intrinsic",
+                reference_normals: ArrayLike | None = None, regions: Sequence[Region] | None = None,
+                region_margin: float = 0.0, **options: Any) -> dict[str, float]:
     """Score one result frame against its reference frame.
 
     reference: (N, 3) ground truth; result: (M, 3); metrics: names from `METRICS` (default
@@ -105,8 +117,9 @@ def score_frame(reference, result, metrics=None, *, peak="intrinsic", reference_
     return values
 
 
-def score_frame_scopes(reference, result, metrics=None, *, regions, peak="intrinsic", reference_normals=None,
-                       region_margin: float = 0.0, **options) -> dict[str, dict[str, float]]:
+def score_frame_scopes(reference: ArrayLike, result: ArrayLike, metrics: MetricNames = None, *,
+                       regions: Sequence[Region], peak: Peak = "intrinsic", reference_normals: ArrayLike | None = None,
+                       region_margin: float = 0.0, **options: Any) -> dict[str, dict[str, float]]:
     """Both scopes of one frame from one set of neighbour queries: {"frame": whole-frame values,
     "holes": hole-region values}."""
     pair = make_pair(reference, result, reference_normals, **options)
@@ -120,8 +133,9 @@ def _nanmean(values: list[float]) -> float:
     return float(np.mean(finite)) if finite else math.nan
 
 
-def score_sequence(references, results, metrics=None, *, peak="intrinsic", reference_normals=None, regions=None,
-                   region_margin: float = 0.0, **options) -> dict:
+def score_sequence(references: Frames, results: Frames, metrics: MetricNames = None, *, peak: Peak = "intrinsic",
+                   reference_normals: Sequence[ArrayLike | None] | None = None, regions: RegionsPerFrame | None = None,
+                   region_margin: float = 0.0, **options: Any) -> dict[str, Any]:
     """Score a result sequence frame by frame, then average.
 
     references, results: lists of (N_f, 3) arrays of the same length; reference_normals: None or a
@@ -174,7 +188,8 @@ def score_sequence(references, results, metrics=None, *, peak="intrinsic", refer
     return out
 
 
-def pc_error(reference, result, reference_normals=None, *, peak="intrinsic", **options) -> dict[str, float]:
+def pc_error(reference: ArrayLike, result: ArrayLike, reference_normals: ArrayLike | None = None, *,
+             peak: Peak = "intrinsic", **options: Any) -> dict[str, float]:
     """The geometry figures pc_error 0.14 prints for a pair, under the names of golden/pc_error.json:
     d1_mse, d1_psnr, d2_mse, d2_psnr, d1_hausdorff_sq, d1_hausdorff_psnr, peak. PSNRs are not capped
     (+inf for identical clouds, as pc_error). D2 is computed with estimated normals when

@@ -37,11 +37,16 @@ noise, while the normal part is the displacement of the surface.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from metrics.pairs import build_tree, check_points
+from metrics.types import Frames, RegionsPerFrame
+
+#: one (forward, backward) pair of index arrays per consecutive frame pair (module docstring)
+Correspondences = Sequence[tuple[np.ndarray, np.ndarray]]
 
 #: Neighbours for the PCA normal of a ground-truth hole point.
 NORMAL_NEIGHBOURS = 12
@@ -123,8 +128,9 @@ def _check_correspondences(correspondences, frames) -> list | None:
     return out
 
 
-def temporal_consistency_per_pair(references, results, regions=None, *, region_margin: float = 0.0,
-                                  correspondences=None) -> np.ndarray:
+def temporal_consistency_per_pair(references: Frames, results: Frames, regions: RegionsPerFrame | None = None, *,
+                                  region_margin: float = 0.0,
+                                  correspondences: Correspondences | None = None) -> np.ndarray:
     """The value of each consecutive frame pair (F - 1,), NaN where no frame of the pair has hole points.
 
     references, results: lists of (N_f, 3) arrays, same length F >= 2. regions: None (whole frames)
@@ -157,8 +163,8 @@ def temporal_consistency_per_pair(references, results, regions=None, *, region_m
     return values
 
 
-def temporal_consistency(references, results, regions=None, *, region_margin: float = 0.0,
-                         correspondences=None) -> float:
+def temporal_consistency(references: Frames, results: Frames, regions: RegionsPerFrame | None = None, *,
+                         region_margin: float = 0.0, correspondences: Correspondences | None = None) -> float:
     """Sequence-level temporal consistency (lower = steadier); see the module docstring for the formula.
 
     Returns NaN when no frame has ground-truth points inside its regions.

@@ -13,6 +13,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from holes.regions import HoleRegion
+from methods.lozes_pde import LozesPDE, sampling_step
+from methods.meshlab import MeshlabError, MeshlabFill, cluster_points, sample_triangles
 from methods.reference import NoFill, TemporalCopy, icp_align, median_neighbour_distance
 
 
@@ -168,8 +170,6 @@ def test_temporal_copy_rejects_bad_parameters_and_inputs():
 
 # -- lozes-pde -------------------------------------------------------------------------------------
 
-from methods.lozes_pde import LozesPDE, sampling_step  # noqa: E402
-
 
 def tilted_plane(n: int = 12000, seed: int = 0) -> tuple[np.ndarray, np.ndarray, float]:
     """Random samples of the plane n.x = d over a 60 x 60 patch: (points (n, 3), unit normal, d)."""
@@ -262,8 +262,6 @@ def test_lozes_leaves_a_region_without_surface_alone():
 
 
 # -- meshlab ---------------------------------------------------------------------------------------
-
-from methods.meshlab import MeshlabError, MeshlabFill, cluster_points, sample_triangles  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
-"""The foundation's CLI commands (list, generate, info, render) driven through bench.cli.main, every bad
-input the issue names, and one run of the installed `dpcbench` entry point."""
+"""The foundation's CLI commands (list, generate, info, render) driven through bench.cli.main, the bad
+inputs a user can give them, and one run of the installed `dpcbench` entry point."""
 
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ def quiet_private_cache(tmp_path, monkeypatch):
 
 def cloud(n=300, seed=0, colors=True) -> PointCloud:
     rng = np.random.default_rng(seed)
-    return PointCloud(rng.uniform(0, 100, size=(n, 3)), rng.integers(0, 256, (n, 3)).astype(np.uint8) if colors else None)
+    return PointCloud(rng.uniform(0, 100, size=(n, 3)),
+                      rng.integers(0, 256, (n, 3)).astype(np.uint8) if colors else None)
 
 
 def run_cli(argv, capsys):

@@ -16,7 +16,8 @@ from bench.cli import main as cli_main
 from bench.store import ResultsStore
 
 METHODS = {"temporal-graph": (40.0, 1e-7, 2.0), "fu-nonlocal": (36.0, 3e-7, 1.5), "none": (12.0, 5e-6, 0.01)}
-VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"), ("2222222222bbbbbbbbbb", "2026-01-02T10:00:00+00:00")]
+VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"),
+            ("2222222222bbbbbbbbbb", "2026-01-02T10:00:00+00:00")]
 
 
 def make_store(path, *, versions=(0, 1), spec_ids=False):
@@ -36,7 +37,8 @@ def make_store(path, *, versions=(0, 1), spec_ids=False):
                                      value=psnr + offset + noise[frame] - (2.0 if worse else 0.0)))
                     rows.append(dict(frame=frame, metric="gpsnr_d2", scope=scope, peak="intrinsic",
                                      value=psnr + offset + 4 + noise[frame]))
-                    rows.append(dict(frame=frame, metric="nshd", scope=scope, peak="", value=nshd * (2 if worse else 1)))
+                    rows.append(dict(frame=frame, metric="nshd", scope=scope, peak="",
+                                     value=nshd * (2 if worse else 1)))
                 rows.append(dict(frame=frame, metric="time_s", scope="frame", peak="", value=seconds))
             # spec_ids: ids that hash the spec only, as the runner's do: equal across commits
             store.record_run(method if spec_ids else f"{version[:4]}-{method}", dict(
@@ -62,7 +64,8 @@ def write_benchmark_sessions(folder):
                      "rounds": 5, "median": seconds * (1 + i), "iqr": 0.01, "q1": seconds, "q3": seconds,
                      "iqr_outliers": 0, "stddev_outliers": 0, "outliers": "0;0", "ld15iqr": seconds,
                      "hd15iqr": seconds, "ops": 1 / seconds, "total": 5 * seconds, "iterations": 1}
-            benchmarks.append({"group": "metrics", "name": name, "fullname": f"tests/benchmarks/test_bench_metrics.py::{name}",
+            benchmarks.append({"group": "metrics", "name": name,
+                               "fullname": f"tests/benchmarks/test_bench_metrics.py::{name}",
                                "params": None, "param": None, "extra_info": {"points": 100000}, "options": {},
                                "stats": stats})
         doc = {"machine_info": {"node": "ci", "machine": "x86_64", "cpu": {"brand_raw": "Test CPU", "count": 2}},
@@ -89,8 +92,8 @@ def test_benchmark_loader(tmp_path):
 
 def test_page_is_self_contained_and_flags_the_regression(tmp_path):
     store = make_store(tmp_path / "s.sqlite")
-    page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame(),
-                                      benchmarks=benchsuite.load_benchmark_runs(write_benchmark_sessions(tmp_path / "b")))
+    benchmarks = benchsuite.load_benchmark_runs(write_benchmark_sessions(tmp_path / "b"))
+    page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame(), benchmarks=benchmarks)
     assert dashboard.external_references(page) == []
     assert "<script" not in page.lower()
     # fu-nonlocal regressed in gpsnr_d1 and nshd, both scopes: 4 flagged rows in the "changes" table

@@ -83,7 +83,7 @@ def test_intact_human_has_no_detected_holes(human):
 def test_detection_finds_synthetic_holes(human, preset):
     """Recall and precision of detection on region holes of the tiny embedded human, 3 frames.
 
-    Measured (scratch/measure_detection2.py; 4 frames x seeds 0-2, default parameters): tiny
+    Measured (a one-off script, not kept; 4 frames x seeds 0-2, default parameters): tiny
     human, small preset recall 1.00 / precision 1.00, medium 0.98 / 1.00, large 0.87 / 0.97;
     small human: small and medium 1.00 / 1.00, large 0.77 / 1.00 (large holes that sever a limb
     leave two open rims that look like the end of an open scan and are not reported). Thresholds

@@ -45,7 +45,8 @@ def sorted_rows(a):
 @pytest.fixture(scope="module")
 def results(human):
     frames, colors = human
-    return {f"{n}{sorted(p.items())}": get_generator(n, **p).damage(frames, 7, colors=colors) for n, p in GENERATOR_CASES}
+    return {f"{n}{sorted(p.items())}": get_generator(n, **p).damage(frames, 7, colors=colors)
+            for n, p in GENERATOR_CASES}
 
 
 def test_registered_names():
@@ -132,7 +133,8 @@ def test_preset_sizes_follow_cube_size(human):
         res = get_generator("region", preset=preset).damage(frames[:1], 0)
         assert len(res.regions[0]) == count
         assert all(r.radius == pytest.approx(radius * m) for r in res.regions[0])
-    small, large = (get_generator("region", preset=p).damage(frames[:1], 0).removed_fraction[0] for p in ("small", "large"))
+    small, large = (get_generator("region", preset=p).damage(frames[:1], 0).removed_fraction[0]
+                    for p in ("small", "large"))
     assert large > 5 * small
 
 

@@ -101,7 +101,8 @@ def test_stage_rig_geometry(human_frame):
     cams = stage_cameras(human_frame, rings=(0.3, 0.8), per_ring=6, distance=1.5, up="y")
     assert cams.shape == (12, 3)
     lo, hi = human_frame.min(axis=0), human_frame.max(axis=0)
-    np.testing.assert_allclose(sorted(set(np.round(cams[:, 1], 6))), [lo[1] + 0.3 * (hi[1] - lo[1]), lo[1] + 0.8 * (hi[1] - lo[1])])
+    np.testing.assert_allclose(sorted(set(np.round(cams[:, 1], 6))),
+                               [lo[1] + 0.3 * (hi[1] - lo[1]), lo[1] + 0.8 * (hi[1] - lo[1])])
     centre = (lo + hi) / 2
     horizontal = np.linalg.norm((cams - centre)[:, [0, 2]], axis=1)
     np.testing.assert_allclose(horizontal, 1.5 * np.linalg.norm(hi - lo))

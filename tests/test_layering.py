@@ -1,4 +1,4 @@
-"""The import layers: metrics < holes < methods < bench (issue 15). A module may import only from its
+"""The import layers: metrics < holes < methods < bench. A module may import only from its
 own package or a lower one, at module level or inside a function; the numpy API never imports the
 harness. Checked on the source (AST), so a lazy import inside a function counts too."""
 

@@ -155,7 +155,10 @@ def test_region_variant_matches_brute_force():
     b = np.concatenate([b, hole.center + rng.normal(0, 0.3, (20, 3))])  # a rough fill
     names = ["hausdorff", "nshd", "chamfer", "fscore", "d1_mse"]
     got = metrics.score_frame(a, b, names, regions=[hole], region_margin=0.1, fscore_threshold=0.2)
-    inside = lambda pts: hole.contains(pts, 0.1)  # noqa: E731
+
+    def inside(pts):
+        return hole.contains(pts, 0.1)
+
     want = _brute_companions(a, b, 0.2, inside, inside)
     for name in ("hausdorff", "chamfer", "fscore", "d1_mse"):
         assert got[name] == pytest.approx(want[name], rel=1e-12), name
@@ -178,7 +181,8 @@ def test_region_left_empty_is_scored_against_the_hole_border():
     assert got["fscore"] == 0.0
     assert math.isfinite(got["gpsnr_d1"])
     # a region holding no point on either side: nothing to score
-    empty = metrics.score_frame(grid, result, ["d1_mse", "gpsnr_d1", "fscore"], regions=[HoleRegion.ball([0, 0, 50], 1)])
+    empty = metrics.score_frame(grid, result, ["d1_mse", "gpsnr_d1", "fscore"],
+                                regions=[HoleRegion.ball([0, 0, 50], 1)])
     assert all(math.isnan(v) for v in empty.values())
 
 
@@ -256,7 +260,8 @@ def test_duplicates_are_merged_like_pc_error():
     a = rng.random((200, 3))
     b = a + rng.normal(0, 0.01, a.shape)
     base = metrics.score_frame(a, b, ["d1_mse", "d2_mse", "chamfer"], peak=1)
-    doubled = metrics.score_frame(np.concatenate([a, a[:50]]), np.concatenate([b, b[:80]]), ["d1_mse", "d2_mse", "chamfer"], peak=1)
+    doubled = metrics.score_frame(np.concatenate([a, a[:50]]), np.concatenate([b, b[:80]]),
+                                  ["d1_mse", "d2_mse", "chamfer"], peak=1)
     for name in base:
         assert doubled[name] == pytest.approx(base[name], rel=1e-12)
     kept = metrics.score_frame(

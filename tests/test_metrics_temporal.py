@@ -46,7 +46,9 @@ def scene():
 
 def test_steady_jittery_and_frozen_fills(scene):
     truth, regions, fill = scene["truth"], scene["regions"], scene["fill"]
-    tc = lambda results: metrics.temporal_consistency(truth, results, regions)  # noqa: E731
+
+    def tc(results):
+        return metrics.temporal_consistency(truth, results, regions)
 
     assert tc(truth) == 0.0
     steady = tc(fill([0.0] * N_FRAMES))

@@ -22,7 +22,8 @@ def _record(method="none", seed=0):
 def _results(n_frames=3, offset=0.0):
     rows = []
     for f in range(n_frames):
-        rows.append({"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic", "value": 30.0 + f + offset})
+        rows.append({"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic",
+                     "value": 30.0 + f + offset})
         rows.append({"frame": f, "metric": "nshd", "scope": "holes", "peak": "", "value": 1e-7 * (f + 1)})
     rows.append({"frame": -1, "metric": "temporal_consistency", "scope": "holes", "peak": "", "value": 0.5})
     return rows

@@ -65,7 +65,10 @@ def rigid_sequence(n_frames=5, hole_frame=2, n=12000):
 def test_mls_projection_recovers_a_paraboloid():
     rng = np.random.default_rng(0)
     xy = rng.uniform(-10, 10, size=(4000, 2))
-    surface = lambda x, y: 0.02 * x ** 2 - 0.015 * y ** 2 + 0.01 * x * y
+
+    def surface(x, y):
+        return 0.02 * x ** 2 - 0.015 * y ** 2 + 0.01 * x * y
+
     support = np.column_stack([xy, surface(*xy.T)])
     probe_xy = rng.uniform(-5, 5, size=(200, 2))
     off = rng.normal(0.0, 0.3, size=200)

@@ -134,8 +134,8 @@ def test_knn_laplacian_is_symmetric_with_zero_row_sums_and_gaussian_weights():
     lap = knn_laplacian(pts, 4, sigma=1.5).toarray()
     np.testing.assert_allclose(lap, lap.T)
     np.testing.assert_allclose(lap.sum(axis=1), 0, atol=1e-12)
-    k, l = np.argwhere(np.triu(lap, 1) < 0)[0]
-    assert -lap[k, l] == pytest.approx(np.exp(-np.sum((pts[k] - pts[l]) ** 2) / (2 * 1.5 ** 2)))
+    i, j = np.argwhere(np.triu(lap, 1) < 0)[0]
+    assert -lap[i, j] == pytest.approx(np.exp(-np.sum((pts[i] - pts[j]) ** 2) / (2 * 1.5 ** 2)))
 
 
 @pytest.mark.parametrize("fix_known", [False, True])

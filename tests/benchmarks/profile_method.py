@@ -19,6 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+# run as a script: the benchmarks' conftest is importable only once its folder is on sys.path (line above)
 from conftest import SIZES, bench_sequence, damage  # noqa: E402
 
 

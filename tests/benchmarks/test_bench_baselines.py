@@ -11,14 +11,15 @@ timing: their import is a one-time cost (open3d took 15 s of a 31 s temporal-cop
 imported inside it).
 
 MeshLab on an 800k frame did not finish within 66 minutes while it ran ball pivoting over the whole
-frame; since it reconstructs frames above ``max_points`` (120k) from a voxel-clustered copy (issue
-14, target 1) the 800k cases take under a minute (41 s for output=whole on 776k points, machine
+frame; since it reconstructs frames above ``max_points`` (120k) from a voxel-clustered copy
+the 800k cases take under a minute (41 s for output=whole on 776k points, machine
 shared) and always run. ``meshlab-whole-unclustered`` keeps the old behaviour at 800k
 (``max_points=0``) for comparison, only with ``DPCBENCH_BENCH_SLOW=1``: over an hour.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 
 import pytest
@@ -43,8 +44,9 @@ _damaged: dict[str, tuple] = {}
 
 def damaged_frames(size: str):
     """(damaged frames, regions): 3 human frames of SIZES[size] with medium holes on frame 1."""
-    import open3d  # noqa: F401  one-time imports (open3d ~15 s on a loaded machine) are not per-frame cost
-    import pymeshlab  # noqa: F401
+    # one-time imports (open3d ~15 s on a loaded machine) are not per-frame cost: load them before timing
+    importlib.import_module("open3d")
+    importlib.import_module("pymeshlab")
 
     from bench.datasets import load_dataset
     from holes.registry import get_generator

@@ -9,10 +9,11 @@ Slow cases run one round (pedantic), the rest three.
 
 Measured once (2026-11-22, 2-core machine shared with other jobs, load average ~9: noisy; median s):
 region medium ball 3.8, region large cube 4.5, region fraction 3 % 5.2, dropout 2 % 3.5,
-region coherent 3 frames 25.0 (7.7 after subsampling the tracked patch to 2000 points, timed once by hand), occlusion sphere rig 8 cameras 71.5, occlusion stage 12 cameras
-146.3 (open3d HPR on 1M points, ~6-12 s per camera, dominates), detect_holes 33.5.
+region coherent 3 frames 25.0 (7.7 after subsampling the tracked patch to 2000 points, timed once by
+hand), occlusion sphere rig 8 cameras 71.5, occlusion stage 12 cameras 146.3 (open3d HPR on 1M points,
+~6-12 s per camera, dominates), detect_holes 33.5.
 
-2026-11-23 (issue 14, load average ~3, one run each, outside pytest, /tmp scripts): detect_holes on the 1M
+2026-11-23 (load average ~3, one run each, outside pytest, one-off scripts not kept): detect_holes on the 1M
 frame 13.2 s before, 10.0 s after the octant prefilter (Longdress 858k: 15.0 -> 10.7 s, same regions);
 what remains is the k=32 KD query (~45 %) and open3d's normals (~35 %). Occlusion (stage, 12 cameras)
 on Longdress: 26.8 s, unchanged: 12 open3d HPR convex hulls of the whole frame are ~90 % of it.

@@ -5,7 +5,7 @@
 - ``test_mesh_sequence_one_frame_from_scratch``: read the mesh, fit the scale to 800k points (up to four
   trial voxelizations), draw the samples, produce the frame: the first frame's cost, no cache.
 
-Target (issue 13): under 2 s a frame. Run:
+Target: under 2 s a frame. Run:
     .venv/bin/python -m pytest tests/benchmarks/test_bench_meshseq.py --benchmark-only
 """
 

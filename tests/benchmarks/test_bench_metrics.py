@@ -128,7 +128,7 @@ def longdress_pair(shared_dir, tmp_path_factory):
 @pytest.mark.parametrize("which", ["d1", "d1_d2"])
 def test_score_cli_whole_process_longdress(benchmark, longdress_pair, which):
     """Wall time of the whole `dpcbench score` process (start-up, imports, PLY reading, scoring, print),
-    the figure MPEG's pc_error is compared with (issue 14: pc_error 0.14.2, 2 threads, 1.88 s on a
+    the figure MPEG's pc_error is compared with (pc_error 0.14.2, 2 threads, 1.88 s on a
     575k pair)."""
     import subprocess
     import sys

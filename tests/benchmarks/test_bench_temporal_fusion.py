@@ -1,11 +1,11 @@
 """Speed of temporal-fusion (benchmarks; run with --benchmark-only).
 
-The issue's setting: one voxelized frame with 5 medium region holes and its +-3 (intact) frames,
+The setting of the speed target: one voxelized frame with 5 medium region holes and its +-3 (intact) frames,
 inpainted as a 7-frame sequence with the default window W = 3, so every hole is aligned against
 six other frames; the frames without holes cost only their k-d trees. Sizes are the embedded human
 figure at several heights (points grow with height^2, as in test_bench_temporal_graph.py): ~100k,
 ~290k and ~800k points a frame (the 800k figure on an 11-bit grid); 1, 3 and 5 holes on the ~290k
-frame for the growth with the number of holes. Target (issue 12): under 10 s at 800k, 5 holes.
+frame for the growth with the number of holes. Target: under 10 s at 800k, 5 holes.
 
     .venv/bin/python -m pytest tests/benchmarks/test_bench_temporal_fusion.py --benchmark-only \
         --benchmark-columns=min,mean,rounds

@@ -1,6 +1,6 @@
 """Speed of temporal-graph and fu-nonlocal (benchmarks; run with --benchmark-only).
 
-The issue's setting: one voxelized frame with 5 medium region holes, with its two (intact)
+The setting of the speed target: one voxelized frame with 5 medium region holes, with its two (intact)
 neighbouring frames, inpainted as a 3-frame sequence. Sizes are the embedded human figure at
 several heights (points grow with height^2): ~100k, ~290k, ~575k (10-bit default) and ~800k
 (height 1040 on an 11-bit grid: the 10-bit grid cannot hold a figure that large; the point spacing
