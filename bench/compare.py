@@ -301,14 +301,11 @@ def read_summary(path: str | os.PathLike) -> tuple[pd.DataFrame, dict]:
         meta = dict(payload.get("meta", {}))
     elif path.suffix.lower() == ".csv":
         lines = text.splitlines()
-        meta, body_start = {}, 0
-        for body_start, line in enumerate(lines):
-            if not line.startswith("# "):
-                break
+        meta = {}
+        body_start = next((i for i, line in enumerate(lines) if not line.startswith("# ")), len(lines))
+        for line in lines[:body_start]:
             key, _, value = line[2:].partition(": ")
             meta[key] = value
-        else:
-            body_start = len(lines)
         if meta.get("format", "").split(" ")[0] != SUMMARY_FORMAT:
             raise UserError(f"{path}: not a dpcbench summary (first line must be '# format: {SUMMARY_FORMAT} 1')")
         meta.pop("format")

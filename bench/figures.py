@@ -37,7 +37,8 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
                 scale = table.scale if source == "ours" else 1.0
                 means.append(np.nan if m is None else m * scale)
                 errs.append(0.0 if s is None else s * scale)
-            ax.bar(x + (k - (len(table.columns) - 1) / 2) * width, means, width, yerr=errs if source == "ours" else None,
+            ax.bar(x + (k - (len(table.columns) - 1) / 2) * width, means, width,
+                   yerr=errs if source == "ours" else None,
                    label=col, color=colors[k], hatch="//" if source == "paper" else None, capsize=2,
                    edgecolor="black", linewidth=0.4)
         ax.set_xticks(x)
@@ -142,7 +143,7 @@ def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list
     from holes.regions import union_mask
 
     grid, highlight = [], []
-    for r, (label, frames) in enumerate(rows):
+    for r, (_label, frames) in enumerate(rows):
         grid.append([np.asarray(f, float) for f in frames])
         marks = []
         for c, pts in enumerate(frames):

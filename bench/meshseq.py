@@ -31,9 +31,10 @@ exact set of voxels the surface crosses.
 ``points`` and ``bit_depth``. ``points`` is the target number of points of the reference frame. Float
 samples: exactly ``points`` samples per frame (default 800,000). Voxelized, without ``points`` (nor
 ``density``): the sequence fills the grid like an 8i capture (its largest extent over all frames spans
-2^b - 2 voxels) and the count is whatever the surface occupies at that scale. Voxelized with ``points``: the number of occupied voxels grows as s^2,
-so s is fitted: first s = sqrt(points / sum_faces(area_f * |n_f|_1)) (a plane with unit normal n
-crosses |n|_1 voxels per unit area), then up to three corrections s <- s * sqrt(points / count). The
+2^b - 2 voxels) and the count is whatever the surface occupies at that scale. Voxelized with ``points``:
+the number of occupied voxels grows as s^2, so s is fitted: first s = sqrt(points / sum_faces(area_f *
+|n_f|_1)) (a plane with unit normal n crosses |n|_1 voxels per unit area), then up to three
+corrections s <- s * sqrt(points / count). The
 reference frame ends within about 1% of ``points``; other frames differ as the visible surface area
 changes (their counts are reported). A target that does not fit the grid is refused (lower ``points``
 or raise ``bit_depth``). ``density`` (points per unit area of the reference mesh, in its units) is an
@@ -350,7 +351,8 @@ def _check_params(points, density, bit_depth, oversampling) -> None:
         raise UserError(f"mesh sequence: bit_depth must be an integer in 4..16, or none for float samples; "
                         f"got {bit_depth!r}")
     if not (isinstance(oversampling, (int, float)) and oversampling >= 1):
-        raise UserError(f"mesh sequence: oversampling (samples per voxel^2 of surface) must be >= 1, got {oversampling!r}")
+        raise UserError(
+            f"mesh sequence: oversampling (samples per voxel^2 of surface) must be >= 1, got {oversampling!r}")
 
 
 def fit_placement(vertices0: np.ndarray, triangles: np.ndarray, areas: np.ndarray, normals: np.ndarray,
@@ -431,9 +433,10 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
         if bad.any():
             first = int(np.flatnonzero(bad)[0])
             if not drop_degenerate:
-                raise UserError(f"{files[i]}: {int(bad.sum())} degenerate face(s) (repeated vertex or zero area; first: "
-                                f"face {first}, vertices {t[first].tolist()}); their normal is undefined. Clean the "
-                                "mesh (e.g. pymeshlab meshing_remove_null_faces) or pass drop_degenerate=true")
+                raise UserError(f"{files[i]}: {int(bad.sum())} degenerate face(s) (repeated vertex or zero area; "
+                                f"first: face {first}, vertices {t[first].tolist()}); their normal is undefined. "
+                                "Clean the mesh (e.g. pymeshlab meshing_remove_null_faces) "
+                                "or pass drop_degenerate=true")
         triangles_of[i] = bad
     if shared:
         keep = ~np.any([triangles_of[i] for i in range(len(files))], axis=0)

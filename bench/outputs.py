@@ -176,7 +176,8 @@ class Outputs:
             return
         foreign = [p for p in paths if p.exists() and not self._ours(p)]
         if foreign:
-            names = ", ".join(p.name for p in foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+            names = ", ".join(p.name for p in foreign[:3])
+            names += f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
             raise UserError(f"{option} {shown}: would replace {len(foreign)} existing file(s) that dpcbench did not "
                             f"write ({names}); choose another {option} or pass --overwrite to replace them")
 
@@ -229,9 +230,9 @@ class Outputs:
             planned = {t.name for t in targets}
             stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned)
             if stale:
-                raise UserError(f"{option} {shown}: already holds {len(stale)} other .ply frame(s) ({', '.join(stale[:3])}"
-                                f"{' ...' if len(stale) > 3 else ''}) that would mix with the new sequence; choose an "
-                                "empty or new folder")
+                raise UserError(f"{option} {shown}: already holds {len(stale)} other .ply frame(s) "
+                                f"({', '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}) that would mix with "
+                                "the new sequence; choose an empty or new folder")
         self._refuse_foreign(targets, option, shown)
         _check_writable_folder(path, option, shown)
         CLAIMED.append(target)

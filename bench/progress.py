@@ -7,7 +7,8 @@ import os
 from tqdm.auto import tqdm
 
 
-def progress_bar(iterable=None, *, desc: str = "", total: int | None = None, unit: str = "it", quiet: bool | None = None):
+def progress_bar(iterable=None, *, desc: str = "", total: int | None = None, unit: str = "it",
+                 quiet: bool | None = None):
     """A tqdm bar on stderr; ``quiet`` (or DPCBENCH_QUIET=1) disables it."""
     if quiet is None:
         quiet = os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")

@@ -136,7 +136,8 @@ def _as_grid(items, nested: bool, n_rows: int, n_cols: int, what: str) -> list[l
 def _unpack(cloud):
     """(points, colours or None, normals or None) of an (N, 3) array or a PointCloud-like object."""
     if hasattr(cloud, "points"):
-        return np.asarray(cloud.points, dtype=np.float64), getattr(cloud, "colors", None), getattr(cloud, "normals", None)
+        points = np.asarray(cloud.points, dtype=np.float64)
+        return points, getattr(cloud, "colors", None), getattr(cloud, "normals", None)
     return np.asarray(cloud, dtype=np.float64), None, None
 
 
@@ -264,7 +265,7 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     zh = int(zoom_height or height // 2)
     rows_out = n_rows * (2 if box is not None else 1)
     row_heights = []
-    for r in range(n_rows):
+    for _ in range(n_rows):
         row_heights.append(height)
         if box is not None:
             row_heights.append(zh)

@@ -276,7 +276,8 @@ class ResultsStore:
         """Make already-stored (cached) runs part of ``experiment`` too."""
         with self._conn() as conn:
             with conn:
-                conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)", [(experiment, r) for r in run_ids])
+                conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)",
+                                 [(experiment, r) for r in run_ids])
 
     def delete_runs(self, run_ids: list[str]) -> None:
         with self._conn() as conn:

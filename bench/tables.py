@@ -162,7 +162,7 @@ class ComparisonTable:
                 cells.append(r"\textbf{" + text + "}" if c == best else text)
             out.append(esc(row) + " & " + " & ".join(cells) + r" \\")
         for row, values, best in self._paper_rows():
-            cells = [("--" if c not in values else (rf"\textbf{{{values[c]:.4f}}}" if c == best else f"{values[c]:.4f}"))
+            cells = ["--" if c not in values else (rf"\textbf{{{values[c]:.4f}}}" if c == best else f"{values[c]:.4f}")
                      for c in self.columns]
             out.append(rf"\textit{{{esc(row)} (paper)}} & " + " & ".join(cells) + r" \\")
         out += [r"\hline", r"\end{tabular}", "", r"\smallskip", r"{\footnotesize " + esc(self.conventions())

@@ -192,7 +192,8 @@ def test_kill_9_mid_sweep_then_rerun_loses_and_duplicates_nothing(env):
 
 
 def test_dask_local_cluster_matches_serial(env, tmp_path):
-    distributed = pytest.importorskip("distributed")
+    distributed = pytest.importorskip(
+        "distributed", reason="optional dependency: the dask executor needs `pip install 'dpcbench[dask]'`")
     cfg = _cfg(env["seq"], [{"name": "test-identity", "params": {"shift": [0.0, 0.01]}}, {"name": "test-raises"}])
     specs = parse_config(cfg).expand()
     serial_store = env["store"]

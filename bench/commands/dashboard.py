@@ -29,7 +29,8 @@ def register(subparsers) -> None:
                              "the previous code version")
     parser.add_argument("--tolerances", default=None, help="TOML file with a [tolerances] table")
     parser.add_argument("--title", default="dpcbench regression dashboard")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE.html that dpcbench did not write")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing FILE.html that dpcbench did not write")
     parser.set_defaults(func=run)
 
 

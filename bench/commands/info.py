@@ -15,7 +15,8 @@ def register(subparsers) -> None:
                                    description=__doc__)
     parser.add_argument("source", metavar="PATH_OR_NAME", help="folder / glob / PLY file, or a dataset name")
     parser.add_argument("--frames", default=None, help="frames to read: a count (10), list (0,5) or range (0-9)")
-    parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter (repeatable; values as in every command: see bench/params.py)")
+    parser.add_argument("--param", action="append", metavar="K=V", default=[],
+                        help="embedded dataset parameter (repeatable; values as in every command: see bench/params.py)")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper's sequences")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     parser.set_defaults(func=run)
@@ -69,7 +70,8 @@ def run(args) -> int:
     lo, hi = info["bbox_min"], info["bbox_max"]
     print(f"sequence:    {info['name']}")
     print(f"frames:      {info['frames']}")
-    print(f"points:      {info['points_min']}..{info['points_max']} per frame (mean {info['points_mean']:.0f}): {shown}")
+    print(f"points:      {info['points_min']}..{info['points_max']} per frame "
+          f"(mean {info['points_mean']:.0f}): {shown}")
     print("bbox:        " + " .. ".join("(" + ", ".join(f"{v:.6g}" for v in corner) + ")" for corner in (lo, hi)))
     if info["bit_depth"]:
         print(f"voxelized:   {info['bit_depth']}-bit integer coordinates (0..{2 ** info['bit_depth'] - 1})")

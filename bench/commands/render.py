@@ -32,7 +32,8 @@ def register(subparsers) -> None:
                         help="paint holes red: a `dpcbench damage` output folder or its masks.npz (render the "
                              "ground truth it was made from: the removed points turn red), or a holes.json "
                              "(the points inside its regions turn red, e.g. the rims found by detect-holes)")
-    parser.add_argument("--param", action="append", metavar="K=V", default=[], help="embedded dataset parameter (repeatable; values as in every command: see bench/params.py)")
+    parser.add_argument("--param", action="append", metavar="K=V", default=[],
+                        help="embedded dataset parameter (repeatable; values as in every command: see bench/params.py)")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper's sequences")
     parser.set_defaults(func=run)
 

@@ -56,7 +56,8 @@ def main(args) -> int:
     df = store.results_frame(experiment)
     runs = store.runs_frame(experiment)
     if df.empty:
-        raise UserError(f"experiment {experiment!r} has no finished run ({len(runs)} failed); see `dpcbench run` output")
+        raise UserError(
+            f"experiment {experiment!r} has no finished run ({len(runs)} failed); see `dpcbench run` output")
     metrics = [m.strip() for m in args.metrics.split(",")] if args.metrics else None
     if metrics:
         unknown = [m for m in metrics if m not in set(df["metric"])]

@@ -81,5 +81,6 @@ def main(args) -> int:
     print(f"experiment {cfg.name!r}: {len(summary.done)} run(s) done, {len(summary.cached)} cached, "
           f"{len(summary.failed)} failed; store {store.path}")
     for run_id in summary.failed:
-        print(f"  failed {run_id}: {summary.errors.get(run_id, '').splitlines()[0] if summary.errors.get(run_id) else ''}")
+        error = summary.errors.get(run_id) or ""
+        print(f"  failed {run_id}: {error.splitlines()[0] if error else ''}")
     return 1 if summary.failed else 0
