@@ -69,7 +69,7 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    plane of its 8 nearest points there): a gap in a neighbour, e.g. in an inpainted f-1's own
    fill, is no evidence against a point on the surface continued.
 10. Voxelized input (all coordinates integers) [snap]: the new points are turned into the grid voxels of
-   the surface they sample (`_voxelize`: voxels within half a voxel of the local tangent plane),
+   the surface they sample (`voxelize_fill`: voxels within half a voxel of the local tangent plane),
    minus voxels already occupied.
 
 Code. Each step is a function or a small class: `normal_features` and `CandidateCubes` (step 4's
@@ -664,6 +664,9 @@ class _CubeGraphInpainting(InpaintingMethod):
         if self.graph_on not in _GRAPH_MODES:
             raise ValueError(f"{self.name}: graph_on must be one of {_GRAPH_MODES}, got {self.graph_on!r}")
 
+    # the voxelization of step 10 under its former name: methods.temporal_fusion calls it
+    _voxelize = staticmethod(voxelize_fill)
+
     # -- sequence ---------------------------------------------------------------------------
     def inpaint(self, frames: list[np.ndarray], regions: list | None = None) -> list[np.ndarray]:
         """Inpaint the sequence ``frames`` (list of (N_f, 3)) given the hole regions of each frame
@@ -935,7 +938,7 @@ class TemporalGraph(_CubeGraphInpainting):
                            intra-source cube"), on c_s_hat: a known row sits at its nearest
                            source point, a new row is a source point.
       snap                 "auto" / False: voxelized input gets its new points turned into grid
-                           voxels (`_voxelize`) and, with known_points="free", moved known points
+                           voxels (`voxelize_fill`) and, with known_points="free", moved known points
                            rounded; the paper says nothing of quantizing the output (False).
       feature_fraction     0.25 / 1.0: normals and AGTV on a fixed sample of the points (speed);
                            the paper computes them for every point.
@@ -998,13 +1001,11 @@ class TemporalGraph(_CubeGraphInpainting):
                  search_box: float = 2.5, alpha: float = 1.0, beta: float = 0.5, gamma: float = 0.5,
                  sigma: float = 1.0, k_neighbors: int | None = None, spacing: float | str | None = None,
                  known_points=None, min_known_points: int = 16, icp_iterations: int = 10,
-                 link_radius: float = 2.5, snap=None, agtv_weight: float = 1.0,
-                 intra_candidates=None, drop_contradicted=None,
-                 feature_fraction=None, temporal_source=None,
-                 off_surface: float | None = 0.4, link_cutoff=None,
-                 skip_hole_links=None, rim_centred=None,
-                 defer_unreachable=None, hole_free_candidates=None,
-                 grow_source=None, new_points=None, graph_on=None):
+                 link_radius: float = 2.5, snap=None, agtv_weight: float = 1.0, intra_candidates=None,
+                 drop_contradicted=None, feature_fraction=None, temporal_source=None,
+                 off_surface: float | None = 0.4, link_cutoff=None, skip_hole_links=None, rim_centred=None,
+                 defer_unreachable=None, hole_free_candidates=None, grow_source=None, new_points=None,
+                 graph_on=None):
         self.variant = variant
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
@@ -1058,11 +1059,9 @@ class FuNonlocal(_CubeGraphInpainting):
     def __init__(self, variant: str = "tuned", cube_size: float = 20.0, cells_per_cube: int = 4,
                  alpha: float = 1.0, gamma: float = 0.5, sigma: float = 1.0, k_neighbors: int | None = None,
                  spacing: float | str | None = None, known_points=None, min_known_points: int = 16,
-                 icp_iterations: int = 10, snap=None, agtv_weight: float = 1.0,
-                 intra_candidates=None, feature_fraction=None,
-                 rim_centred=None, defer_unreachable=None,
-                 hole_free_candidates=None, grow_source=None,
-                 new_points=None, graph_on=None):
+                 icp_iterations: int = 10, snap=None, agtv_weight: float = 1.0, intra_candidates=None,
+                 feature_fraction=None, rim_centred=None, defer_unreachable=None, hole_free_candidates=None,
+                 grow_source=None, new_points=None, graph_on=None):
         self.variant = variant
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
