@@ -12,7 +12,14 @@ Per-cube sums of any per-point quantity are computed by binning the points into 
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from holes.regions import HoleRegion
 
 
 def block_sums(grid: np.ndarray, width: int) -> np.ndarray:
@@ -60,6 +67,7 @@ class CellGrid:
 
     @property
     def cube_size(self) -> float:
+        """Side M = cell * cells_per_cube of a cube."""
         return self.cell * self.cells_per_cube
 
     def cell_of(self, points: np.ndarray) -> np.ndarray:
@@ -67,7 +75,8 @@ class CellGrid:
         return np.floor((np.asarray(points) - self.origin) / self.cell).astype(np.int64)
 
     def inside(self, cells: np.ndarray) -> np.ndarray:
-        return ((cells >= 0) & (cells < self.shape)).all(axis=1)
+        """Mask (N,) of the cell indices (N, 3) that lie in the grid, 0 <= cell < shape."""
+        return np.asarray(((cells >= 0) & (cells < self.shape)).all(axis=1))
 
     def bin(self, points: np.ndarray, values: np.ndarray | None = None) -> np.ndarray:
         """Per-cell sums of ``values`` (N,) or (N, C) over the points; counts when values is None.
@@ -134,3 +143,150 @@ def best_window(points: np.ndarray, box_lower: np.ndarray, box_size: float, wind
     centre = (nbox - nwin) / 2.0
     pick = ties[np.argmin(((ties - centre) ** 2).sum(axis=1))]
     return box_lower + pick * unit, int(best)
+
+
+def hole_cells(grid: CellGrid, regions: Sequence[HoleRegion]) -> np.ndarray:
+    """Bool (X, Y, Z) over ``grid``: the cells that touch a hole region.
+
+    A cell touches a region when its centre lies within the region grown by half the cell's
+    diagonal (``region.contains(centre, margin=cell * sqrt(3) / 2)``): a superset of the cells the
+    region overlaps, exact for balls. Only the cells in each region's bounding box are tested.
+    """
+    mask = np.zeros(tuple(grid.shape), dtype=bool)
+    half_diag = grid.cell * np.sqrt(3.0) / 2.0
+    for region in regions:
+        r = region.bounding_radius + half_diag
+        lo = np.clip(grid.cell_of((region.center - r)[None])[0], 0, grid.shape)
+        hi = np.clip(grid.cell_of((region.center + r)[None])[0] + 1, 0, grid.shape)
+        if (hi <= lo).any():
+            continue
+        idx = np.stack(np.meshgrid(*[np.arange(a, b) for a, b in zip(lo, hi)], indexing="ij"), -1).reshape(-1, 3)
+        centres = grid.origin + (idx + 0.5) * grid.cell
+        hit = idx[region.contains(centres, margin=half_diag)]
+        mask[tuple(hit.T)] = True
+    return mask
+
+
+def region_groups(regions: Sequence[HoleRegion], reach: float) -> list[list[HoleRegion]]:
+    """The regions grouped by single linkage: two regions join a group when their bounding balls
+    are at most ``2 * reach`` apart (||c_i - c_j|| <= r_i + r_j + 2 reach), so that the target
+    cubes of different groups never share a cell. Groups in order of their first region; regions in
+    input order within a group."""
+    n = len(regions)
+    label = list(range(n))
+
+    def root(i: int) -> int:
+        while label[i] != i:
+            label[i] = label[label[i]]
+            i = label[i]
+        return i
+
+    for i in range(n):
+        for j in range(i + 1, n):
+            gap = np.linalg.norm(regions[i].center - regions[j].center)
+            if gap <= regions[i].bounding_radius + regions[j].bounding_radius + 2 * reach:
+                label[root(i)] = root(j)
+    groups: dict[int, list[HoleRegion]] = {}
+    for i in range(n):
+        groups.setdefault(root(i), []).append(regions[i])
+    return list(groups.values())
+
+
+class TargetCubeOrder:
+    """The order in which the target cubes of one group of holes are filled: from the rim inward.
+
+    Works on a window of cells (local indices): ``pending`` (X, Y, Z) bool, the cells with missing
+    data not yet covered by a filled cube; ``known`` (X, Y, Z) int, the points per cell (captured
+    and filled). A cube is anchored at local cell a (cells a .. a + c - 1, c = cells_per_cube);
+    there are (X - c + 1) (Y - c + 1) (Z - c + 1) of them. Per-cube sums (pending cells, known
+    points, pending cells in the central (c - 2 floor(c / 4))^3 block) come from summed-volume
+    tables and are refreshed only around a filled cube.
+
+    `next` returns the anchor (3,) of the next target cube, or None when the group is done:
+    among the cubes not yet tried with >= ``min_known_points`` known points (and more than when
+    they were last `defer`-red), those with a pending cell in their central block when
+    ``rim_centred`` (a cube centred on the rim: about half known for the matching, half missing),
+    else (or when none is left) those with any pending cell; of these the one with the most known
+    points, the first in C order on ties. `filled` records a fill: the cube is tried, the cells of
+    its new points gain known points, its pending cells are done.
+    """
+
+    def __init__(self, pending: np.ndarray, known: np.ndarray, cells_per_cube: int, min_known_points: int,
+                 rim_centred: bool):
+        self.pending = pending
+        self.known = known
+        self.per = int(cells_per_cube)
+        self.min_known_points = min_known_points
+        self.rim_centred = rim_centred
+        self.c0 = self.per // 4
+        self.cw = self.per - 2 * self.c0
+        self.n_anchor = np.array(pending.shape) - self.per + 1
+        shape = tuple(self.n_anchor)
+        self.pending_sums = np.zeros(shape, dtype=np.int64)
+        self.known_sums = np.zeros(shape, dtype=np.int64)
+        self.central_sums = np.zeros(shape, dtype=np.int64)
+        self.tried = np.zeros(shape, dtype=bool)  # each cube is a target at most once
+        # known count of a cube when it was put off; it is eligible again once it holds more
+        self.deferred = np.full(shape, -1, dtype=np.int64)
+        self._refresh(np.zeros(3, dtype=np.int64), self.n_anchor)
+
+    def _refresh(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Recompute the per-cube sums of the anchors lo .. hi - 1 (clipped to the window)."""
+        per, c0, cw = self.per, self.c0, self.cw
+        lo = np.maximum(lo, 0)
+        hi = np.minimum(hi, self.n_anchor)
+        if (hi <= lo).any():
+            return
+        cells = tuple(slice(a, b + per - 1) for a, b in zip(lo, hi))
+        anchors = tuple(slice(a, b) for a, b in zip(lo, hi))
+        centre = tuple(slice(a + c0, b + c0 + cw - 1) for a, b in zip(lo, hi))
+        self.pending_sums[anchors] = block_sums(self.pending[cells].astype(np.int64), per)
+        self.known_sums[anchors] = block_sums(self.known[cells], per)
+        self.central_sums[anchors] = block_sums(self.pending[centre].astype(np.int64), cw)
+
+    def next(self) -> np.ndarray | None:
+        """The local anchor (3,) of the next target cube, or None when no cube is eligible."""
+        known = self.known_sums
+        enough = (known >= self.min_known_points) & ~self.tried & (known > self.deferred)
+        eligible = (self.central_sums > 0) & enough if self.rim_centred else np.zeros_like(enough)
+        if not eligible.any():
+            # no known-rich cube is centred on the hole any more (or rim_centred is off): any cube
+            # with missing data
+            eligible = (self.pending_sums > 0) & enough
+            if not eligible.any():
+                return None
+        # the target cube with the most known data first: holes fill from the rim inward
+        return np.array(np.unravel_index(np.argmax(np.where(eligible, known, -1)), eligible.shape))
+
+    def block(self, anchor: np.ndarray) -> tuple[slice, ...]:
+        """The cells (a slice per axis) of the cube anchored at local cell ``anchor``."""
+        return tuple(slice(p, p + self.per) for p in anchor)
+
+    def reaches_pending(self, anchor: np.ndarray) -> bool:
+        """True when, inside the cube at ``anchor``, a cell holding points is a pending cell or
+        touches one (26-neighbourhood): the surface reaches the missing part."""
+        per = self.per
+        block = self.block(anchor)
+        hole = self.pending[block]
+        if not hole.any():
+            return False
+        near = np.zeros((per + 2,) * 3, dtype=bool)
+        for dx, dy, dz in itertools.product(range(3), repeat=3):
+            near[dx:dx + per, dy:dy + per, dz:dz + per] |= hole
+        return bool((near[1:-1, 1:-1, 1:-1] & (self.known[block] > 0)).any())
+
+    def defer(self, anchor: np.ndarray) -> None:
+        """Put the cube off until it holds more known points than now."""
+        self.deferred[tuple(anchor)] = self.known_sums[tuple(anchor)]
+
+    def filled(self, anchor: np.ndarray, new_cells: np.ndarray) -> None:
+        """Record the fill of the cube at ``anchor`` whose new points lie in the local cells
+        ``new_cells`` (P, 3) (those outside the window are ignored). The per-cube sums are refreshed
+        for the cubes that overlap this one: a new point that the solve moved out of the target cube
+        counts in its cell but not yet in the sums of the cubes beyond (kept so: outputs unchanged)."""
+        self.tried[tuple(anchor)] = True
+        if len(new_cells):
+            keep = ((new_cells >= 0) & (new_cells < self.known.shape)).all(axis=1)
+            np.add.at(self.known, tuple(new_cells[keep].T), 1)
+        self.pending[self.block(anchor)] = False
+        self._refresh(anchor - self.per + 1, anchor + self.per)

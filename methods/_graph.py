@@ -2,14 +2,25 @@
 
 Notation (paper, Eq. 5-6): a cube holds n points (rows); ``known`` marks the rows of existing
 points (Omega_bar = diag(known)), the others are missing rows (Omega = diag(~known)).
+
+Three steps of the cube pipeline live here: the spatial graph (`knn_laplacian`, on the rows or on
+the source, `spatial_laplacian`), the temporal links to the aligned inter-source cubes
+(`temporal_links`), and the solve of Eq. (6) (`solve_cube`).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from holes.regions import HoleRegion
 
 
 def knn_laplacian(points: np.ndarray, k: int, sigma: float) -> sp.csr_matrix:
@@ -35,7 +46,7 @@ def knn_laplacian(points: np.ndarray, k: int, sigma: float) -> sp.csr_matrix:
 
 def solve_cube(target: np.ndarray, source: np.ndarray, known: np.ndarray, laplacian: sp.spmatrix, *,
                alpha: float, gamma: float, beta: float = 0.0,
-               temporal: list[tuple[np.ndarray, np.ndarray]] = (), fix_known: bool = False) -> np.ndarray:
+               temporal: Sequence[tuple[np.ndarray, np.ndarray]] = (), fix_known: bool = False) -> np.ndarray:
     """Minimiser c_r (n, 3) of the paper's Eq. (5), solved per coordinate as one sparse system.
 
         ||Omega_bar (c_r - c_t)||^2 + alpha ||Omega (c_r - c_s)||^2 + gamma tr(c_r^T L c_r)
@@ -76,3 +87,82 @@ def solve_cube(target: np.ndarray, source: np.ndarray, known: np.ndarray, laplac
     a_uk = system[missing][:, known]
     out[missing] = np.asarray(spla.spsolve(a_uu, rhs[missing] - a_uk @ target[known])).reshape(-1, 3)
     return out
+
+
+def spatial_laplacian(rows: np.ndarray, source: np.ndarray, m: int, k: int, sigma: float, graph_on: str
+                      ) -> sp.csr_matrix:
+    """Laplacian (n, n) of the spatial graph of a cube's rows (n, 3): m known rows, then the new rows.
+
+    graph_on="estimate": `knn_laplacian` of the rows themselves (the initial estimate
+    Omega_bar c_t + Omega c_s_hat). graph_on="source" (the paper, Sec. 3.3: "we approximate the
+    connectivities via the similarities in its intra-source cube"): `knn_laplacian` of c_s_hat, where a
+    known row sits at its nearest point of the aligned ``source`` (S, 3) and a new row is a source
+    point itself (the new rows are source points).
+    """
+    if graph_on == "source":
+        _, nearest = cKDTree(source).query(rows[:m])
+        return knn_laplacian(np.vstack([source[nearest], rows[m:]]), k, sigma)
+    if graph_on != "estimate":
+        raise ValueError(f"graph_on must be 'estimate' or 'source', got {graph_on!r}")
+    return knn_laplacian(rows, k, sigma)
+
+
+@dataclass(frozen=True)
+class TemporalLinks:
+    """The rows (n of them) of a cube against one aligned inter-source cube.
+
+    counterpart (n, 3): each row's nearest aligned inter-source point (W_g c_g of Eq. 4-5).
+    linked (n,): the row's temporal term is used (D_g = diag(linked)).
+    contradicted (n,): that frame has data about the row and none of it is near the row.
+    supported (n,): a counterpart lies within the link distance (and not in a hole of that frame).
+    """
+
+    counterpart: np.ndarray
+    linked: np.ndarray
+    contradicted: np.ndarray
+    supported: np.ndarray
+
+
+def temporal_links(rows: np.ndarray, aligned: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
+                   hole_regions: Sequence[HoleRegion], link_distance: float, *, link_cutoff: bool,
+                   skip_hole_links: bool, off_surface: float | None) -> TemporalLinks:
+    """Temporal links of the rows (n, 3) to one aligned inter-source cube ``aligned`` (S, 3).
+
+    ``aligned = source @ rotation.T + translation``; ``hole_regions``: the hole regions of that
+    frame's input (empty for an inpainted frame). With d_i the distance of row i to its nearest
+    aligned point and h_i "R^T (row_i - t) lies in a hole region" (the row maps into a hole of
+    that frame: its nearest point there would be the hole's rim, not the surface):
+
+      supported_i    = d_i <= link_distance and not h_i;
+      linked_i       = (d_i <= link_distance if link_cutoff else True) and not (skip_hole_links and h_i)
+                       (the paper links every row to its nearest neighbour, weight 1);
+      contradicted_i = not supported_i and not h_i, and, unless ``off_surface`` is None, the row lies
+                       farther than off_surface * link_distance from the plane (PCA) of its 8 nearest
+                       aligned points: a gap in the neighbour (an inpainted fill may have one) is no
+                       evidence against a row on that neighbour's surface continued.
+    """
+    aligned_tree = cKDTree(aligned)
+    dist, idx = aligned_tree.query(rows)
+    near = dist <= link_distance
+    in_hole = np.zeros(len(rows), dtype=bool)
+    if hole_regions:
+        back = (rows - translation) @ rotation
+        for region in hole_regions:
+            in_hole |= region.contains(back)
+    linked = near.copy() if link_cutoff else np.ones(len(rows), dtype=bool)
+    if skip_hole_links:
+        linked &= ~in_hole
+    near &= ~in_hole
+    # contradicted: the neighbour has data there but none of it near the row. Also an inpainted
+    # f-1: letting only captured data contradict was measured worse (see methods/NOTES.md)
+    contradicted = ~near & ~in_hole
+    if off_surface is not None and contradicted.any() and len(aligned) >= 3:
+        cand = np.flatnonzero(contradicted)
+        _, nb = aligned_tree.query(rows[cand], k=min(8, len(aligned)))
+        patch = aligned[nb]
+        centre = patch.mean(axis=1)
+        spread = patch - centre[:, None, :]
+        normal = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))[1][:, :, 0]
+        off = np.abs(np.einsum("ij,ij->i", rows[cand] - centre, normal))
+        contradicted[cand] = off > off_surface * link_distance
+    return TemporalLinks(aligned[idx], linked, contradicted, near)

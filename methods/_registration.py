@@ -11,6 +11,9 @@ per-call overhead of a small tree is what matters, not raw speed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -64,9 +67,9 @@ def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int
         dist, idx = tree.query(local)
         if keep_count < len(partial):
             keep = np.argpartition(dist, keep_count - 1)[:keep_count]
+            new_rotation, new_translation = kabsch(source[idx[keep]], partial[keep])
         else:
-            keep = slice(None)
-        new_rotation, new_translation = kabsch(source[idx[keep]], partial[keep])
+            new_rotation, new_translation = kabsch(source[idx], partial)
         change = np.abs(new_rotation - rotation).max() + np.abs(new_translation - translation).max()
         rotation, translation = new_rotation, new_translation
         if change < tol:
@@ -82,3 +85,56 @@ def alignment_residual(source_tree: cKDTree, partial: np.ndarray, rotation: np.n
     dist, _ = source_tree.query((np.asarray(partial) - translation) @ rotation)
     keep = max(1, int(np.ceil(trim * len(dist))))
     return float(np.partition(dist, keep - 1)[:keep].mean())
+
+
+@dataclass(frozen=True)
+class RigidFit:
+    """A source patch and the rigid motion that puts it on a partial target.
+
+    source (S, 3): the points as given; tree: cKDTree on them; rotation (3, 3), translation (3,):
+    ``source @ rotation.T + translation`` lies on the target; residual: `alignment_residual` of
+    the target to the moved source (0.0 when not asked for).
+    """
+
+    source: np.ndarray
+    tree: cKDTree
+    rotation: np.ndarray
+    translation: np.ndarray
+    residual: float
+
+    @property
+    def aligned(self) -> np.ndarray:
+        """The moved source (S, 3): R p + t for every source point p."""
+        return self.source @ self.rotation.T + self.translation
+
+
+def align_best(sources: Sequence[np.ndarray | None], partial: np.ndarray, *, iterations: int,
+               screen_iterations: int = 3, residual: bool = True) -> RigidFit | None:
+    """The candidate source patch that `align_to_partial` fits best onto ``partial`` (T, 3), aligned.
+
+    sources: candidate patches (S_i, 3), already translated into place; None or fewer than 3
+    points skip a candidate. One candidate: aligned with ``iterations`` ICP iterations. Several: each
+    is screened by min(``screen_iterations``, ``iterations``) iterations, the smallest trimmed mean
+    residual (`alignment_residual`) wins (the first on ties) and is refined by the remaining
+    iterations, resuming from its screening alignment. ``residual``: compute the winner's final
+    residual (else 0.0). None when no candidate has 3 points.
+    """
+    single = len(sources) == 1
+    screen = iterations if single else min(screen_iterations, iterations)
+    best, best_residual = None, np.inf
+    for source in sources:
+        if source is None or len(source) < 3:
+            continue
+        tree = cKDTree(source)
+        rotation, translation = align_to_partial(source, partial, iterations=screen, source_tree=tree)
+        score = 0.0 if single else alignment_residual(tree, partial, rotation, translation)
+        if score < best_residual:
+            best, best_residual = (source, tree, rotation, translation), score
+    if best is None:
+        return None
+    source, tree, rotation, translation = best
+    if screen < iterations:
+        rotation, translation = align_to_partial(source, partial, iterations=iterations - screen, source_tree=tree,
+                                                 start=(rotation, translation))
+    final = alignment_residual(tree, partial, rotation, translation) if residual else 0.0
+    return RigidFit(source, tree, rotation, translation, final)

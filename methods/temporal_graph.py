@@ -69,27 +69,49 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    plane of its 8 nearest points there): a gap in a neighbour, e.g. in an inpainted f-1's own
    fill, is no evidence against a point on the surface continued.
 10. Voxelized input (all coordinates integers) [snap]: the new points are turned into the grid voxels of
-   the surface they sample (`_voxelize`: voxels within half a voxel of the local tangent plane),
+   the surface they sample (`voxelize_fill`: voxels within half a voxel of the local tangent plane),
    minus voxels already occupied.
 
-Decisions by measurement: see the `TemporalGraph` docstring.
+Code. Each step is a function or a small class: `normal_features` and `CandidateCubes` (step 4's
+features), `methods._cubes` (`hole_cells`, `region_groups`, `TargetCubeOrder`: steps 1-3),
+`intra_source`, `inter_source_window` / `inter_source` (steps 4 and 6),
+`methods._registration.align_best` (step 5), `select_new_points` (step 7's new rows),
+`methods._graph.spatial_laplacian` / `temporal_links` (step 7), `methods._graph.solve_cube` (step 8),
+`drop_contradicted_rows` (step 9), `voxelize_fill` / `finish_frame` (step 10). The state they pass is
+frozen dataclasses: `FrameContext` (one frame), `LocalPoints` (one group of holes, as it fills),
+`NeighbourFrame`, `InterSource`, `CubeFill`, `GroupFill`. `_CubeGraphInpainting` only wires them:
+`_inpaint_sequence` (frames in order), `_inpaint_frame`, `_fill_group`, `_fill_cube`.
+
+Measured figures behind the choices: methods/NOTES.md.
 """
 
 from __future__ import annotations
 
 import copy
-import itertools
 import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from holes.geometry import point_spacing
-from methods._cubes import CellGrid, best_window, block_sums, in_box
-from methods._graph import knn_laplacian, solve_cube
-from methods._registration import align_to_partial, alignment_residual
+from methods._cubes import (
+    CellGrid,
+    TargetCubeOrder,
+    best_window,
+    hole_cells,
+    in_box,
+    region_groups,
+)
+from methods._graph import TemporalLinks, solve_cube, spatial_laplacian, temporal_links
+from methods._registration import RigidFit, align_best
 from methods.base import InpaintingMethod
 from metrics.errors import UserError
+
+if TYPE_CHECKING:
+    from holes.regions import HoleRegion
 
 _KNOWN_MODES = ("fixed", "free")
 _NEW_POINT_MODES = ("pending-cells", "empty-slots")
@@ -98,7 +120,7 @@ _GRAPH_MODES = ("estimate", "source")
 #: The values that each variant gives to the switches (parameters left at None). "tuned" is ours
 #: (the defaults); "paper" follows the paper step by step, every addition of ours off (see the
 #: `TemporalGraph` docstring, "The paper configuration", for each switch and the paper's text).
-VARIANTS: dict[str, dict] = {
+VARIANTS: dict[str, dict[str, Any]] = {
     "tuned": dict(intra_candidates=4, temporal_source=True, drop_contradicted=True, known_points="fixed",
                   link_cutoff=True, skip_hole_links=True, rim_centred=True, defer_unreachable=True,
                   hole_free_candidates=True, grow_source=True, new_points="pending-cells", snap="auto",
@@ -110,12 +132,451 @@ VARIANTS: dict[str, dict] = {
 }
 
 
+# -- state ------------------------------------------------------------------------------------------
+# Small frozen records passed between the steps. Arrays inside them are never written after
+# construction; a step that changes the state returns a new record.
+
+
+@dataclass(frozen=True)
+class NeighbourFrame:
+    """A neighbouring frame g of the frame f being inpainted (g = f - 1 or f + 1).
+
+    points (N_g, 3): f-1's inpainted output, or f+1's damaged input. tree: cKDTree on ``points``.
+    regions: hole regions of g whose points are still missing (those of f+1; none for the
+    inpainted f-1): a row that maps into one has no counterpart in g. source_regions: the hole
+    regions of g's input (f-1's too): near one, g's points are not captured data.
+    """
+
+    points: np.ndarray
+    tree: cKDTree
+    regions: Sequence[HoleRegion]
+    source_regions: Sequence[HoleRegion]
+
+
+@dataclass(frozen=True)
+class CandidateCubes:
+    """The intra-source candidates of one frame: C cubes with their DC / AGTV features.
+
+    lower (C, 3): lower corner of each cube (side M). count (C,): points in it (float). dc (C, 3):
+    mean unit normal of its sampled points. agtv (C,): mean per-point AGTV of its sampled points.
+    tree: cKDTree on the 4-vectors (dc, agtv_weight * agtv), None when C = 0.
+    """
+
+    lower: np.ndarray
+    count: np.ndarray
+    dc: np.ndarray
+    agtv: np.ndarray
+    tree: cKDTree | None
+
+    @classmethod
+    def build(cls, grid: CellGrid, points: np.ndarray, normals: np.ndarray, agtv: np.ndarray,
+              regions: Sequence[HoleRegion], *, min_known_points: int, hole_free: bool,
+              agtv_weight: float) -> CandidateCubes:
+        """Every cube of ``grid`` with >= ``min_known_points`` points and at least one point that has
+        features (``agtv`` not NaN: the `normal_features` sample), and with ``hole_free`` no cell
+        touching a hole region. dc = sum of the sampled normals / number sampled, the same for agtv.
+        Per-cube sums come from per-cell sums (`CellGrid.cube_sums`): O(cells), whatever M is."""
+        cube_counts = grid.cube_sums(grid.bin(points))
+        ok = cube_counts >= min_known_points
+        if hole_free:
+            ok &= grid.cube_sums(hole_cells(grid, regions).astype(np.int64)) == 0
+        sampled = ~np.isnan(agtv)
+        sample_counts = grid.cube_sums(grid.bin(points[sampled]))
+        ok &= sample_counts > 0
+        anchors = np.argwhere(ok)
+        count = cube_counts[ok].astype(np.float64)
+        samples = sample_counts[ok].astype(np.float64)
+        dc = grid.cube_sums(grid.bin(points[sampled], normals[sampled]))[ok] / samples[:, None]
+        mean_agtv = grid.cube_sums(grid.bin(points[sampled], agtv[sampled]))[ok] / samples
+        tree = cKDTree(np.column_stack([dc, agtv_weight * mean_agtv])) if len(anchors) else None
+        return cls(grid.cube_lower(anchors), count, dc, mean_agtv, tree)
+
+    def ranked(self, query: np.ndarray, m: int, target_lower: np.ndarray, *, cube: float, cell: float,
+               cells_per_cube: int, hole_free: bool, agtv_weight: float, want: int) -> np.ndarray:
+        """Indices (<= want,) of the candidates most similar to the target, best first.
+
+        query (4,): the target's (DC, agtv_weight * AGTV). Similarity: Euclidean distance between the
+        4-vectors (paper silent; [Fu18TIP] gives no formula). A candidate must hold >= m points (the
+        target's known part: it must cover it to supply the missing one), and unless ``hole_free``
+        must not overlap the target cube at ``target_lower`` (it shares the target's hole, and the
+        target is trivially the most similar to itself). The nearest 64 (+ the (2 c - 1)^3
+        overlapping cubes) come from the k-d tree; when fewer than ``want`` of them are usable,
+        all usable candidates are ranked by brute force (stable order)."""
+        if self.tree is None:
+            return np.empty(0, dtype=np.int64)
+        usable = self.count >= m
+        if not hole_free:
+            usable &= (np.abs(self.lower - target_lower) >= cube - 0.5 * cell).any(axis=1)
+        k = min(len(self.count), 64 if hole_free else 64 + (2 * cells_per_cube - 1) ** 3)
+        _, order = self.tree.query(query, k=k)
+        order = np.atleast_1d(order)
+        order = order[usable[order]]
+        if len(order) < want:
+            # rare: few big-enough cubes among the nearest features; rank all of them
+            big = np.flatnonzero(usable)
+            if not len(big):
+                return big
+            feats = np.column_stack([self.dc[big], agtv_weight * self.agtv[big]])
+            order = big[np.argsort(np.linalg.norm(feats - query, axis=1), kind="stable")]
+        return order[:want]
+
+
+@dataclass(frozen=True)
+class FrameContext:
+    """What every target cube of one frame reads (the frame's "context").
+
+    points (N, 3), tree: the damaged frame and its cKDTree. grid: its cells (side M / c, c = cells_per_cube,
+    padded by c cells). cube: M in coordinates (cube_size * unit); cell: M / c; unit: u; sigma: the
+    graph's Gaussian width in coordinates (sigma * u). candidates: its intra-source candidates.
+    neighbours: the neighbouring frames (none without temporal terms). link: the longest temporal
+    link (None without temporal terms). slot: side of a slot for new_points="empty-slots" (else None).
+    """
+
+    points: np.ndarray
+    tree: cKDTree
+    grid: CellGrid
+    cube: float
+    cell: float
+    unit: float
+    sigma: float
+    candidates: CandidateCubes
+    neighbours: tuple[NeighbourFrame, ...]
+    link: float | None
+    slot: float | None
+
+
+@dataclass(frozen=True)
+class CubeFill:
+    """What one target cube contributes. new (P, 3): its new points (after drop_contradicted).
+    moved_rows (m,) and moved (m, 3): with known_points="free", the rows of `LocalPoints` that
+    the solve moved and where to; None with "fixed" or when nothing was solved."""
+
+    new: np.ndarray
+    moved_rows: np.ndarray | None = None
+    moved: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class LocalPoints:
+    """The points near one group of holes, as the group's fills go on (the group's "local" state).
+
+    points (L, 3): the frame's points in the group's box, then the points filled so far. normals
+    (L, 3), agtv (L,): their features (NaN off the sample and for filled points). index (L,): row in
+    the frame, -1 for a filled point. Filled points count as known for the later target cubes.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    agtv: np.ndarray
+    index: np.ndarray
+
+    def apply(self, fill: CubeFill) -> LocalPoints:
+        """The state after ``fill``: its moved rows at their new positions, its new points appended."""
+        points = self.points
+        if fill.moved_rows is not None:
+            points = points.copy()
+            points[fill.moved_rows] = fill.moved
+        if not len(fill.new):
+            return replace(self, points=points)
+        nan = np.full((len(fill.new), 3), np.nan)
+        return LocalPoints(np.vstack([points, fill.new]), np.vstack([self.normals, nan]),
+                           np.concatenate([self.agtv, nan[:, 0]]),
+                           np.concatenate([self.index, np.full(len(fill.new), -1)]))
+
+
+@dataclass(frozen=True)
+class GroupFill:
+    """What one group of holes contributes: moved_index (K,) rows of the frame moved to
+    moved_points (K, 3) (known_points="free" only), and the new points (P, 3)."""
+
+    moved_index: np.ndarray
+    moved_points: np.ndarray
+    new: np.ndarray
+
+
+@dataclass(frozen=True)
+class InterSource:
+    """An inter-source cube of a neighbouring frame aligned onto a target cube's known points.
+
+    aligned (S, 3) = source @ rotation.T + translation. residual: trimmed mean distance of the
+    target's known points to ``aligned`` (`alignment_residual`). raw: no hole region of that
+    frame's input lies within one cube of the target, so its points there are captured data.
+    regions: that frame's hole regions still missing (`NeighbourFrame.regions`).
+    """
+
+    aligned: np.ndarray
+    rotation: np.ndarray
+    translation: np.ndarray
+    residual: float
+    raw: bool
+    regions: Sequence[HoleRegion]
+
+
+# -- steps --------------------------------------------------------------------------------------------
+# The pipeline of one frame, in order: features and candidates (`normal_features`,
+# `CandidateCubes`), the cubes (`methods._cubes`: `hole_cells`, `region_groups`,
+# `TargetCubeOrder`), the sources (`intra_source`, `inter_source_window`, `inter_source`), their
+# alignment (`methods._registration.align_best`), the new points (`select_new_points`), the graph
+# (`methods._graph.spatial_laplacian`, `temporal_links`), the solve (`methods._graph.solve_cube`),
+# and the post-processing (`drop_contradicted_rows`, `voxelize_fill`, `finish_frame`).
+
+
+def cube_unit(frame: np.ndarray, tree: cKDTree | None, spacing: float | str | None, integer: bool, name: str) -> float:
+    """The unit u (coordinates) of every length parameter, from the largest ``frame`` (N, 3).
+
+    spacing="points": the median point spacing (`holes.geometry.point_spacing`); a number: that
+    number; None: 1 on voxelized (``integer``) data, else 1/1024 of the largest bounding-box side
+    (the paper sets M "according to the coordinate range of P_f": M = 20 on a body 1023 units tall).
+    """
+    if spacing == "points":
+        return point_spacing(frame, tree=tree)
+    if spacing is not None:
+        return float(spacing)
+    if integer:
+        return 1.0  # one voxel, whatever the bit depth
+    extent = float(np.ptp(frame, axis=0).max())
+    if not extent > 0:
+        raise UserError(f"{name}: the frames have zero extent; pass spacing=<length of one unit>")
+    return extent / 1024.0
+
+
+def normal_features(points: np.ndarray, tree: cKDTree, sigma: float, feature_fraction: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals (N, 3) and per-point AGTV a_i (N,) on a fixed sample of the points, NaN elsewhere.
+
+    The sample is a fixed-seed ``feature_fraction`` of the points (all of them at 1.0). Normal of a
+    sampled point: the eigenvector of the smallest eigenvalue of the covariance of its 10 nearest
+    points in the whole frame, oriented away from the frame centroid. Written with numpy (batched
+    ``eigh``) instead of open3d's ``estimate_normals`` because open3d can only estimate the normals
+    of every point, and the AGTV needs the neighbour search anyway. AGTV of a sampled point:
+    a_i = sum_{j in 8-NN of i in the sample} exp(-||p_i - p_j||^2 / 2 sigma_s^2) ||n_i - s_ij n_j||_1,
+    s_ij = sign(n_i . n_j), sigma_s = sigma / sqrt(feature_fraction) (the sample's spacing grows
+    as 1 / sqrt(fraction) on a surface).
+    """
+    n = len(points)
+    count = max(min(n, 9), int(round(feature_fraction * n)))
+    sample = np.sort(np.random.default_rng(0).choice(n, count, replace=False)) if count < n else np.arange(n)
+    sampled = points[sample]
+    _, idx = tree.query(sampled, k=min(10, n), workers=-1)
+    neigh = points[idx]
+    neigh -= neigh.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", neigh, neigh)
+    _, vectors = np.linalg.eigh(cov)
+    sample_normals = vectors[:, :, 0]
+    flip = np.einsum("ij,ij->i", sample_normals, sampled - points.mean(axis=0)) < 0
+    sample_normals[flip] *= -1.0
+    k = min(9, count)
+    dist, nbr = cKDTree(sampled).query(sampled, k=k, workers=-1)
+    dist, nbr = dist[:, 1:], nbr[:, 1:]
+    neighbour_normals = sample_normals[nbr]
+    sign = np.sign(np.einsum("ij,ikj->ik", sample_normals, neighbour_normals))
+    sign[sign == 0] = 1.0
+    diff = np.abs(sample_normals[:, None, :] - sign[..., None] * neighbour_normals).sum(axis=2)
+    sigma_s = sigma / np.sqrt(min(1.0, count / n))
+    sample_agtv = (np.exp(-dist ** 2 / (2.0 * sigma_s ** 2)) * diff).sum(axis=1)
+    normals = np.full((n, 3), np.nan)
+    agtv = np.full(n, np.nan)
+    normals[sample] = sample_normals
+    agtv[sample] = sample_agtv
+    return normals, agtv
+
+
+def intra_source(target: np.ndarray, lower: np.ndarray, query: np.ndarray, ctx: FrameContext, *,
+                 intra_candidates: int, hole_free: bool, grow_source: bool, cells_per_cube: int,
+                 agtv_weight: float, icp_iterations: int, residual: bool) -> RigidFit | None:
+    """The aligned intra-source cube of the target cube at ``lower``, or None.
+
+    target (m, 3): the target's known points; query (4,): its (DC, agtv_weight * AGTV). The best
+    ``intra_candidates`` of `CandidateCubes.ranked` (the paper: 1) give source patches: a
+    candidate's points within its cube, grown by one cell with ``grow_source`` (so that it still
+    covers the target after a rotation), translated by ``lower - candidate lower``. `align_best`
+    aligns them onto ``target`` (several: screened by the smallest alignment residual).
+    """
+    cand = ctx.candidates
+    choices = cand.ranked(query, len(target), lower, cube=ctx.cube, cell=ctx.cell, cells_per_cube=cells_per_cube,
+                          hole_free=hole_free, agtv_weight=agtv_weight, want=intra_candidates)
+    if not len(choices):
+        return None
+    half = ctx.cube / 2.0
+    grow = ctx.cell if grow_source else 0.0
+    sources: list[np.ndarray | None] = []
+    for index in choices:
+        source_lower = cand.lower[index]
+        source_idx = ctx.tree.query_ball_point(source_lower + half, half + grow, p=np.inf)
+        sources.append(ctx.points[source_idx] + (lower - source_lower) if len(source_idx) >= 3 else None)
+    return align_best(sources, target, iterations=icp_iterations, residual=residual)
+
+
+def inter_source_window(target: np.ndarray, lower: np.ndarray, neighbour: NeighbourFrame, *, cube: float,
+                        search_box: float, unit: float) -> np.ndarray | None:
+    """Lower corner (3,) of the inter-source cube of ``neighbour`` for the target cube at ``lower``.
+
+    The search box of side H = search_box * M is centred on the co-located cube. Each known target
+    point (m, 3) votes for its nearest neighbour in the frame when that lies in the box; the window
+    of side M (stride one unit) holding most votes wins (`methods._cubes.best_window`, ties to
+    the centre). None when fewer than 3 votes fall in the box.
+    """
+    box = search_box * cube
+    box_lower = lower + cube / 2.0 - box / 2.0
+    # a point whose nearest neighbour is outside the box has no counterpart in the box near it
+    _, nearest = neighbour.tree.query(target)
+    votes = neighbour.points[nearest]
+    votes = votes[in_box(votes, box_lower, box)]
+    if len(votes) < 3:
+        return None
+    window_lower, _ = best_window(votes, box_lower, box, cube, unit)
+    return window_lower
+
+
+def inter_source(target: np.ndarray, lower: np.ndarray, neighbour: NeighbourFrame, *, cube: float, cell: float,
+                 unit: float, search_box: float, grow_source: bool, icp_iterations: int) -> InterSource | None:
+    """The aligned inter-source cube of one neighbouring frame for the target cube at ``lower``
+    (`inter_source_window`, its points grown by one cell with ``grow_source``, aligned onto the
+    target's known points (m, 3) by ``icp_iterations`` of ICP), or None when the frame has fewer
+    than 3 points there."""
+    window_lower = inter_source_window(target, lower, neighbour, cube=cube, search_box=search_box, unit=unit)
+    if window_lower is None:
+        return None
+    half = cube / 2.0
+    window_idx = neighbour.tree.query_ball_point(window_lower + half, half + (cell if grow_source else 0.0),
+                                                 p=np.inf)
+    if len(window_idx) < 3:
+        return None
+    fit = align_best([neighbour.points[window_idx]], target, iterations=icp_iterations)
+    if fit is None:
+        return None
+    # raw: an inpainted f-1 would otherwise hand its own fill on, and a fill copied from frame to
+    # frame shrinks and drifts with the hole
+    centre = lower + cube / 2.0
+    raw = all(np.linalg.norm(r.center - centre) > r.bounding_radius + cube for r in neighbour.source_regions)
+    return InterSource(fit.aligned, fit.rotation, fit.translation, fit.residual, raw, neighbour.regions)
+
+
+def select_new_points(source: np.ndarray, target: np.ndarray, lower: np.ndarray, regions: Sequence[HoleRegion],
+                      pending: np.ndarray, source_cells: np.ndarray, *, cube: float, mode: str,
+                      slot: float | None) -> np.ndarray:
+    """The new points (P, 3): the aligned source points (S, 3) that fill the target cube's missing part.
+
+    Always inside the target cube (side ``cube`` at ``lower``) and inside a hole region.
+    mode "pending-cells": also in a pending cell (``source_cells`` (S, 3): their cells in the local
+    window of ``pending``; a cell outside the window is not pending). mode "empty-slots": also in a
+    slot (voxel of side ``slot``, by rounding) that holds no ``target`` point (m, 3) yet; one point
+    per slot, the first in source order.
+    """
+    in_window = ((source_cells >= 0) & (source_cells < pending.shape)).all(axis=1)
+    in_pending = np.zeros(len(source), dtype=bool)
+    in_pending[in_window] = pending[tuple(source_cells[in_window].T)]
+    inside = np.zeros(len(source), dtype=bool)
+    for region in regions:
+        inside |= region.contains(source)
+    inside &= in_box(source, lower, cube)
+    if mode == "pending-cells":
+        return source[in_pending & inside]
+    # "empty-slots" (the other reading of Omega, the missing slots of the M^3 grid): a source point
+    # in a hole region whose slot holds no point of the frame yet, captured or filled earlier
+    new = source[inside]
+    if len(new):
+        if slot is None:
+            raise ValueError("new_points='empty-slots' needs the side of a slot")
+        slots = np.floor(new / slot + 0.5).astype(np.int64)
+        taken = {tuple(key) for key in np.floor(target / slot + 0.5).astype(np.int64)}
+        _, first = np.unique(slots, axis=0, return_index=True)
+        new = new[[i for i in np.sort(first) if tuple(slots[i]) not in taken]].reshape(-1, 3)
+    return new
+
+
+def drop_contradicted_rows(new: np.ndarray, links: Sequence[TemporalLinks], m: int) -> np.ndarray:
+    """The solved new rows (P, 3) (rows m.. of the cube) that no neighbour contradicts or that one
+    supports: kept where any(supported) or not any(contradicted) over the ``links``."""
+    supported = np.any([link.supported[m:] for link in links], axis=0)
+    against = np.any([link.contradicted[m:] for link in links], axis=0)
+    return new[supported | ~against]
+
+
+def voxelize_fill(added: np.ndarray, regions: Sequence[HoleRegion]) -> np.ndarray:
+    """The grid voxels (integer points) of the surface that the new points ``added`` (P, 3) sample.
+
+    Rounding each new point on its own leaves gaps and doubles where the filled patch is rotated
+    or smoothed off the lattice. Instead every voxel within one step of a new point, inside a
+    hole region, is kept when it lies within half a voxel of the local tangent plane of its
+    nearest new point (plane from the 8 nearest new points) and within 1.5 voxels of that point
+    (so that a one-voxel seam between the fills of two cubes closes).
+    """
+    if len(added) < 4:
+        return np.unique(np.floor(added + 0.5), axis=0)
+    tree = cKDTree(added)
+    _, nbr = tree.query(added, k=min(8, len(added)))
+    neigh = added[nbr] - added[nbr].mean(axis=1, keepdims=True)
+    _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", neigh, neigh))
+    normals = vectors[:, :, 0]
+    offsets = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    # round half up, not half to even: a lattice shifted by half a voxel must not fold
+    base = np.unique(np.floor(added + 0.5), axis=0)
+    voxels = np.unique((base[:, None, :] + offsets[None]).reshape(-1, 3), axis=0)
+    inside = np.zeros(len(voxels), dtype=bool)
+    for region in regions:
+        inside |= region.contains(voxels)
+    voxels = voxels[inside]
+    dist, nearest = tree.query(voxels)
+    off_plane = np.abs(np.einsum("ij,ij->i", voxels - added[nearest], normals[nearest]))
+    return voxels[(dist <= 1.5) & (off_plane <= 0.5)]
+
+
+def finish_frame(out: np.ndarray, added: np.ndarray, regions: Sequence[HoleRegion], *, voxelized: bool,
+                 round_known: bool) -> np.ndarray:
+    """The output frame (N + P', 3): the frame's points ``out`` (N, 3), then the new points
+    ``added`` (P, 3). Voxelized input (and new points): the new points become voxels
+    (`voxelize_fill`) minus those already occupied (a point within half a voxel), and with
+    ``round_known`` (known_points="free") the moved known points are rounded half up."""
+    if voxelized and len(added):
+        if round_known:
+            out = np.floor(out + 0.5)
+        added = voxelize_fill(added, regions)
+        dist, _ = cKDTree(out).query(added, distance_upper_bound=0.5)
+        added = added[~np.isfinite(dist)]
+    return np.vstack([out, added])
+
+
 class _CubeGraphInpainting(InpaintingMethod):
     """Shared machinery; subclasses fix whether the temporal terms are used (``_temporal``)."""
 
     _temporal: bool = True
     detects_holes = True
     needs_regions = False
+
+    # The parameters, stored by the subclasses' __init__. The switches (VARIANTS) are None there
+    # ("the variant's value", so their __init__ parameters carry no type: any value is checked by
+    # `_validate` once resolved); the types below are those of the resolved copy (`_configured`),
+    # the only object the pipeline runs on.
+    variant: str
+    cube_size: float
+    cells_per_cube: int
+    search_box: float
+    alpha: float
+    beta: float
+    gamma: float
+    sigma: float
+    k_neighbors: int | None
+    spacing: float | str | None
+    known_points: str
+    min_known_points: int
+    icp_iterations: int
+    link_radius: float
+    snap: str | bool
+    agtv_weight: float
+    intra_candidates: int
+    feature_fraction: float
+    drop_contradicted: bool
+    temporal_source: bool
+    off_surface: float | None
+    link_cutoff: bool
+    skip_hole_links: bool
+    rim_centred: bool
+    defer_unreachable: bool
+    hole_free_candidates: bool
+    grow_source: bool
+    new_points: str
+    graph_on: str
 
     # -- parameters -------------------------------------------------------------------------
     def _beta(self) -> float:
@@ -127,12 +588,12 @@ class _CubeGraphInpainting(InpaintingMethod):
         (so a stored record names each switch as it ran). An unknown variant leaves them at None
         (`inpaint` refuses it)."""
         params = super().get_params()
-        for name, value in VARIANTS.get(params.get("variant"), {}).items():
+        for name, value in VARIANTS.get(str(params.get("variant")), {}).items():
             if name in params and params[name] is None:
                 params[name] = value
         return params
 
-    def _configured(self) -> "_CubeGraphInpainting":
+    def _configured(self) -> _CubeGraphInpainting:
         """A copy whose switches hold their resolved values (explicit ones win over the variant's)."""
         if self.variant not in VARIANTS:
             raise ValueError(f"{self.name}: variant must be one of {tuple(VARIANTS)}, got {self.variant!r}")
@@ -140,7 +601,7 @@ class _CubeGraphInpainting(InpaintingMethod):
         run.__dict__.update(self.get_params())
         return run
 
-    def validate_params(self) -> "_CubeGraphInpainting":
+    def validate_params(self) -> _CubeGraphInpainting:
         """As `InpaintingMethod.validate_params`, on the switches as the variant resolves them (a switch
         left at None takes the variant's value, so None itself is never checked)."""
         try:
@@ -151,7 +612,7 @@ class _CubeGraphInpainting(InpaintingMethod):
         return self
 
     def _validate(self) -> None:
-        def positive(name):
+        def positive(name: str) -> None:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0:
                 raise ValueError(f"{self.name}: {name} must be a positive number, got {value!r}")
@@ -203,16 +664,23 @@ class _CubeGraphInpainting(InpaintingMethod):
         if self.graph_on not in _GRAPH_MODES:
             raise ValueError(f"{self.name}: graph_on must be one of {_GRAPH_MODES}, got {self.graph_on!r}")
 
+    # the voxelization of step 10 under its former name: methods.temporal_fusion calls it
+    _voxelize = staticmethod(voxelize_fill)
+
     # -- sequence ---------------------------------------------------------------------------
-    def inpaint(self, frames, regions=None):
-        frames, regions = self._check_inputs(frames, regions)
-        return self._configured()._inpaint_sequence(frames, regions)
+    def inpaint(self, frames: list[np.ndarray], regions: list | None = None) -> list[np.ndarray]:
+        """Inpaint the sequence ``frames`` (list of (N_f, 3)) given the hole regions of each frame
+        (a list of lists of `holes.regions.HoleRegion`), or blind (None: `holes.detection`).
+        Returns a new list of (N'_f, 3) frames: each frame's points (moved with known_points="free"),
+        then its new points."""
+        checked, regions = self._check_inputs(frames, regions)
+        return self._configured()._inpaint_sequence(checked, regions)
 
-    def _inpaint_sequence(self, frames, regions):
+    def _inpaint_sequence(self, frames: list[np.ndarray], regions: list | None) -> list[np.ndarray]:
         self._validate()
-        trees: dict = {}  # k-d tree of each input frame, built once, dropped once behind
+        trees: dict[int, cKDTree] = {}  # k-d tree of each input frame, built once, dropped once behind
 
-        def tree_of(f):
+        def tree_of(f: int) -> cKDTree:
             if f not in trees:
                 trees[f] = cKDTree(frames[f])
             return trees[f]
@@ -220,19 +688,8 @@ class _CubeGraphInpainting(InpaintingMethod):
         integer = all(np.array_equal(f, np.round(f)) for f in frames)
         voxelized = self.snap is True or (self.snap == "auto" and integer)
         largest = max(range(len(frames)), key=lambda f: len(frames[f]))
-        if self.spacing == "points":
-            unit = point_spacing(frames[largest], tree=tree_of(largest))
-        elif self.spacing is not None:
-            unit = float(self.spacing)
-        elif integer:
-            unit = 1.0  # one voxel, whatever the bit depth
-        else:
-            # the paper sets M "according to the coordinate range of P_f": one unit is 1/1024 of
-            # the largest bounding-box side (M = 20 on a body 1023 units tall)
-            extent = float(np.ptp(frames[largest], axis=0).max())
-            if not extent > 0:
-                raise UserError(f"{self.name}: the frames have zero extent; pass spacing=<length of one unit>")
-            unit = extent / 1024.0
+        unit = cube_unit(frames[largest], tree_of(largest) if self.spacing == "points" else None, self.spacing,
+                         integer, self.name)
         if regions is None:
             from holes.detection import detect_holes  # lazily: blind protocol only
 
@@ -258,33 +715,30 @@ class _CubeGraphInpainting(InpaintingMethod):
                 outputs.append(frame.copy())
                 output_tree = None  # same points as the input: its tree serves
                 continue
-            neighbours = []
+            neighbours: list[NeighbourFrame] = []
             if beta > 0:
                 if f > 0:
                     # already inpainted: no holes left
                     prev_tree = output_tree if output_tree is not None else tree_of(f - 1)
-                    neighbours.append(dict(points=outputs[f - 1], tree=prev_tree, regions=[],
-                                           source_regions=regions[f - 1]))
+                    neighbours.append(NeighbourFrame(outputs[f - 1], prev_tree, [], regions[f - 1]))
                 if f + 1 < len(frames):
-                    neighbours.append(dict(points=frames[f + 1], tree=tree_of(f + 1), regions=regions[f + 1],
-                                           source_regions=regions[f + 1]))
-            outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], neighbours, unit, voxelized,
+                    neighbours.append(NeighbourFrame(frames[f + 1], tree_of(f + 1), regions[f + 1], regions[f + 1]))
+            outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], tuple(neighbours), unit, voxelized,
                                                link_distance, slot))
             output_tree = cKDTree(outputs[f]) if beta > 0 and f + 1 < len(frames) and regions[f + 1] else None
         return outputs
 
-    def _link_distance(self, frame, tree, unit, integer) -> float:
+    def _link_distance(self, frame: np.ndarray, tree: cKDTree, unit: float, integer: bool) -> float:
         """Longest temporal link: ``link_radius`` point spacings, each at least one unit.
 
         A link joins a point to its counterpart in the neighbouring frame's sampling, so its length
-        is measured in point spacings (one voxel on voxelized data), not in the cube's unit: on
-        dfaust (u = 1, spacing 3.1) a link of 2.5 u dropped half the fill of coherent holes as
-        "contradicted" (10 frames, medium coherent holes: D1 20.4 -> 25.0 dB with 2.5 spacings).
+        is measured in point spacings (one voxel on voxelized data), not in the cube's unit (see
+        methods/NOTES.md for the measurement on dfaust).
         """
         spacing = 1.0 if integer else point_spacing(frame, tree=tree)
         return self.link_radius * max(unit, spacing)
 
-    def _check_regions(self, f, frame, frame_regions, unit, tree):
+    def _check_regions(self, f: int, frame: np.ndarray, frame_regions: list, unit: float, tree: cKDTree) -> None:
         reach = self.cube_size * unit
         inside = np.zeros(len(frame), dtype=bool)
         for region in frame_regions:
@@ -301,163 +755,33 @@ class _CubeGraphInpainting(InpaintingMethod):
                              "nothing is left to fill from")
 
     # -- one frame --------------------------------------------------------------------------
-    def _normal_features(self, points: np.ndarray, tree: cKDTree, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-        """Unit normals (N, 3) and per-point AGTV a_i (N,) on a fixed sample of the points, NaN elsewhere.
-
-        The sample is a fixed-seed ``feature_fraction`` of the points (all of them at 1.0). Normal of a
-        sampled point: the eigenvector of the smallest eigenvalue of the covariance of its 10 nearest
-        points in the whole frame, oriented away from the frame centroid. Written with numpy (batched
-        ``eigh``) instead of open3d's ``estimate_normals`` because open3d can only estimate the normals
-        of every point, and the AGTV needs the neighbour search anyway. AGTV of a sampled point:
-        a_i = sum_{j in 8-NN of i in the sample} exp(-||p_i - p_j||^2 / 2 sigma_s^2) ||n_i - s_ij n_j||_1,
-        s_ij = sign(n_i . n_j), sigma_s = sigma / sqrt(feature_fraction) (the sample's spacing grows
-        as 1 / sqrt(fraction) on a surface).
-        """
-        n = len(points)
-        count = max(min(n, 9), int(round(self.feature_fraction * n)))
-        sample = np.sort(np.random.default_rng(0).choice(n, count, replace=False)) if count < n else np.arange(n)
-        sampled = points[sample]
-        _, idx = tree.query(sampled, k=min(10, n), workers=-1)
-        neigh = points[idx]
-        neigh -= neigh.mean(axis=1, keepdims=True)
-        cov = np.einsum("nki,nkj->nij", neigh, neigh)
-        _, vectors = np.linalg.eigh(cov)
-        sample_normals = vectors[:, :, 0]
-        flip = np.einsum("ij,ij->i", sample_normals, sampled - points.mean(axis=0)) < 0
-        sample_normals[flip] *= -1.0
-        k = min(9, count)
-        dist, nbr = cKDTree(sampled).query(sampled, k=k, workers=-1)
-        dist, nbr = dist[:, 1:], nbr[:, 1:]
-        neighbour_normals = sample_normals[nbr]
-        sign = np.sign(np.einsum("ij,ikj->ik", sample_normals, neighbour_normals))
-        sign[sign == 0] = 1.0
-        diff = np.abs(sample_normals[:, None, :] - sign[..., None] * neighbour_normals).sum(axis=2)
-        sigma_s = sigma / np.sqrt(min(1.0, count / n))
-        sample_agtv = (np.exp(-dist ** 2 / (2.0 * sigma_s ** 2)) * diff).sum(axis=1)
-        normals = np.full((n, 3), np.nan)
-        agtv = np.full(n, np.nan)
-        normals[sample] = sample_normals
-        agtv[sample] = sample_agtv
-        return normals, agtv
-
-    def _inpaint_frame(self, points, tree, regions, neighbours, unit, voxelized, link_distance, slot=None):
+    def _inpaint_frame(self, points: np.ndarray, tree: cKDTree, regions: list, neighbours: tuple[NeighbourFrame, ...],
+                       unit: float, voxelized: bool, link_distance: float | None, slot: float | None = None
+                       ) -> np.ndarray:
+        """Steps 1-10 of the module docstring on one frame (N, 3); returns the output frame."""
         cube = self.cube_size * unit
         per = self.cells_per_cube
         cell = cube / per
         sigma = self.sigma * unit
-        normals, agtv = self._normal_features(points, tree, sigma)
+        normals, agtv = normal_features(points, tree, sigma, self.feature_fraction)
         grid = CellGrid(points.min(axis=0), points.max(axis=0), cell, per, pad=per)
-
-        # candidate (intra-source) cubes: per-cube sums from per-cell sums (summed-volume tables)
-        counts = grid.bin(points)
-        hole_cells = self._hole_cells(grid, regions)
-        cube_counts = grid.cube_sums(counts)
-        cube_holes = grid.cube_sums(hole_cells.astype(np.int64))
-        ok = cube_counts >= self.min_known_points
-        if self.hole_free_candidates:
-            ok &= cube_holes == 0
-        sampled = ~np.isnan(agtv)
-        sample_counts = grid.cube_sums(grid.bin(points[sampled]))
-        ok &= sample_counts > 0
-        anchors = np.argwhere(ok)
-        cand_count = cube_counts[ok].astype(np.float64)
-        cand_samples = sample_counts[ok].astype(np.float64)
-        cand_dc = grid.cube_sums(grid.bin(points[sampled], normals[sampled]))[ok] / cand_samples[:, None]
-        cand_agtv = grid.cube_sums(grid.bin(points[sampled], agtv[sampled]))[ok] / cand_samples
-        candidates = dict(lower=grid.cube_lower(anchors), count=cand_count, dc=cand_dc, agtv=cand_agtv,
-                          tree=cKDTree(np.column_stack([cand_dc, self.agtv_weight * cand_agtv])) if len(anchors) else None)
-
-        context = dict(points=points, tree=tree, grid=grid, cube=cube, cell=cell, unit=unit, sigma=sigma,
-                       candidates=candidates, neighbours=neighbours, link=link_distance, slot=slot)
+        candidates = CandidateCubes.build(grid, points, normals, agtv, regions, min_known_points=self.min_known_points,
+                                          hole_free=self.hole_free_candidates, agtv_weight=self.agtv_weight)
+        ctx = FrameContext(points, tree, grid, cube, cell, unit, sigma, candidates, neighbours, link_distance, slot)
         out = points.copy()
         new_points = []
-        for group in self._region_groups(regions, cube + cell):
-            moved, added = self._fill_group(group, normals, agtv, context)
-            for index, position in moved:
-                out[index] = position
-            new_points.append(added)
+        for group in region_groups(regions, cube + cell):
+            fill = self._fill_group(group, normals, agtv, ctx)
+            out[fill.moved_index] = fill.moved_points
+            new_points.append(fill.new)
         added = np.vstack(new_points) if new_points else np.empty((0, 3))
-        if voxelized and len(added):
-            if self.known_points == "free":
-                out = np.floor(out + 0.5)
-            added = self._voxelize(added, regions)
-            dist, _ = cKDTree(out).query(added, distance_upper_bound=0.5)
-            added = added[~np.isfinite(dist)]
-        return np.vstack([out, added])
+        return finish_frame(out, added, regions, voxelized=voxelized, round_known=self.known_points == "free")
 
-    @staticmethod
-    def _voxelize(added: np.ndarray, regions) -> np.ndarray:
-        """The grid voxels (integer points) of the surface that the new points ``added`` (P, 3) sample.
-
-        Rounding each new point on its own leaves gaps and doubles where the filled patch is rotated
-        or smoothed off the lattice. Instead every voxel within one step of a new point, inside a
-        hole region, is kept when it lies within half a voxel of the local tangent plane of its
-        nearest new point (plane from the 8 nearest new points) and within 1.5 voxels of that point
-        (so that a one-voxel seam between the fills of two cubes closes).
-        """
-        if len(added) < 4:
-            return np.unique(np.floor(added + 0.5), axis=0)
-        tree = cKDTree(added)
-        _, nbr = tree.query(added, k=min(8, len(added)))
-        neigh = added[nbr] - added[nbr].mean(axis=1, keepdims=True)
-        _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", neigh, neigh))
-        normals = vectors[:, :, 0]
-        offsets = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
-        # round half up, not half to even: a lattice shifted by half a voxel must not fold
-        base = np.unique(np.floor(added + 0.5), axis=0)
-        voxels = np.unique((base[:, None, :] + offsets[None]).reshape(-1, 3), axis=0)
-        inside = np.zeros(len(voxels), dtype=bool)
-        for region in regions:
-            inside |= region.contains(voxels)
-        voxels = voxels[inside]
-        dist, nearest = tree.query(voxels)
-        off_plane = np.abs(np.einsum("ij,ij->i", voxels - added[nearest], normals[nearest]))
-        return voxels[(dist <= 1.5) & (off_plane <= 0.5)]
-
-    @staticmethod
-    def _hole_cells(grid: CellGrid, regions) -> np.ndarray:
-        """Bool (X, Y, Z): cells that touch a hole region (cell centre within region + half diagonal)."""
-        mask = np.zeros(tuple(grid.shape), dtype=bool)
-        half_diag = grid.cell * np.sqrt(3.0) / 2.0
-        for region in regions:
-            r = region.bounding_radius + half_diag
-            lo = np.clip(grid.cell_of((region.center - r)[None])[0], 0, grid.shape)
-            hi = np.clip(grid.cell_of((region.center + r)[None])[0] + 1, 0, grid.shape)
-            if (hi <= lo).any():
-                continue
-            idx = np.stack(np.meshgrid(*[np.arange(a, b) for a, b in zip(lo, hi)], indexing="ij"), -1).reshape(-1, 3)
-            centres = grid.origin + (idx + 0.5) * grid.cell
-            hit = idx[region.contains(centres, margin=half_diag)]
-            mask[tuple(hit.T)] = True
-        return mask
-
-    @staticmethod
-    def _region_groups(regions, reach: float) -> list[list]:
-        """Regions grouped so that groups are farther apart than ``reach`` (single linkage)."""
-        n = len(regions)
-        label = list(range(n))
-
-        def root(i):
-            while label[i] != i:
-                label[i] = label[label[i]]
-                i = label[i]
-            return i
-
-        for i in range(n):
-            for j in range(i + 1, n):
-                gap = np.linalg.norm(regions[i].center - regions[j].center)
-                if gap <= regions[i].bounding_radius + regions[j].bounding_radius + 2 * reach:
-                    label[root(i)] = root(j)
-        groups: dict[int, list] = {}
-        for i in range(n):
-            groups.setdefault(root(i), []).append(regions[i])
-        return list(groups.values())
-
-    def _fill_group(self, regions, normals, agtv, ctx):
-        """Fill one group of holes from the boundary inward. Returns (moved known points
-        [(frame index, position)], new points (P, 3))."""
-        grid, cube, cell = ctx["grid"], ctx["cube"], ctx["cell"]
-        points = ctx["points"]
+    def _fill_group(self, regions: list, normals: np.ndarray, agtv: np.ndarray, ctx: FrameContext) -> GroupFill:
+        """Fill one group of holes from the boundary inward (`methods._cubes.TargetCubeOrder`),
+        one target cube at a time (`_fill_cube`), on the points of the group's box (`LocalPoints`)."""
+        grid, cube, cell = ctx.grid, ctx.cube, ctx.cell
+        points = ctx.points
         per = self.cells_per_cube
         reach = np.array([max(r.bounding_radius for r in regions)] * 3)
         lower = np.min([r.center for r in regions], axis=0) - reach - cube - cell
@@ -465,311 +789,99 @@ class _CubeGraphInpainting(InpaintingMethod):
         a0 = np.clip(grid.cell_of(lower[None])[0], 0, grid.shape)
         a1 = np.clip(grid.cell_of(upper[None])[0] + 1, 0, grid.shape)
         if ((a1 - a0) < per).any():
-            return [], np.empty((0, 3))
+            return GroupFill(np.empty(0, dtype=np.int64), np.empty((0, 3)), np.empty((0, 3)))
         window = tuple(slice(a, b) for a, b in zip(a0, a1))
-        pending = self._hole_cells(grid, regions)[window].copy()
         box_lower, box_upper = grid.cube_lower(a0), grid.cube_lower(a1)
         local_index = np.flatnonzero(((points >= box_lower) & (points < box_upper)).all(axis=1))
-        local = dict(points=points[local_index].copy(), normals=normals[local_index], agtv=agtv[local_index],
-                     index=local_index.copy())
-        local_counts = grid.bin(points[local_index])[window].copy()
+        local = LocalPoints(points[local_index].copy(), normals[local_index], agtv[local_index], local_index.copy())
+        order = TargetCubeOrder(hole_cells(grid, regions)[window].copy(), grid.bin(points[local_index])[window].copy(),
+                                per, self.min_known_points, self.rim_centred)
         fix_known = self.known_points == "fixed"
-        # Per-cube sums over the local window, kept up to date around each filled cube only.
-        # central: pending cells in the cube's central (per/2)^3 block; a target cube is centred on
-        # the hole's rim, so about half of it is known (for the matching) and half missing.
-        c0 = per // 4
-        cw = per - 2 * c0
-        n_anchor = np.array(pending.shape) - per + 1
-        sums = {}
-
-        def refresh(lo, hi):
-            lo = np.maximum(lo, 0)
-            hi = np.minimum(hi, n_anchor)
-            if (hi <= lo).any():
-                return
-            cells = tuple(slice(a, b + per - 1) for a, b in zip(lo, hi))
-            anchors = tuple(slice(a, b) for a, b in zip(lo, hi))
-            centre = tuple(slice(a + c0, b + c0 + cw - 1) for a, b in zip(lo, hi))
-            sums["pending"][anchors] = block_sums(pending[cells].astype(np.int64), per)
-            sums["known"][anchors] = block_sums(local_counts[cells], per)
-            sums["central"][anchors] = block_sums(pending[centre].astype(np.int64), cw)
-
-        for key in ("pending", "known", "central"):
-            sums[key] = np.zeros(tuple(n_anchor), dtype=np.int64)
-        refresh(np.zeros(3, dtype=np.int64), n_anchor)
-        tried = np.zeros(tuple(n_anchor), dtype=bool)  # each cube is a target at most once
-        # a cube whose pending cells are all away from its points is put off until points come
-        # nearer (its known count grows): the missing surface cannot be reached from it yet
-        deferred = np.full(tuple(n_anchor), -1, dtype=np.int64)
-        while True:
-            enough = (sums["known"] >= self.min_known_points) & ~tried & (sums["known"] > deferred)
-            eligible = (sums["central"] > 0) & enough if self.rim_centred else np.zeros_like(enough)
-            if not eligible.any():
-                # no known-rich cube is centred on the hole any more (or rim_centred is off): any
-                # cube with missing data
-                eligible = (sums["pending"] > 0) & enough
-                if not eligible.any():
-                    break
-            # the target cube with the most known data first: holes fill from the rim inward
-            pick = np.array(np.unravel_index(np.argmax(np.where(eligible, sums["known"], -1)), eligible.shape))
-            lower = grid.cube_lower(a0 + pick)
-            if self.defer_unreachable and not self._reaches_pending(pending, local_counts, pick):
-                deferred[tuple(pick)] = sums["known"][tuple(pick)]
+        while (pick := order.next()) is not None:
+            if self.defer_unreachable and not order.reaches_pending(pick):
+                # its pending cells are all away from its points: put off until points come nearer
+                order.defer(pick)
                 continue
-            new = self._fill_cube(lower, regions, pending, a0, local, ctx, fix_known)
-            tried[tuple(pick)] = True
-            if len(new):
-                cells = grid.cell_of(new) - a0
-                keep = ((cells >= 0) & (cells < local_counts.shape)).all(axis=1)
-                np.add.at(local_counts, tuple(cells[keep].T), 1)
-                local["points"] = np.vstack([local["points"], new])
-                nan = np.full((len(new), 3), np.nan)
-                local["normals"] = np.vstack([local["normals"], nan])
-                local["agtv"] = np.concatenate([local["agtv"], nan[:, 0]])
-                local["index"] = np.concatenate([local["index"], np.full(len(new), -1)])
-            pending[tuple(slice(p, p + per) for p in pick)] = False
-            refresh(pick - per + 1, pick + per)
-        original = local["index"] >= 0
-        moved = [] if fix_known else list(zip(local["index"][original], local["points"][original]))
+            fill = self._fill_cube(grid.cube_lower(a0 + pick), regions, order.pending, a0, local, ctx, fix_known)
+            local = local.apply(fill)
+            order.filled(pick, grid.cell_of(fill.new) - a0)
+        original = local.index >= 0
         # the new points as they are now: with known_points="free" a later target cube that holds
-        # a point filled earlier solves it as a known row and may move it (local["points"] is kept
-        # up to date; the positions at the time of filling would be stale)
-        return moved, local["points"][~original].copy()
+        # a point filled earlier solves it as a known row and may move it
+        new = local.points[~original].copy()
+        if fix_known:
+            return GroupFill(np.empty(0, dtype=np.int64), np.empty((0, 3)), new)
+        return GroupFill(local.index[original], local.points[original], new)
 
-    def _reaches_pending(self, pending, counts, pick) -> bool:
-        """True when, inside the cube anchored at local cell ``pick``, a cell holding points is a
-        pending cell or touches one (26-neighbourhood): the surface reaches the missing part."""
-        per = self.cells_per_cube
-        block = tuple(slice(p, p + per) for p in pick)
-        hole = pending[block]
-        if not hole.any():
-            return False
-        near = np.zeros((per + 2,) * 3, dtype=bool)
-        for dx, dy, dz in itertools.product(range(3), repeat=3):
-            near[dx:dx + per, dy:dy + per, dz:dz + per] |= hole
-        return bool((near[1:-1, 1:-1, 1:-1] & (counts[block] > 0)).any())
-
-    def _fill_cube(self, lower, regions, pending, a0, local, ctx, fix_known) -> np.ndarray:
-        """Inpaint the target cube at ``lower``; returns its new points (P, 3) (known points moved
-        in place in ``local`` when known_points='free')."""
-        cube, cell, unit, grid = ctx["cube"], ctx["cell"], ctx["unit"], ctx["grid"]
-        in_cube = np.flatnonzero(in_box(local["points"], lower, cube))
-        target = local["points"][in_cube]
+    def _fill_cube(self, lower: np.ndarray, regions: list, pending: np.ndarray, a0: np.ndarray, local: LocalPoints,
+                   ctx: FrameContext, fix_known: bool) -> CubeFill:
+        """Inpaint the target cube at ``lower`` (steps 4-9): sources, alignment, new points, graph,
+        solve, drop_contradicted. Returns its new points and, with known_points="free", its moved
+        known rows."""
+        cube, unit = ctx.cube, ctx.unit
+        in_cube = np.flatnonzero(in_box(local.points, lower, cube))
+        target = local.points[in_cube]
         m = len(target)
-        has_normal = ~np.isnan(local["agtv"][in_cube])
+        has_normal = ~np.isnan(local.agtv[in_cube])
         if m < self.min_known_points or not has_normal.any():
-            return np.empty((0, 3))
-        dc_t = local["normals"][in_cube][has_normal].mean(axis=0)
-        agtv_t = local["agtv"][in_cube][has_normal].mean()
+            return CubeFill(np.empty((0, 3)))
+        dc_t = local.normals[in_cube][has_normal].mean(axis=0)
+        agtv_t = local.agtv[in_cube][has_normal].mean()
 
         # inter-source cubes first (they need only the target's known points)
         beta = self._beta()
-        inter = []
+        inter: list[InterSource] = []
         if beta > 0:
-            for neighbour in ctx["neighbours"]:
-                found = self._inter_source(target, lower, neighbour, ctx)
+            for neighbour in ctx.neighbours:
+                found = inter_source(target, lower, neighbour, cube=cube, cell=ctx.cell, unit=unit,
+                                     search_box=self.search_box, grow_source=self.grow_source,
+                                     icp_iterations=self.icp_iterations)
                 if found is not None:
                     inter.append(found)
 
-        # intra-source cube: most similar DC/AGTV among hole-free cubes holding >= m points; not
-        # searched when a raw inter-source cube already fits within half a unit (it would win)
-        fits = [c for c in inter if c["raw"] and c["residual"] <= 0.5 * unit]
-        found = None if (self.temporal_source and fits) else self._intra_source(lower, target, dc_t, agtv_t, ctx)
-        source = None if found is None else found[0]
+        # intra-source cube; not searched when a raw inter-source cube already fits within half a
+        # unit (it would win)
+        fits = [c for c in inter if c.raw and c.residual <= 0.5 * unit]
+        intra = None
+        if not (self.temporal_source and fits):
+            intra = intra_source(target, lower, np.concatenate([dc_t, [self.agtv_weight * agtv_t]]), ctx,
+                                 intra_candidates=self.intra_candidates, hole_free=self.hole_free_candidates,
+                                 grow_source=self.grow_source, cells_per_cube=self.cells_per_cube,
+                                 agtv_weight=self.agtv_weight, icp_iterations=self.icp_iterations,
+                                 residual=self.temporal_source)
+        source = None if intra is None else intra.aligned
         if self.temporal_source and inter:
-            # an inter-source cube of captured data (no hole of its input frame near the target)
-            # that fits the target better than the intra-source cube provides the new points
-            best = np.inf if found is None else found[1]
+            # an inter-source cube of captured data that fits the target better than the
+            # intra-source cube provides the new points
+            best = np.inf if intra is None else intra.residual
             for candidate in inter:
-                if candidate["raw"] and candidate["residual"] < best:
-                    source, best = candidate["aligned"], candidate["residual"]
+                if candidate.raw and candidate.residual < best:
+                    source, best = candidate.aligned, candidate.residual
         if source is None:
-            return np.empty((0, 3))
+            return CubeFill(np.empty((0, 3)))
 
-        # new points: aligned source points in the missing part of the target cube
-        cells = grid.cell_of(source) - a0
-        in_window = ((cells >= 0) & (cells < pending.shape)).all(axis=1)
-        in_pending = np.zeros(len(source), dtype=bool)
-        in_pending[in_window] = pending[tuple(cells[in_window].T)]
-        inside = np.zeros(len(source), dtype=bool)
-        for region in regions:
-            inside |= region.contains(source)
-        inside &= in_box(source, lower, cube)
-        if self.new_points == "pending-cells":
-            new = source[in_pending & inside]
-        else:
-            # "empty-slots" (the other reading of Omega, the missing slots of the M^3 grid): a
-            # source point in a hole region whose slot (voxel of side ``slot``, by rounding) holds
-            # no point of the frame yet, captured or filled by an earlier target cube; one per slot
-            new = source[inside]
-            if len(new):
-                slots = np.floor(new / ctx["slot"] + 0.5).astype(np.int64)
-                taken = {tuple(key) for key in np.floor(target / ctx["slot"] + 0.5).astype(np.int64)}
-                _, first = np.unique(slots, axis=0, return_index=True)
-                new = new[[i for i in np.sort(first) if tuple(slots[i]) not in taken]].reshape(-1, 3)
+        new = select_new_points(source, target, lower, regions, pending, ctx.grid.cell_of(source) - a0, cube=cube,
+                                mode=self.new_points, slot=ctx.slot)
         if not len(new):
-            return new
+            return CubeFill(new)
 
         rows = np.vstack([target, new])
         known = np.zeros(len(rows), dtype=bool)
         known[:m] = True
-        temporal, contradicted, support = [], [], []
-        for candidate in inter:
-            counterpart, linked, against, near = self._temporal_links(rows, candidate, ctx["link"])
-            temporal.append((counterpart, linked))
-            contradicted.append(against)
-            support.append(near)
+        links = [] if ctx.link is None else [  # no link distance: no temporal terms, no inter-source cube
+            temporal_links(rows, c.aligned, c.rotation, c.translation, c.regions, ctx.link,
+                           link_cutoff=self.link_cutoff, skip_hole_links=self.skip_hole_links,
+                           off_surface=self.off_surface) for c in inter]
         k = self.k_neighbors if self.k_neighbors is not None else max(1, int(round(np.sqrt(m))))
-        if self.graph_on == "source":
-            # the paper: the spatial graph is the K-NN graph of the intra-source cube c_s_hat; a
-            # known row sits at its counterpart there (nearest in relative location), a new row
-            # is a source point itself
-            _, nearest = cKDTree(source).query(target)
-            laplacian = knn_laplacian(np.vstack([source[nearest], new]), k, ctx["sigma"])
-        else:
-            laplacian = knn_laplacian(rows, k, ctx["sigma"])
+        laplacian = spatial_laplacian(rows, source, m, k, ctx.sigma, self.graph_on)
         result = solve_cube(rows, rows, known, laplacian, alpha=self.alpha, gamma=self.gamma, beta=beta,
-                            temporal=temporal, fix_known=fix_known)
-        if not fix_known:
-            local["points"][in_cube] = result[:m]
+                            temporal=[(link.counterpart, link.linked) for link in links], fix_known=fix_known)
         new = result[m:]
-        if self.drop_contradicted and temporal:
-            # a new point that a neighbouring frame contradicts and none supports is dropped
-            supported = np.any([near[m:] for near in support], axis=0)
-            against = np.any([c[m:] for c in contradicted], axis=0)
-            new = new[supported | ~against]
-        return new
-
-    def _intra_source(self, lower, target, dc_t, agtv_t, ctx):
-        """The aligned intra-source points (S, 3) and their residual for the target cube at
-        ``lower``, or None.
-
-        Candidates: hole-free cubes with at least as many points as the target's known part,
-        ranked by the Euclidean distance of (DC, agtv_weight * AGTV) (a 4D k-d tree over all
-        candidates of the frame). The best ``intra_candidates`` are aligned (the paper: 1); with
-        more, the one with the smallest trimmed mean alignment residual wins.
-        """
-        cand, cube, cell = ctx["candidates"], ctx["cube"], ctx["cell"]
-        m = len(target)
-        if not len(cand["count"]):
-            return None
-        query = np.concatenate([dc_t, [self.agtv_weight * agtv_t]])
-        usable = cand["count"] >= m
-        if not self.hole_free_candidates:
-            # candidates may hold holes, but not the target cube itself nor a cube overlapping it
-            # (up to (2 per - 1)^3 of them): they share its hole, and the target is trivially the
-            # most similar to itself (paper silent)
-            usable &= (np.abs(cand["lower"] - lower) >= cube - 0.5 * cell).any(axis=1)
-        k = min(len(cand["count"]), 64 if self.hole_free_candidates else 64 + (2 * self.cells_per_cube - 1) ** 3)
-        _, order = cand["tree"].query(query, k=k)
-        order = np.atleast_1d(order)
-        order = order[usable[order]]
-        if len(order) < self.intra_candidates:
-            # rare: few big-enough cubes among the nearest features; rank all of them
-            big = np.flatnonzero(usable)
-            if not len(big):
-                return None
-            feats = np.column_stack([cand["dc"][big], self.agtv_weight * cand["agtv"][big]])
-            order = big[np.argsort(np.linalg.norm(feats - query, axis=1), kind="stable")]
-        half = cube / 2.0
-        # grown by one cell: the source still covers the target cube after the alignment rotates it
-        grow = cell if self.grow_source else 0.0
-        choices = order[: self.intra_candidates]
-        # with several candidates: a short alignment of each screens them, the winner is refined
-        screen = self.icp_iterations if len(choices) == 1 else min(3, self.icp_iterations)
-        best, best_residual = None, np.inf
-        for index in choices:
-            source_lower = cand["lower"][index]
-            source_idx = ctx["tree"].query_ball_point(source_lower + half, half + grow, p=np.inf)
-            if len(source_idx) < 3:
-                continue
-            source = ctx["points"][source_idx] + (lower - source_lower)
-            source_tree = cKDTree(source)
-            rotation, translation = align_to_partial(source, target, iterations=screen, source_tree=source_tree)
-            residual = 0.0 if len(choices) == 1 else alignment_residual(source_tree, target, rotation, translation)
-            if residual < best_residual:
-                best, best_residual = (source, source_tree, rotation, translation), residual
-        if best is None:
-            return None
-        source, source_tree, rotation, translation = best
-        if screen < self.icp_iterations:
-            rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations - screen,
-                                                     source_tree=source_tree, start=(rotation, translation))
-        residual = alignment_residual(source_tree, target, rotation, translation) if self.temporal_source else 0.0
-        return source @ rotation.T + translation, residual
-
-    def _inter_source(self, target, lower, neighbour, ctx):
-        """The aligned inter-source cube of one neighbouring frame for the target cube at ``lower``
-        (a dict: aligned points, R, t, residual, raw, regions), or None when the frame has no points
-        near the target cube."""
-        cube, cell, unit = ctx["cube"], ctx["cell"], ctx["unit"]
-        box = self.search_box * cube
-        centre = lower + cube / 2.0
-        box_lower = centre - box / 2.0
-        # nearest neighbour of each target point in the box: the frame's nearest neighbour when it
-        # lies in the box (a point whose nearest neighbour is outside has no counterpart in the box
-        # near it and does not vote)
-        _, nearest = neighbour["tree"].query(target)
-        votes = neighbour["points"][nearest]
-        votes = votes[in_box(votes, box_lower, box)]
-        if len(votes) < 3:
-            return None
-        window_lower, _ = best_window(votes, box_lower, box, cube, unit)
-        half = cube / 2.0
-        window_idx = neighbour["tree"].query_ball_point(window_lower + half, half + (cell if self.grow_source else 0.0),
-                                                        p=np.inf)
-        if len(window_idx) < 3:
-            return None
-        source = neighbour["points"][window_idx]
-        source_tree = cKDTree(source)
-        rotation, translation = align_to_partial(source, target, iterations=self.icp_iterations,
-                                                 source_tree=source_tree)
-        residual = alignment_residual(source_tree, target, rotation, translation)
-        # raw: no hole of that frame's input comes within one cube of the target, so its points
-        # there are captured data (an inpainted f-1 would otherwise hand its own fill on, and a
-        # fill copied from frame to frame shrinks and drifts with the hole)
-        raw = all(np.linalg.norm(r.center - centre) > r.bounding_radius + cube for r in neighbour["source_regions"])
-        return dict(aligned=source @ rotation.T + translation, rotation=rotation, translation=translation,
-                    residual=residual, raw=raw, regions=neighbour["regions"])
-
-    def _temporal_links(self, rows, inter, link_distance):
-        """(counterpart (n, 3), linked (n,), contradicted (n,), supported (n,)) of the rows in one
-        aligned inter-source cube: the nearest neighbour in relative location. supported: within
-        ``link_distance`` and not mapped into a hole region of that frame; contradicted: neither
-        within ``link_distance`` nor mapped into a hole. linked: every row (the paper), or with
-        link_cutoff only rows within ``link_distance``, and with skip_hole_links not rows mapped
-        into a hole of that frame."""
-        aligned = inter["aligned"]
-        aligned_tree = cKDTree(aligned)
-        dist, idx = aligned_tree.query(rows)
-        near = dist <= link_distance
-        in_hole = np.zeros(len(rows), dtype=bool)
-        if inter["regions"]:
-            # rows that land in a hole of the (not yet inpainted) neighbour have no true counterpart
-            back = (rows - inter["translation"]) @ inter["rotation"]
-            for region in inter["regions"]:
-                in_hole |= region.contains(back)
-        # the paper links every row to its nearest neighbour (link_cutoff=False, skip_hole_links=False)
-        linked = near.copy() if self.link_cutoff else np.ones(len(rows), dtype=bool)
-        if self.skip_hole_links:
-            linked &= ~in_hole
-        near &= ~in_hole  # a counterpart that supports the row (drop_contradicted)
-        # contradicted: the neighbour has data there but none of it near the row. Also an inpainted
-        # f-1: letting only captured data contradict was measured worse (human, 10 frames, D1
-        # 24.83 -> 23.92 dB independent holes, 19.51 -> 16.39 dB coherent holes)
-        contradicted = ~near & ~in_hole
-        if self.off_surface is not None and contradicted.any() and len(aligned) >= 3:
-            # a gap in the neighbour (an inpainted fill may have one) is no evidence against a row
-            # that lies on the neighbour's surface continued; only a row off that surface is
-            cand = np.flatnonzero(contradicted)
-            _, nb = aligned_tree.query(rows[cand], k=min(8, len(aligned)))
-            patch = aligned[nb]
-            centre = patch.mean(axis=1)
-            spread = patch - centre[:, None, :]
-            normal = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))[1][:, :, 0]
-            off = np.abs(np.einsum("ij,ij->i", rows[cand] - centre, normal))
-            contradicted[cand] = off > self.off_surface * link_distance
-        return aligned[idx], linked, contradicted, near
+        if self.drop_contradicted and links:
+            new = drop_contradicted_rows(new, links, m)
+        if fix_known:
+            return CubeFill(new)
+        return CubeFill(new, in_cube, result[:m])
 
 
 class TemporalGraph(_CubeGraphInpainting):
@@ -818,16 +930,15 @@ class TemporalGraph(_CubeGraphInpainting):
                            it. "empty-slots" is the other reading (a source point in a hole region
                            whose voxel, by rounding, holds no point yet, one per voxel; a cell of
                            one point spacing on unvoxelized data): overlapping cubes whose sources
-                           sit half a voxel apart then fill the same hole in layers (the test
-                           sphere, radius 9 hole, 359 points removed: 888 new points against 259
-                           with "pending-cells", radial error 0.43 against 0.24 voxel).
+                           sit half a voxel apart then fill the same hole in layers (measured in
+                           methods/NOTES.md).
       graph_on             "estimate" / "source": the K-NN graph on the initial estimate
                            Omega_bar c_t + Omega c_s_hat, or, as the paper (Sec. 3.3, "we
                            approximate the connectivities via the similarities in its
                            intra-source cube"), on c_s_hat: a known row sits at its nearest
                            source point, a new row is a source point.
       snap                 "auto" / False: voxelized input gets its new points turned into grid
-                           voxels (`_voxelize`) and, with known_points="free", moved known points
+                           voxels (`voxelize_fill`) and, with known_points="free", moved known points
                            rounded; the paper says nothing of quantizing the output (False).
       feature_fraction     0.25 / 1.0: normals and AGTV on a fixed sample of the points (speed);
                            the paper computes them for every point.
@@ -876,50 +987,8 @@ class TemporalGraph(_CubeGraphInpainting):
     Precedence: an explicit keyword > the variant's value. `FuNonlocal` has the same variants (its
     paper configuration is this one without the temporal terms: beta = 0, [Fu18TIP] frame by frame).
 
-    Decisions by measurement (scratch runs; embedded human, size "small" (~96k points a frame,
-    10-bit voxels), 4 frames, medium region holes (holes.synthetic preset, seed 0), metrics with
-    the intrinsic peak, whole-frame GPSNR D1 / D2 in dB and NSHD; before temporal_source existed):
-      paper-like (1 candidate, no dropping, link 5, fixed)   D1 14.70  D2 15.11  NSHD 5.10e-9
-      same, known_points="free"                              D1 15.14  D2 16.75  NSHD 4.18e-9
-        (but frame-level temporal consistency 0.057 vs 0.027: moved known points flicker)
-      4 candidates + drop_contradicted                       D1 20.02  D2 21.36  NSHD 1.88e-9
-      4 candidates + drop_contradicted, "free"               D1 16.32  D2 20.71  NSHD 1.99e-9
-      4 candidates + drop_contradicted, link_radius 2.5      D1 19.95  D2 23.59  NSHD 1.18e-9
-      fu-nonlocal 1 / 4 / 8 candidates                       D1 14.75 / 16.29 / 16.10
-      no fill                                                D1  7.59  D2 27.49  NSHD 7.03e-9
-    temporal_source, one frame with 3 medium holes between intact neighbours: mean distance of
-    the new points to the true surface 0.82 -> 0.55 voxel (median 1 -> 0). spacing on
-    dfaust_50004_punching (unvoxelized, 1023 tall, 100k points): "points" gives u = 3.14
-    (M = 63) and a hole-region D2 RMS of 7.4 for fu-nonlocal, against 2.7 with u = 1 (M = 20).
-    link_radius in point spacings (version 2) and off_surface (version 3), 10 frames, medium region
-    holes seed 0, whole-frame D1 / D2 dB, NSHD: link 2.5 u -> 2.5 spacings on dfaust coherent holes
-    20.38/33.05/2.78e-9 -> 25.00/29.75/1.62e-9 (voxelized data unchanged: one spacing is one u);
-    off_surface None -> 0.4: dfaust coherent 25.00/29.75/1.62e-9 -> 25.53/30.37/1.46e-9, human
-    coherent 19.09/19.69/2.78e-9 -> 18.66/19.21/3.15e-9, independent holes unchanged (a wash on
-    average; kept because a gap in an inpainted neighbour is no evidence, and because with it the
-    method beats fu-nonlocal on every row below).
-    Final figures (`dpcbench run methods` plus the dfaust folder as a second sequence; 10 frames,
-    medium region holes seed 0, whole-frame GPSNR D1 / D2 in dB with the intrinsic peak, NSHD,
-    temporal consistency in the holes (lower = steadier); defaults, version 3):
-      human small, independent holes   none 7.48/25.52/6.98e-9/0.80   fu 13.40/13.82/4.81e-9/0.72
-                                       temporal-graph 24.92/27.85/5.55e-10/0.23
-                                       version 3 paper-like (intra_candidates=1, free, no temporal_source /
-                                       dropping, link 5): fu 12.11/12.78/5.26e-9, tg 14.00/14.82/5.09e-9
-      human small, coherent holes      none 8.01/26.63/6.98e-9/0.41   fu 16.25/16.68/4.17e-9/0.62
-                                       temporal-graph 18.66/19.21/3.15e-9/0.50
-      dfaust, independent holes        none 15.88/38.13/5.58e-9/1.35  fu 26.08/29.94/1.57e-9/1.49
-                                       temporal-graph 28.81/40.43/1.02e-9/0.48
-      dfaust, coherent holes           none 15.43/35.32/5.53e-9/1.20  fu 25.10/27.66/1.84e-9/2.02
-                                       temporal-graph 25.53/30.37/1.46e-9/1.49
-    Hole-region RMS error of temporal-graph (sqrt of the symmetric MSE, D1 / D2): human 0.67/0.53
-    voxels (independent), 1.50/1.42 (coherent); dfaust 3.00/1.42 and 4.04/2.71 units (point
-    spacing 3.1 units).
-    Known limits: D2 against the unfilled input is hard to win (an unfilled hole costs D2 little:
-    the nearest rim point of a missing point lies along the surface, so its point-to-plane error is
-    small, while a fill point one voxel off the surface costs a full voxel): fu-nonlocal loses D2
-    to no-fill everywhere, temporal-graph wins it on independent holes only. `temporal-copy`
-    (methods.reference) beats temporal-graph on independent holes (human 26.82/29.75 dB, dfaust
-    38.02/44.62 dB): when the neighbours hold the missing patch, copying it whole is hard to beat.
+    Measured figures behind the tuned variant's choices (and the commit each was measured at):
+    methods/NOTES.md.
     """
 
     name = "temporal-graph"
@@ -928,12 +997,15 @@ class TemporalGraph(_CubeGraphInpainting):
     uses_neighbour_frames = True
     _temporal = True
 
-    def __init__(self, variant="tuned", cube_size=20.0, cells_per_cube=4, search_box=2.5, alpha=1.0, beta=0.5,
-                 gamma=0.5, sigma=1.0, k_neighbors=None, spacing=None, known_points=None, min_known_points=16,
-                 icp_iterations=10, link_radius=2.5, snap=None, agtv_weight=1.0, intra_candidates=None,
-                 drop_contradicted=None, feature_fraction=None, temporal_source=None, off_surface=0.4,
-                 link_cutoff=None, skip_hole_links=None, rim_centred=None, defer_unreachable=None,
-                 hole_free_candidates=None, grow_source=None, new_points=None, graph_on=None):
+    def __init__(self, variant: str = "tuned", cube_size: float = 20.0, cells_per_cube: int = 4,
+                 search_box: float = 2.5, alpha: float = 1.0, beta: float = 0.5, gamma: float = 0.5,
+                 sigma: float = 1.0, k_neighbors: int | None = None, spacing: float | str | None = None,
+                 known_points=None, min_known_points: int = 16, icp_iterations: int = 10,
+                 link_radius: float = 2.5, snap=None, agtv_weight: float = 1.0, intra_candidates=None,
+                 drop_contradicted=None, feature_fraction=None, temporal_source=None,
+                 off_surface: float | None = 0.4, link_cutoff=None, skip_hole_links=None, rim_centred=None,
+                 defer_unreachable=None, hole_free_candidates=None, grow_source=None, new_points=None,
+                 graph_on=None):
         self.variant = variant
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube
@@ -984,11 +1056,12 @@ class FuNonlocal(_CubeGraphInpainting):
     link_cutoff = False
     skip_hole_links = False
 
-    def __init__(self, variant="tuned", cube_size=20.0, cells_per_cube=4, alpha=1.0, gamma=0.5, sigma=1.0,
-                 k_neighbors=None, spacing=None, known_points=None, min_known_points=16, icp_iterations=10,
-                 snap=None, agtv_weight=1.0, intra_candidates=None, feature_fraction=None, rim_centred=None,
-                 defer_unreachable=None, hole_free_candidates=None, grow_source=None, new_points=None,
-                 graph_on=None):
+    def __init__(self, variant: str = "tuned", cube_size: float = 20.0, cells_per_cube: int = 4,
+                 alpha: float = 1.0, gamma: float = 0.5, sigma: float = 1.0, k_neighbors: int | None = None,
+                 spacing: float | str | None = None, known_points=None, min_known_points: int = 16,
+                 icp_iterations: int = 10, snap=None, agtv_weight: float = 1.0, intra_candidates=None,
+                 feature_fraction=None, rim_centred=None, defer_unreachable=None, hole_free_candidates=None,
+                 grow_source=None, new_points=None, graph_on=None):
         self.variant = variant
         self.cube_size = cube_size
         self.cells_per_cube = cells_per_cube

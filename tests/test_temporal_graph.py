@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from holes.regions import HoleRegion
 from methods._cubes import CellGrid, best_window, block_sums, in_box
-from methods._graph import knn_laplacian, solve_cube
+from methods._graph import knn_laplacian, solve_cube, temporal_links
 from methods._registration import align_to_partial, kabsch
 from methods.registry import get_method
 from methods.temporal_graph import FuNonlocal, TemporalGraph
@@ -269,31 +269,28 @@ def test_paper_variant_moves_known_points():
     np.testing.assert_array_equal(fixed[1][:n], damaged[1])
 
 
-def test_free_known_points_output_the_final_position_of_a_point_filled_earlier():
+def test_free_known_points_output_the_final_position_of_a_point_filled_earlier(monkeypatch):
     """known_points="free": a point filled by one target cube and moved when a later target cube
     (which holds it as a known row) is solved appears in the output where it was moved to."""
     damaged, regions = switch_case()
     regions = [[], regions[1], []]  # only frame 1: every group below belongs to it
-    damaged = [damaged[0], damaged[1], damaged[2]]
-    first_position, groups = {}, []
+    first_position, latest = {}, {}  # per group: (row among its filled points) -> position; its state
     original = TemporalGraph._fill_cube
 
-    def recording(self, lower, regions_, pending, a0, local, ctx, fix_known):
-        new = original(self, lower, regions_, pending, a0, local, ctx, fix_known)
-        if not groups or groups[-1] is not local:
-            groups.append(local)
-        for row, point in enumerate(new):  # keyed by (group, row among its filled points)
-            first_position[(len(groups) - 1, int((local["index"] < 0).sum()) + row)] = point.copy()
-        return new
+    def recording(self, lower, group, pending, a0, local, ctx, fix_known):
+        fill = original(self, lower, group, pending, a0, local, ctx, fix_known)
+        key = id(group)  # the group's region list: one object per group
+        filled_before = int((local.index < 0).sum())
+        for row, point in enumerate(fill.new):
+            first_position[(key, filled_before + row)] = point.copy()
+        latest[key] = local.apply(fill)
+        return fill
 
-    method = TemporalGraph(variant="paper", **FAST)
-    try:
-        TemporalGraph._fill_cube = recording
-        out = method.inpaint(damaged, regions)
-    finally:
-        TemporalGraph._fill_cube = original
-    finals = [g["points"][g["index"] < 0] for g in groups]
-    first = [np.array([first_position[(gi, r)] for r in range(len(f))]).reshape(-1, 3) for gi, f in enumerate(finals)]
+    monkeypatch.setattr(TemporalGraph, "_fill_cube", recording)
+    out = TemporalGraph(variant="paper", **FAST).inpaint(damaged, regions)
+    keys = list(latest)
+    finals = [latest[k].points[latest[k].index < 0] for k in keys]
+    first = [np.array([first_position[(k, r)] for r in range(len(f))]).reshape(-1, 3) for k, f in zip(keys, finals)]
     shift = np.concatenate([np.linalg.norm(a - b, axis=1) for a, b in zip(finals, first)])
     assert (shift > 1e-6).sum() >= 5  # the case moves filled points in later cubes
     n = len(damaged[1])
@@ -378,23 +375,26 @@ def test_temporal_links_are_measured_in_point_spacings():
 def test_a_gap_in_the_neighbour_does_not_contradict_a_row_on_its_surface():
     grid = np.stack(np.meshgrid(np.arange(-15, 16.0), np.arange(-15, 16.0), indexing="ij"), -1).reshape(-1, 2)
     grid = grid[np.linalg.norm(grid, axis=1) > 5]  # a plane z = 0 with a gap of radius 5 at the origin
-    inter = dict(aligned=np.column_stack([grid, np.zeros(len(grid))]), rotation=np.eye(3),
-                 translation=np.zeros(3), regions=[])
+    plane = np.column_stack([grid, np.zeros(len(grid))])
     rows = np.array([[0.0, 0.0, 0.0],     # in the gap, on the plane: no counterpart, no contradiction
                      [10.0, 10.0, 4.0],   # above the plane: contradicted
                      [10.0, 10.0, 0.0]])  # on a plane point: linked
-    _, linked, against, supported = TemporalGraph(off_surface=0.4)._configured()._temporal_links(rows, inter, 2.5)
-    assert linked.tolist() == [False, False, True]
-    assert against.tolist() == [False, True, False]
-    assert supported.tolist() == [False, False, True]
+
+    def links(off_surface, **switches):
+        return temporal_links(rows, plane, np.eye(3), np.zeros(3), [], 2.5, off_surface=off_surface,
+                              **{"link_cutoff": True, "skip_hole_links": True, **switches})
+
+    tuned = links(0.4)
+    assert tuned.linked.tolist() == [False, False, True]
+    assert tuned.contradicted.tolist() == [False, True, False]
+    assert tuned.supported.tolist() == [False, False, True]
+    np.testing.assert_array_equal(tuned.counterpart[2], rows[2])
     # off_surface=None: any row without a counterpart is contradicted
-    _, _, against, _ = TemporalGraph(off_surface=None)._configured()._temporal_links(rows, inter, 2.5)
-    assert against.tolist() == [True, True, False]
+    assert links(None).contradicted.tolist() == [True, True, False]
     # the paper links every row to its nearest neighbour; contradiction and support do not change
-    _, linked, against, supported = TemporalGraph(variant="paper", off_surface=0.4)._configured()._temporal_links(
-        rows, inter, 2.5)
-    assert linked.tolist() == [True, True, True]
-    assert against.tolist() == [False, True, False] and supported.tolist() == [False, False, True]
+    paper = links(0.4, link_cutoff=False, skip_hole_links=False)
+    assert paper.linked.tolist() == [True, True, True]
+    assert paper.contradicted.tolist() == [False, True, False] and paper.supported.tolist() == [False, False, True]
 
 
 # -- variants: the paper configuration and the switches of ours -----------------------------------
