@@ -66,9 +66,9 @@ from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from bench.errors import UserError
-from holes.geometry import point_spacing
 from methods.base import PerFrameMethod
 from methods.reference import detect_regions
+from metrics.neighbours import point_spacing
 
 
 class LozesPDE(PerFrameMethod):
@@ -217,7 +217,7 @@ class LozesPDE(PerFrameMethod):
 def sampling_step(points: np.ndarray, sample: int = 2000, radius_spacings: float = 4.0) -> float:
     """Grid step s (same units as ``points`` (N, 3)) that reproduces the frame's areal density:
     s = 1 / sqrt(rho), rho = median over ~``sample`` probe points (even stride) of
-    #{neighbours within r} / (pi r^2), r = ``radius_spacings`` * `holes.geometry.point_spacing`.
+    #{neighbours within r} / (pi r^2), r = ``radius_spacings`` * `metrics.neighbours.point_spacing`.
 
     Counting in a ball a few spacings wide is right for any sampling pattern: it gives s = 1.01 on a
     unit voxel grid, where nearest-neighbour spacings are exact, and 2.82 (not 3.14 as the 8-NN
