@@ -10,6 +10,7 @@ from __future__ import annotations
 from bench.errors import UserError
 from bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
     HEADLINE_GAIN_DB,
+    HU_ET_AL,
     PAPER_COLUMNS,
     PAPER_SEQUENCES,
     TABLE1_GPSNR,
@@ -38,7 +39,8 @@ ROLES = {"paper": "the paper's column, in the paper configuration", "ours": "our
 #: (registry name, column label in the paper, parameters) of the paper's four columns, in its order
 PAPER_METHODS: list[tuple[str, str, dict]] = [(n, label, p) for n, label, p, role in TABLE_COLUMNS if role == "paper"]
 if tuple(label for _, label, _ in PAPER_METHODS) != PAPER_COLUMNS:
-    raise AssertionError("bench.paper.TABLE_COLUMNS: the 'paper' columns must be bench.paper_facts.PAPER_COLUMNS in order")
+    raise AssertionError("bench.paper.TABLE_COLUMNS: the 'paper' columns must be bench.paper_facts.PAPER_COLUMNS, "
+                         "in order")
 #: the paper's column labels (its Tables 1-2) and every column of ours (paper's first)
 COLUMNS = list(PAPER_COLUMNS)
 ALL_COLUMNS = [label for _, label, _, _ in TABLE_COLUMNS]
@@ -97,7 +99,8 @@ def columns_caption() -> str:
         if variant and "variant" not in d["params"]:
             given += f": variant={variant}"
         parts.append(f"{d['label']} = `{d['method']}` ({given}; version {d['version']})")
-    return ("Columns: " + "; ".join(parts) + ". Meshlab, Lozes, Hu and Proposed are the paper's columns: Hu and "
+    return ("Columns: " + "; ".join(parts) + f". Meshlab, Lozes, Hu and Proposed are the paper's columns "
+            f"(Hu: {HU_ET_AL}): Hu and "
             "Proposed in the paper configuration (variant=paper: every step as the paper writes it, every addition "
             "of ours off), MeshLab resampling the whole frame as the paper describes, Lozes as lozes-pde implements "
             "Lozes et al.; '(ours)' and '(reference)' columns are not in the paper. Every parameter value: "

@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 
-
 def higher_is_better(metric: str) -> bool | None:
     """The metric's direction from `metrics.registry.describe` (its one source); None for a metric
     without one (a fact about the input, or a name the registry does not know): no cell is bold."""

@@ -25,6 +25,7 @@ from scipy.spatial import cKDTree
 
 from bench.errors import UserError
 from holes.regions import HoleRegion
+
 # the one point-spacing and normal estimator (metrics.neighbours), re-exported for holes' callers
 from metrics.neighbours import estimate_normals, point_spacing
 

@@ -48,6 +48,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from bench.errors import UserError
+
 # the one normal estimator and point check (re-exported: metrics.pairs.estimate_normals is public API)
 from metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
 
