@@ -24,9 +24,9 @@ documents the format.
     "delta" (PSNR in dB, F-score):        change = current - baseline
     "ratio" (NSHD, Hausdorff, Chamfer,
              time, memory):               change = current / baseline   (0/0 -> 1)
-A row REGRESSED when the change passes its tolerance in the bad direction (direction from
-``metrics.registry.METRICS[name].higher_is_better`` when the metrics package has the metric, else
-`HIGHER_IS_BETTER` below); improved when it passes it in the good direction. Resource metrics
+A row REGRESSED when the change passes its tolerance in the bad direction (direction and change
+kind from ``metrics.registry.describe(name)``, the one source of metric facts); improved when it
+passes it in the good direction. Resource metrics
 (time_s, peak_mem_mb) are compared and shown; time fails the gate only with ``gate_time=True``,
 memory (the worker's peak RSS, interpreter included) never.
 A row present in the baseline and absent from the current summary is MISSING and fails the gate
@@ -53,6 +53,7 @@ import numpy as np
 import pandas as pd
 
 from bench.errors import UserError
+from metrics import registry as _registry
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -65,20 +66,7 @@ SUMMARY_COLUMNS = KEY_COLUMNS + ["mean", "std", "n_frames"]
 #: a run is one (data, damage, method) cell; the newest of each enters a summary
 RUN_KEY = ["sequence", "holes", "holes_params", "seed", "method", "method_params"]
 #: metrics that measure cost, not quality: gated only on request (machines are noisy)
-RESOURCE_METRICS = ("time_s", "peak_mem_mb")
-
-#: fallback when metrics.registry does not know a metric
-HIGHER_IS_BETTER = {
-    "gpsnr_d1": True, "gpsnr_d2": True, "fscore": True,
-    "nshd": False, "hausdorff": False, "chamfer": False,
-    "temporal_consistency": False, "time_s": False, "peak_mem_mb": False,
-}
-#: how a change is measured: "delta" = current - baseline (dB for PSNR), "ratio" = current / baseline
-CHANGE_KIND = {
-    "gpsnr_d1": "delta", "gpsnr_d2": "delta", "fscore": "delta",
-    "nshd": "ratio", "hausdorff": "ratio", "chamfer": "ratio",
-    "temporal_consistency": "ratio", "time_s": "ratio", "peak_mem_mb": "ratio",
-}
+RESOURCE_METRICS = tuple(_registry.RESOURCE_METRICS)
 #: used when the tolerances file does not name a metric. PSNR in dB; ratios as factors (1.10 = 10 %).
 DEFAULT_TOLERANCES = {
     "gpsnr_d1": 0.1, "gpsnr_d2": 0.1, "fscore": 0.01,
@@ -87,7 +75,7 @@ DEFAULT_TOLERANCES = {
 }
 #: facts about the input, not the method (e.g. the share of points the holes removed): compared and
 #: shown, never gated; a change means the data or the damage changed, which the table should show
-INFO_METRICS = ("removed_fraction",)
+INFO_METRICS = tuple(_registry.INPUT_METRICS)
 #: per-frame times below this (seconds) are too noisy to gate on; compared but never REGRESSED
 TIME_FLOOR_S = 0.05
 
@@ -100,33 +88,22 @@ SUMMARY_FORMAT = "dpcbench-summary"
 
 
 # ---------------------------------------------------------------------------------------------
-# metric facts
-def _registry_metric(name: str):
-    from metrics.registry import METRICS
-
-    return METRICS.get(name)
-
-
+# metric facts (metrics.registry is their one source)
 def higher_is_better(metric: str) -> bool:
-    """Direction of a metric: metrics.registry when it knows the metric, else HIGHER_IS_BETTER."""
-    entry = _registry_metric(metric)
-    if entry is not None and hasattr(entry, "higher_is_better"):
-        return bool(entry.higher_is_better)
-    if metric in HIGHER_IS_BETTER:
-        return HIGHER_IS_BETTER[metric]
-    raise UserError(
-        f"metric {metric!r}: unknown direction (higher or lower is better); it is neither in "
-        "metrics.registry.METRICS nor in bench.compare.HIGHER_IS_BETTER"
-    )
+    """Direction of a metric, from `metrics.registry.describe`; UserError for a metric without one."""
+    entry = _registry.describe(metric)
+    if entry is None or entry.higher_is_better is None:
+        known = [*_registry.METRICS, *_registry.RESOURCE_METRICS]
+        raise UserError(f"metric {metric!r}: unknown direction (higher or lower is better); the metrics with "
+                        f"a direction are those of metrics.registry: {', '.join(known)}")
+    return entry.higher_is_better
 
 
 def change_kind(metric: str) -> str:
-    """'delta' for dB-valued and bounded scores, 'ratio' for distances, time and memory."""
-    if metric in CHANGE_KIND:
-        return CHANGE_KIND[metric]
-    entry = _registry_metric(metric)
-    unit = str(getattr(entry, "unit", "") or "").lower()
-    return "delta" if unit == "db" or metric.startswith("gpsnr") else "ratio"
+    """'delta' for dB-valued and bounded scores, 'ratio' for distances, time and memory (a metric
+    metrics.registry does not know is compared as a ratio)."""
+    entry = _registry.describe(metric)
+    return entry.change if entry is not None else "ratio"
 
 
 # ---------------------------------------------------------------------------------------------

@@ -64,12 +64,13 @@ import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from bench.paper_facts import PAPER_SEQUENCES  # the paper's sequences (name -> row label), one source
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-PAPER_SEQUENCES = ("longdress", "loot", "redandblack", "soldier", "ulliwegner")
 DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 

@@ -12,6 +12,7 @@ Sections:
   quality      per (sequence, holes): rows = scopes, columns = quality metrics, x = code versions
                in time order, one line per method configuration (same colour everywhere), the
                paper's value as a dashed line where the sequence is one of the paper's
+  paper        temporal-graph's gains over the paper's other columns beside the paper's own
   latest       the newest code version's means per method (best per column in bold)
   speed        time per frame over code versions (from the store) and the pytest-benchmark
                history (median seconds per session, log scale) with the newest figures
@@ -19,6 +20,12 @@ Sections:
 
 A code version is the store's ``code_version`` (git commit); versions are ordered by the time of
 their first run. Summaries come from `bench.compare.summarize`, one per code version.
+
+Code: `prepare_page` computes what the sections share (the history, colours, latest comparison)
+into a `Page`; each section is one function of it (`cards_section`, `comparison_section`,
+`quality_section`, `paper_section`, `latest_section`, `speed_section`, `runs_section`; `SECTIONS`
+lists them in page order); `render_dashboard` joins them. The style sheet is the package data file
+bench/static/dashboard.css, inlined (`stylesheet`). The paper's values come from `bench.paper_facts`.
 """
 
 from __future__ import annotations
@@ -30,63 +37,57 @@ import math
 import os
 import re
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import pandas as pd
 
 from bench import compare
+from bench.paper_facts import PAPER_SEQUENCES
 
 QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
-METRIC_LABELS = {
-    "gpsnr_d1": "GPSNR D1 (dB)", "gpsnr_d2": "GPSNR D2 (dB)", "nshd": "NSHD", "hausdorff": "Hausdorff",
+#: display names; the unit is metrics.registry's (`metric_label`)
+METRIC_NAMES = {
+    "gpsnr_d1": "GPSNR D1", "gpsnr_d2": "GPSNR D2", "nshd": "NSHD", "hausdorff": "Hausdorff",
     "chamfer": "Chamfer", "fscore": "F-score", "temporal_consistency": "temporal consistency",
-    "time_s": "time per frame (s)", "peak_mem_mb": "peak memory (MB)",
+    "time_s": "time per frame", "peak_mem_mb": "peak memory",
 }
+#: units written after a metric's name (the others are ratios or the data's own length units)
+SHOWN_UNITS = ("dB", "s", "MB")
 #: the methods of the paper's columns first, so that their colours never change when other methods come and go
 METHOD_ORDER = ["temporal-graph", "fu-nonlocal", "lozes-pde", "meshlab", "temporal-copy", "none"]
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
            "#bcbd22", "#17becf"]
 
-# The paper's Tables 1 and 2 (Fu, Hu, Guo, ICME 2020), used when
-# bench.paper is absent. Columns map to our method names; NSHD is in units of 1e-7.
-_PAPER_METHODS = {"Meshlab": "meshlab", "Lozes": "lozes-pde", "Hu": "fu-nonlocal", "Proposed": "temporal-graph"}
-_PAPER_GPSNR = {
-    "longdress": (11.7926, 30.3883, 41.5686, 43.1301), "loot": (16.4451, 27.3715, 40.1546, 47.5648),
-    "redandblack": (13.1772, 24.4810, 33.9921, 39.0103), "soldier": (17.4697, 23.1571, 34.5062, 42.2980),
-    "ulliwegner": (24.9424, 31.5455, 41.3037, 45.8411),
-}
-_PAPER_NSHD = {
-    "longdress": (24.8631, 7.1362, 2.9174, 0.9131), "loot": (14.1925, 8.9410, 3.1102, 0.3549),
-    "redandblack": (22.8300, 9.6233, 5.9856, 1.9324), "soldier": (17.1376, 10.0044, 5.2145, 1.2057),
-    "ulliwegner": (11.2509, 6.7370, 1.9658, 0.6362),
-}
+
+def metric_label(metric: str) -> str:
+    """A column or panel title: the display name, with the registry's unit when it is dB, s or MB."""
+    from metrics.registry import describe
+
+    entry = describe(metric)
+    name = METRIC_NAMES.get(metric, metric)
+    return f"{name} ({entry.unit})" if entry is not None and entry.unit in SHOWN_UNITS else name
 
 
 def paper_reference() -> pd.DataFrame:
-    """The paper's values as rows (sequence, method, metric, value); metric gpsnr_d1 / nshd.
+    """The paper's values as rows (sequence, method, metric, value, source); metric gpsnr_d1 / nshd.
 
-    Taken from bench.paper when it offers the tables, else from the copy in this module. The
-    paper's GPSNR is plotted against our gpsnr_d1 (point-to-point, as pc_error's D1), and its NSHD
-    (given x1e-7) against our nshd.
+    From `bench.paper_facts` (Tables 1-2), with each paper column mapped to the registry method of
+    `bench.paper.PAPER_METHODS`. The paper's GPSNR is plotted against our gpsnr_d1 (point-to-point,
+    as pc_error's D1), and its NSHD (printed x1e-7) against our nshd.
     """
-    rows = []
-    source = "bench.dashboard (copy of SPEC.md section 1)"
-    gpsnr, nshd, methods = _PAPER_GPSNR, _PAPER_NSHD, list(_PAPER_METHODS.values())
-    try:
-        from bench import paper  # the runner helper's module: the single source when present
+    from bench import paper_facts
+    from bench.paper import PAPER_METHODS
 
-        labels = {label: name for name, label in paper.PAPER_SEQUENCES.items()}
-        gpsnr = {labels[row]: values for row, values in paper.TABLE1_GPSNR.items()}
-        nshd = {labels[row]: values for row, values in paper.TABLE2_NSHD_E7.items()}
-        methods = [name for name, _, _ in paper.PAPER_METHODS]
-        source = "bench.paper"
-    except (ImportError, AttributeError, KeyError):
-        pass
-    for metric, table, scale in (("gpsnr_d1", gpsnr, 1.0), ("nshd", nshd, 1e-7)):
-        for sequence, values in table.items():
+    methods = [name for name, _, _ in PAPER_METHODS]
+    name_of = {label: name for name, label in paper_facts.PAPER_SEQUENCES.items()}
+    rows = []
+    for metric, table, scale in (("gpsnr_d1", paper_facts.TABLE1_GPSNR, 1.0),
+                                 ("nshd", paper_facts.TABLE2_NSHD_E7, paper_facts.NSHD_SCALE)):
+        for label, values in table.items():
             for method, value in zip(methods, values):
-                rows.append({"sequence": str(sequence).lower(), "method": method, "metric": metric,
-                             "value": float(value) * scale, "source": source})
+                rows.append({"sequence": name_of[label], "method": method, "metric": metric,
+                             "value": float(value) * scale, "source": "bench.paper_facts"})
     return pd.DataFrame(rows, columns=["sequence", "method", "metric", "value", "source"])
 
 
@@ -249,9 +250,9 @@ def quality_chart(history: History, sequence: str, holes: str, holes_params: str
             ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right",
                                fontsize=7.5)
             ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
-            ax.set_title(f"{METRIC_LABELS.get(metric, metric)} · {scope}", loc="left")
-    handles = [plt.Line2D([], [], color=colours[l], marker="o", linewidth=1.6, label=l)
-               for l in sorted(set(sub["label"]), key=list(colours).index)]
+            ax.set_title(f"{metric_label(metric)} · {scope}", loc="left")
+    handles = [plt.Line2D([], [], color=colours[name], marker="o", linewidth=1.6, label=name)
+               for name in sorted(set(sub["label"]), key=list(colours).index)]
     if any(p not in ("", "intrinsic") for p in set(sub["peak"])):
         handles.append(plt.Line2D([], [], color="#6b7280", linestyle=":", label="dotted: PSNR peak "
                                   + ", ".join(sorted(p for p in set(sub["peak"]) if p not in ("", "intrinsic")))))
@@ -288,10 +289,10 @@ def time_chart(history: History, colours: dict[str, str]) -> str | None:
         ax.set_title(f"{sequence} · {holes}: seconds per frame", loc="left")
     handles, labels = [], []
     for ax in axes[0]:
-        for h, l in zip(*ax.get_legend_handles_labels()):
-            if l not in labels:
+        for h, name in zip(*ax.get_legend_handles_labels()):
+            if name not in labels:
                 handles.append(h)
-                labels.append(l)
+                labels.append(name)
     order = sorted(range(len(labels)), key=lambda i: list(colours).index(labels[i]))
     handles, labels = [handles[i] for i in order], [labels[i] for i in order]
     fig.legend(handles, labels, loc="upper center", ncol=min(len(labels), 6), frameon=False,
@@ -348,51 +349,6 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
 
 # ---------------------------------------------------------------------------------------------
 # HTML
-CSS = """
-:root { --ink:#111827; --muted:#6b7280; --line:#e5e7eb; --bg:#f8fafc; --bad:#b91c1c; --badbg:#fef2f2;
-        --good:#047857; --goodbg:#ecfdf5; --accent:#1d4ed8; }
-* { box-sizing: border-box; }
-body { margin:0; font:14px/1.45 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif;
-       color:var(--ink); background:var(--bg); }
-header { background:#0f172a; color:#f8fafc; padding:22px 32px 18px; }
-header h1 { margin:0 0 4px; font-size:22px; font-weight:650; }
-header p { margin:0; color:#cbd5e1; font-size:13px; }
-main { max-width:1320px; margin:0 auto; padding:18px 32px 40px; }
-.cards { display:grid; grid-template-columns:repeat(auto-fit, minmax(180px, 1fr)); gap:12px; margin:0 0 8px; }
-.card { background:#fff; border:1px solid var(--line); border-radius:10px; padding:12px 14px; }
-.card .k { color:var(--muted); font-size:12px; text-transform:uppercase; letter-spacing:.04em; }
-.card .v { font-size:24px; font-weight:650; margin-top:2px; }
-.card .s { color:var(--muted); font-size:12px; }
-.card.bad { border-color:#fecaca; background:var(--badbg); } .card.bad .v { color:var(--bad); }
-.card.warn { border-color:#fde68a; background:#fffbeb; } .card.warn .v { color:#92400e; }
-.card.good { border-color:#a7f3d0; background:var(--goodbg); } .card.good .v { color:var(--good); }
-section { background:#fff; border:1px solid var(--line); border-radius:10px; padding:16px 20px; margin:16px 0;
-          overflow-x:auto; }
-section h2 { margin:0 0 4px; font-size:17px; }
-section h3 { margin:16px 0 4px; font-size:14px; }
-.note { color:var(--muted); font-size:12.5px; margin:2px 0 10px; }
-table { border-collapse:collapse; width:100%; font-size:12.5px; font-variant-numeric:tabular-nums; }
-th, td { padding:5px 8px; border-bottom:1px solid var(--line); text-align:left; vertical-align:top; }
-th { background:#f1f5f9; font-weight:600; position:sticky; top:0; }
-td.num { text-align:right; white-space:nowrap; }
-tr.regressed td { background:var(--badbg); color:var(--bad); font-weight:600; }
-tr.missing td { background:#fff7ed; color:#9a3412; font-weight:600; }
-tr.improved td { background:var(--goodbg); color:var(--good); }
-tr.slower td { color:#92400e; }
-.badge { display:inline-block; padding:1px 8px; border-radius:999px; font-size:11.5px; font-weight:600; }
-.badge.bad { background:#fee2e2; color:var(--bad); } .badge.good { background:#d1fae5; color:var(--good); }
-.badge.ok { background:#e0e7ff; color:#3730a3; }
-.swatch { display:inline-block; width:10px; height:10px; border-radius:2px; margin-right:6px; vertical-align:-1px; }
-svg.chart { width:100%; height:auto; display:block; }
-.figure { margin:8px 0 14px; }
-details summary { cursor:pointer; color:var(--accent); margin:8px 0; }
-td.best { font-weight:700; }
-td.bad { color:var(--bad); font-weight:600; }
-tr.paper td { background:#f1f5f9; font-style:italic; }
-footer { color:var(--muted); font-size:12px; text-align:center; margin-top:20px; }
-"""
-
-
 def _e(value) -> str:
     return html.escape(str(value), quote=True)
 
@@ -445,18 +401,13 @@ def paper_gaps(history: History, paper: pd.DataFrame, runs: pd.DataFrame | None 
     graph methods, meshlab output=whole) where the store holds it, else at its defaults (for the
     graph methods: our tuned variant, not the paper configuration). ``runs`` (the store's runs
     table) supplies the labels that experiment configs gave to hole configurations ("coherent holes")."""
+    from bench.paper import PAPER_METHODS
     from bench.tables import config_labels, given_labels
 
     proposed = "temporal-graph"
     others = [m for m in paper["method"].drop_duplicates() if m != proposed]
     # each method in its paper column's configuration (bench.paper), else at its defaults
-    paper_params = {}
-    try:
-        from bench import paper as paper_module
-
-        paper_params = {name: compare._canonical_json(params) for name, _, params in paper_module.PAPER_METHODS}
-    except (ImportError, AttributeError):
-        pass
+    paper_params = {name: compare._canonical_json(params) for name, _, params in PAPER_METHODS}
     table = history.table
     as_in_paper = [p == "{}" or paper_params.get(m) == p for m, p in zip(table["method"], table["method_params"])]
     latest = table[(table["code_version"] == history.versions[-1]) & pd.Series(as_in_paper, index=table.index)
@@ -520,7 +471,7 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
             cell = cell.dropna(subset=["mean"])
             if len(cell) and metric != "time_s":
                 best[column] = cell["mean"].max() if compare.higher_is_better(metric) else cell["mean"].min()
-        head = "".join(f"<th>{_e(METRIC_LABELS.get(m, m))}<br><span class='note'>{_e(s)}"
+        head = "".join(f"<th>{_e(metric_label(m))}<br><span class='note'>{_e(s)}"
                        f"{_e(' · peak ' + p if p not in ('', 'intrinsic') else '')}</span></th>"
                        for m, s, p in columns)
         body = []
@@ -544,14 +495,36 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
     return "".join(parts)
 
 
-def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
-                     benchmarks: pd.DataFrame | None = None,
-                     baseline: tuple[pd.DataFrame, dict] | None = None,
-                     tolerances: dict[str, float] | None = None, title: str = "dpcbench regression dashboard",
-                     sources: list[str] | None = None) -> str:
-    """The dashboard page as one HTML string (see the module docstring for its sections)."""
+# ---------------------------------------------------------------------------------------------
+# the page: one function per section, each taking the Page it is built from
+@dataclass
+class Page:
+    """What the sections of one dashboard page are built from (prepared once by `prepare_page`).
+
+    comparison:      the latest comparison (`compare.compare_summaries`) or None when there is
+                     neither a baseline nor two code versions; compared_what says what it compares.
+    quality_metrics: the quality metrics present, in `QUALITY_ORDER` then by name.
+    """
+
+    results: pd.DataFrame
+    runs: pd.DataFrame | None
+    benchmarks: pd.DataFrame | None
+    history: History
+    paper: pd.DataFrame
+    colours: dict[str, str]
+    metrics_present: set[str]
+    quality_metrics: list[str]
+    comparison: compare.Comparison | None
+    compared_what: str
+    n_failed: int
+    n_bench: int
+    n_sessions: int
+
+
+def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: pd.DataFrame | None,
+                 baseline: tuple[pd.DataFrame, dict] | None, tolerances: dict[str, float] | None) -> Page:
+    """The history, colours, metrics and latest comparison that the sections share."""
     history = build_history(results)
-    paper = paper_reference()
     colours = method_colours(history.table["label"]) if len(history.table) else {}
     metrics_present = set(history.table["metric"]) if len(history.table) else set()
     quality_metrics = [m for m in QUALITY_ORDER if m in metrics_present] + \
@@ -571,19 +544,28 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
                              f"{short_version(history.versions[-2])}")
         comparison = compare.compare_summaries(base, current, tolerances)
 
-    n_done = int(results["run_id"].nunique()) if len(results) else 0
     n_failed = 0
     if runs is not None and len(runs):
         n_failed = int(runs.loc[runs["status"] == "failed", "run_id"].nunique())
+    n_bench = int(benchmarks["fullname"].nunique()) if benchmarks is not None and len(benchmarks) else 0
+    n_sessions = int(benchmarks.drop_duplicates(["datetime", "commit"]).shape[0]) if n_bench else 0
+    return Page(results, runs, benchmarks, history, paper_reference(), colours, metrics_present, quality_metrics,
+                comparison, compared_what, n_failed, n_bench, n_sessions)
+
+
+def cards_section(page: Page) -> str:
+    """The summary cards: code versions, runs (failed ones), regressions, best GPSNR D1, benchmarks."""
+    history, results = page.history, page.results
+    n_done = int(results["run_id"].nunique()) if len(results) else 0
     cards = [
         _card("code versions", len(history.versions),
               f"{short_version(history.versions[0])} → {short_version(history.versions[-1])}" if history.versions else "none"),
-        _card("runs", n_done, f"{n_failed} failed (see Code versions)" if n_failed else "none failed",
-              "warn" if n_failed else ""),
+        _card("runs", n_done, f"{page.n_failed} failed (see Code versions)" if page.n_failed else "none failed",
+              "warn" if page.n_failed else ""),
     ]
-    if comparison is not None:
-        n_bad = len(comparison.failures)
-        n_improved = int((comparison.table["status"] == compare.STATUS_IMPROVED).sum())
+    if page.comparison is not None:
+        n_bad = len(page.comparison.failures)
+        n_improved = int((page.comparison.table["status"] == compare.STATUS_IMPROVED).sum())
         cards.append(_card("regressions", n_bad, f"{n_improved} improved · latest comparison",
                            "bad" if n_bad else "good"))
     else:
@@ -597,78 +579,100 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
         if len(latest):
             by_method = latest.groupby("label")["mean"].mean().sort_values(ascending=False)
             cards.append(_card("best GPSNR D1", by_method.index[0], f"{by_method.iloc[0]:.2f} dB mean over sequences"))
-    n_bench = int(benchmarks["fullname"].nunique()) if benchmarks is not None and len(benchmarks) else 0
-    n_sessions = int(benchmarks.drop_duplicates(["datetime", "commit"]).shape[0]) if n_bench else 0
-    cards.append(_card("benchmarks", n_bench, f"{n_sessions} session(s)" if n_bench else "no JSON given"))
+    cards.append(_card("benchmarks", page.n_bench, f"{page.n_sessions} session(s)" if page.n_bench else "no JSON given"))
+    return f"<div class=\"cards\">{''.join(cards)}</div>"
 
-    sections = []
-    # comparison
-    if comparison is not None:
-        flagged = comparison.table[~comparison.table["status"].isin([compare.STATUS_OK, compare.STATUS_NEW])]
-        n_new = int((comparison.table["status"] == compare.STATUS_NEW).sum())
-        severity = {compare.STATUS_REGRESSED: 0, compare.STATUS_MISSING: 1, compare.STATUS_SLOWER: 2,
-                    compare.STATUS_IMPROVED: 3, compare.STATUS_FASTER: 4}
-        flagged = flagged.assign(_rank=flagged["status"].map(severity).fillna(5)).sort_values(
-            "_rank", kind="stable").drop(columns="_rank")  # the bad news first
-        verdict = ('<span class="badge bad">FAILED</span>' if comparison.failed
-                   else '<span class="badge good">PASSED</span>')
-        body = (comparison_table(comparison, colours, flagged) if len(flagged)
-                else "<p>Every row is within tolerance.</p>")
-        if n_new:
-            body += f'<p class="note">{n_new} row(s) are new in this version (no earlier value to compare).</p>'
-        sections.append(
-            f'<section id="comparison"><h2>Latest comparison {verdict}</h2>'
-            f'<p class="note">{_e(compared_what)}. Changes: dB for PSNR, ratios for NSHD, distances and time; '
+
+def comparison_section(page: Page) -> str:
+    """Rows beyond tolerance first (the bad news first), the full comparison folded; '' without one."""
+    comparison = page.comparison
+    if comparison is None:
+        return ""
+    flagged = comparison.table[~comparison.table["status"].isin([compare.STATUS_OK, compare.STATUS_NEW])]
+    n_new = int((comparison.table["status"] == compare.STATUS_NEW).sum())
+    severity = {compare.STATUS_REGRESSED: 0, compare.STATUS_MISSING: 1, compare.STATUS_SLOWER: 2,
+                compare.STATUS_IMPROVED: 3, compare.STATUS_FASTER: 4}
+    flagged = flagged.assign(_rank=flagged["status"].map(severity).fillna(5)).sort_values(
+        "_rank", kind="stable").drop(columns="_rank")
+    verdict = ('<span class="badge bad">FAILED</span>' if comparison.failed
+               else '<span class="badge good">PASSED</span>')
+    body = (comparison_table(comparison, page.colours, flagged) if len(flagged)
+            else "<p>Every row is within tolerance.</p>")
+    if n_new:
+        body += f'<p class="note">{n_new} row(s) are new in this version (no earlier value to compare).</p>'
+    return (f'<section id="comparison"><h2>Latest comparison {verdict}</h2>'
+            f'<p class="note">{_e(page.compared_what)}. Changes: dB for PSNR, ratios for NSHD, distances and time; '
             f'a row regresses when its change passes the tolerance in the bad direction. Time is shown but '
             f'not gated.</p>{body}<details><summary>all {len(comparison.table)} rows</summary>'
-            f'{comparison_table(comparison, colours)}</details></section>')
-    # quality history
-    if history.versions:
-        charts = []
-        keys = history.table[["sequence", "holes", "holes_params"]].drop_duplicates().sort_values(
-            ["sequence", "holes", "holes_params"])
-        for sequence, holes, holes_params in keys.itertuples(index=False):
-            params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
-            chart = quality_chart(history, sequence, holes, holes_params, quality_metrics, colours, paper)
-            charts.append(f'<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>'
-                          f'<div class="figure" data-chart="quality" data-sequence="{_e(sequence)}" '
-                          f'data-commits="{len(history.versions)}">{chart}</div>')
-        has_paper = bool(set(history.table["sequence"].str.lower()) & set(paper["sequence"]))
-        paper_note = ("Dashed lines: the paper's Table 1 (GPSNR) and Table 2 (NSHD) values for this sequence."
-                      if has_paper else
-                      "The paper's values (Tables 1-2) are for its own sequences (Longdress, Loot, Redandblack, "
-                      "Soldier, UlliWegner); none is in this store, so no reference lines are drawn.")
-        sections.append(
-            f'<section id="quality"><h2>Quality over code versions</h2><p class="note">Mean over frames (and seeds) '
+            f'{comparison_table(comparison, page.colours)}</details></section>')
+
+
+def quality_section(page: Page) -> str:
+    """One chart per (sequence, holes): quality over code versions, the paper's values dashed."""
+    history, paper = page.history, page.paper
+    if not history.versions:
+        return ""
+    charts = []
+    keys = history.table[["sequence", "holes", "holes_params"]].drop_duplicates().sort_values(
+        ["sequence", "holes", "holes_params"])
+    for sequence, holes, holes_params in keys.itertuples(index=False):
+        params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
+        chart = quality_chart(history, sequence, holes, holes_params, page.quality_metrics, page.colours, paper)
+        charts.append(f'<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>'
+                      f'<div class="figure" data-chart="quality" data-sequence="{_e(sequence)}" '
+                      f'data-commits="{len(history.versions)}">{chart}</div>')
+    has_paper = bool(set(history.table["sequence"].str.lower()) & set(paper["sequence"]))
+    paper_note = ("Dashed lines: the paper's Table 1 (GPSNR) and Table 2 (NSHD) values for this sequence."
+                  if has_paper else
+                  f"The paper's values (Tables 1-2) are for its own sequences ({', '.join(PAPER_SEQUENCES.values())}); "
+                  "none is in this store, so no reference lines are drawn.")
+    return (f'<section id="quality"><h2>Quality over code versions</h2><p class="note">Mean over frames (and seeds) '
             f'of the newest run per cell, per code version in time order. Scope "frame" scores whole frames, '
             f'"holes" only the hole regions. {_e(paper_note)}</p>{"".join(charts)}</section>')
-        gaps = paper_gaps(history, paper, runs)
-        normals_note = ""
-        if runs is not None and len(runs) and "gpsnr_d2" in metrics_present:
-            from bench.tables import d2_normals_note
 
-            done = runs[runs["status"] == "done"]
-            newest = done[done["code_version"].astype(str) == history.versions[-1]]
-            normals_note = d2_normals_note(newest if len(newest) else done)  # the runs of the newest version
-        if gaps:
-            sections.append(
-                '<section id="paper"><h2>Against the paper</h2><p class="note">GPSNR D1 gain of temporal-graph '
-                'over each method of the paper\'s columns at the newest version, and how many times lower its NSHD '
-                'is than fu-nonlocal\'s (the paper: at least 3x). temporal-graph and fu-nonlocal are taken in the '
-                'paper configuration (variant=paper) where the store holds it, else at their defaults, which are '
-                'our tuned variant and not the paper configuration. On stand-in data the absolute values differ '
-                'from the paper\'s; the ranking and the size of the gaps are what a reproduction is held to. '
-                'Negative gains in red.</p>' + gaps + '</section>')
-        sections.append(f'<section id="latest"><h2>Latest results: {_e(short_version(history.versions[-1]))}</h2>'
-                        f'<p class="note">Mean ± std over frames; best per column in bold. {_e(normals_note)}</p>'
-                        f'{latest_table(history, colours, quality_metrics)}</section>')
-    # speed
+
+def paper_section(page: Page) -> str:
+    """temporal-graph's gains over the paper's other columns beside the paper's; '' when it has no run."""
+    if not page.history.versions:
+        return ""
+    gaps = paper_gaps(page.history, page.paper, page.runs)
+    if not gaps:
+        return ""
+    return ('<section id="paper"><h2>Against the paper</h2><p class="note">GPSNR D1 gain of temporal-graph '
+            'over each method of the paper\'s columns at the newest version, and how many times lower its NSHD '
+            'is than fu-nonlocal\'s (the paper: at least 3x). temporal-graph and fu-nonlocal are taken in the '
+            'paper configuration (variant=paper) where the store holds it, else at their defaults, which are '
+            'our tuned variant and not the paper configuration. On stand-in data the absolute values differ '
+            'from the paper\'s; the ranking and the size of the gaps are what a reproduction is held to. '
+            'Negative gains in red.</p>' + gaps + '</section>')
+
+
+def latest_section(page: Page) -> str:
+    """The newest code version's means per method (`latest_table`), with how D2 got its normals."""
+    history, runs = page.history, page.runs
+    if not history.versions:
+        return ""
+    normals_note = ""
+    if runs is not None and len(runs) and "gpsnr_d2" in page.metrics_present:
+        from bench.tables import d2_normals_note
+
+        done = runs[runs["status"] == "done"]
+        newest = done[done["code_version"].astype(str) == history.versions[-1]]
+        normals_note = d2_normals_note(newest if len(newest) else done)  # the runs of the newest version
+    return (f'<section id="latest"><h2>Latest results: {_e(short_version(history.versions[-1]))}</h2>'
+            f'<p class="note">Mean ± std over frames; best per column in bold. {_e(normals_note)}</p>'
+            f'{latest_table(history, page.colours, page.quality_metrics)}</section>')
+
+
+def speed_section(page: Page) -> str:
+    """Time per frame over code versions and the pytest-benchmark history; '' when there is neither."""
+    history, benchmarks = page.history, page.benchmarks
     speed = []
-    chart = time_chart(history, colours) if history.versions else None
+    chart = time_chart(history, page.colours) if history.versions else None
     if chart:
         speed.append(f'<h3>Inpainting time per frame (results store)</h3>'
                      f'<div class="figure" data-chart="time" data-commits="{len(history.versions)}">{chart}</div>')
-    if n_bench:
+    if page.n_bench:
         from bench import benchsuite
 
         bench_chart = benchmark_chart(benchmarks)
@@ -679,45 +683,67 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
             f'<td>{_e(short_version(r.commit))}</td><td>{_e(str(r.datetime)[:16])}</td></tr>'
             for r in latest_bench.itertuples(index=False))
         speed.append(f'<h3>Benchmark suite (pytest-benchmark)</h3>'
-                     f'<p class="note">{n_sessions} session(s); machines are shared and noisy: read trends, '
+                     f'<p class="note">{page.n_sessions} session(s); machines are shared and noisy: read trends, '
                      f'not single points.</p><div class="figure" data-chart="benchmarks" '
-                     f'data-sessions="{n_sessions}">{bench_chart}</div>'
-                     f'<details><summary>newest figure of each of the {n_bench} benchmarks</summary>'
+                     f'data-sessions="{page.n_sessions}">{bench_chart}</div>'
+                     f'<details><summary>newest figure of each of the {page.n_bench} benchmarks</summary>'
                      f'<table class="benchmarks"><thead><tr><th>group</th><th>benchmark</th><th>median s</th>'
                      f'<th>min s</th><th>rounds</th><th>commit</th><th>date</th></tr></thead><tbody>{rows}</tbody>'
                      f'</table></details>')
-    if speed:
-        sections.append(f'<section id="speed"><h2>Speed</h2>{"".join(speed)}</section>')
-    # runs
-    if history.versions:
-        counts = results.groupby("code_version")["run_id"].nunique()
-        version_rows = "".join(
-            f'<tr><td>{_e(short_version(v))}</td><td>{_e(v)}</td><td>{_e(history.version_dates[v])}</td>'
-            f'<td class="num">{int(counts.get(v, 0))}</td></tr>' for v in reversed(history.versions))
-        failed_html = ""
-        if runs is not None and n_failed:
-            failed = runs[runs["status"] == "failed"].drop_duplicates("run_id")
-            failed_html = ("<h3>Failed runs</h3><table><thead><tr><th>method</th><th>sequence</th><th>code</th>"
-                           "<th>error</th></tr></thead><tbody>" + "".join(
-                               f'<tr class="regressed"><td>{_e(method_label(r.method, r.method_params or "{}"))}</td>'
-                               f'<td>{_e(r.sequence)}</td><td>{_e(short_version(r.code_version))}</td>'
-                               f'<td>{_e(str(r.error)[:300])}</td></tr>' for r in failed.itertuples(index=False))
-                           + "</tbody></table>")
-        sections.append(f'<section id="runs"><h2>Code versions</h2><table><thead><tr><th>short</th><th>code version'
-                        f'</th><th>first run (UTC)</th><th>runs</th></tr></thead><tbody>{version_rows}</tbody>'
-                        f'</table>{failed_html}</section>')
+    return f'<section id="speed"><h2>Speed</h2>{"".join(speed)}</section>' if speed else ""
+
+
+def runs_section(page: Page) -> str:
+    """Code versions with their dates and run counts, and the failed runs with their messages."""
+    history, results, runs = page.history, page.results, page.runs
+    if not history.versions:
+        return ""
+    counts = results.groupby("code_version")["run_id"].nunique()
+    version_rows = "".join(
+        f'<tr><td>{_e(short_version(v))}</td><td>{_e(v)}</td><td>{_e(history.version_dates[v])}</td>'
+        f'<td class="num">{int(counts.get(v, 0))}</td></tr>' for v in reversed(history.versions))
+    failed_html = ""
+    if runs is not None and page.n_failed:
+        failed = runs[runs["status"] == "failed"].drop_duplicates("run_id")
+        failed_html = ("<h3>Failed runs</h3><table><thead><tr><th>method</th><th>sequence</th><th>code</th>"
+                       "<th>error</th></tr></thead><tbody>" + "".join(
+                           f'<tr class="regressed"><td>{_e(method_label(r.method, r.method_params or "{}"))}</td>'
+                           f'<td>{_e(r.sequence)}</td><td>{_e(short_version(r.code_version))}</td>'
+                           f'<td>{_e(str(r.error)[:300])}</td></tr>' for r in failed.itertuples(index=False))
+                       + "</tbody></table>")
+    return (f'<section id="runs"><h2>Code versions</h2><table><thead><tr><th>short</th><th>code version'
+            f'</th><th>first run (UTC)</th><th>runs</th></tr></thead><tbody>{version_rows}</tbody>'
+            f'</table>{failed_html}</section>')
+
+
+#: the sections of the page, in order (each returns '' when it has nothing to show)
+SECTIONS = (comparison_section, quality_section, paper_section, latest_section, speed_section, runs_section)
+
+
+def stylesheet() -> str:
+    """The page's CSS, a package data file (bench/static/dashboard.css) inlined in every page."""
+    return resources.files(__package__).joinpath("static", "dashboard.css").read_text(encoding="utf-8")
+
+
+def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
+                     benchmarks: pd.DataFrame | None = None,
+                     baseline: tuple[pd.DataFrame, dict] | None = None,
+                     tolerances: dict[str, float] | None = None, title: str = "dpcbench regression dashboard",
+                     sources: list[str] | None = None) -> str:
+    """The dashboard page as one HTML string (see the module docstring for its sections)."""
+    page = prepare_page(results, runs, benchmarks, baseline, tolerances)
+    sections = [html_text for html_text in (section(page) for section in SECTIONS) if html_text]
     if not sections:
         sections.append('<section><h2>No results yet</h2><p>Run <code>dpcbench run bench/presets/regression.toml'
                         '</code>, then build this page again.</p></section>')
-
     generated = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     source_text = "; ".join(sources or []) or "results store"
     return (
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"><title>{_e(title)}</title>"
-        f"<style>{CSS}</style></head><body><header><h1>{_e(title)}</h1>"
+        f"<style>\n{stylesheet()}</style></head><body><header><h1>{_e(title)}</h1>"
         f"<p>3D dynamic point cloud inpainting · generated {generated} from {_e(source_text)}</p></header><main>"
-        f"<div class=\"cards\">{''.join(cards)}</div>{''.join(sections)}"
+        f"{cards_section(page)}{''.join(sections)}"
         "<footer>dpcbench · static page: every chart and number is inside this file</footer></main></body></html>\n"
     )
 

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import UserError, warn
+from bench.paper_facts import PAPER_SEQUENCES
 from bench.params import parse_param_value, parse_params  # noqa: F401  (the one --param parser)
 from bench.plyio import PointCloud
 from bench.sequences import Sequence, list_frame_files, load_sequence
@@ -104,17 +105,17 @@ _8I_SOURCE = ("8i Voxelized Full Bodies (8iVFB v2), E. d'Eon, B. Harrison, T. My
 _8I_TERMS = ("free of charge for non-commercial research and standardization use under 8i's licence "
              "distributed with the data; it may not be redistributed with dpcbench")
 
-PAPER: dict[str, PaperDataset] = {
-    "longdress": PaperDataset("longdress", "Longdress", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "longdress", "Ply",
-                              "longdress_vox10_{:04d}.ply", 1051, 300, 10),
-    "loot": PaperDataset("loot", "Loot", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "loot", "Ply", "loot_vox10_{:04d}.ply",
-                         1000, 300, 10),
-    "redandblack": PaperDataset("redandblack", "Redandblack", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "redandblack", "Ply",
-                                "redandblack_vox10_{:04d}.ply", 1450, 300, 10),
-    "soldier": PaperDataset("soldier", "Soldier", _8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "soldier", "Ply",
-                            "soldier_vox10_{:04d}.ply", 536, 300, 10),
-    "ulliwegner": PaperDataset(
-        "ulliwegner", "UlliWegner", "MPEG content repository, 10-bit; MPEG test-material terms",
+#: where each of the paper's sequences (`bench.paper.PAPER_SEQUENCES`, the one list of them and of
+#: their row labels) is published and which files to expect: name -> (summary, source, terms,
+#: folder, subfolder, pattern, first, count, bit_depth)
+_PAPER_FILES: dict[str, tuple] = {
+    "longdress": (_8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "longdress", "Ply", "longdress_vox10_{:04d}.ply", 1051, 300, 10),
+    "loot": (_8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "loot", "Ply", "loot_vox10_{:04d}.ply", 1000, 300, 10),
+    "redandblack": (_8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "redandblack", "Ply", "redandblack_vox10_{:04d}.ply",
+                    1450, 300, 10),
+    "soldier": (_8I_SUMMARY, _8I_SOURCE, _8I_TERMS, "soldier", "Ply", "soldier_vox10_{:04d}.ply", 536, 300, 10),
+    "ulliwegner": (
+        "MPEG content repository, 10-bit; MPEG test-material terms",
         "MPEG point cloud test content 'UlliWegner' (a full-body capture; the paper cites MPEG and JPEG Pleno for "
         "its data); distributed to MPEG participants through the MPEG content repository "
         "http://mpegfs.int-evry.fr/ ; outside MPEG ask the content owner named in the repository's readme",
@@ -122,6 +123,9 @@ PAPER: dict[str, PaperDataset] = {
         "it may not be redistributed with dpcbench",
         "ulliwegner", None, None, 0, None, 10),
 }
+#: the paper's sequences, in the paper's order, titled with its row labels
+PAPER: dict[str, PaperDataset] = {name: PaperDataset(name, label, *_PAPER_FILES[name])
+                                  for name, label in PAPER_SEQUENCES.items()}
 
 @dataclass(frozen=True)
 class MeshDataset:

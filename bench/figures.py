@@ -14,9 +14,9 @@ matplotlib.use("Agg")  # before pyplot is imported (no display on servers): henc
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from scipy.spatial import cKDTree  # noqa: E402
 
 from bench.tables import ComparisonTable, frame_values  # noqa: E402
+from metrics.neighbours import median_neighbour_distance  # noqa: E402
 
 
 def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = "") -> Path:
@@ -156,7 +156,7 @@ def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list
         raise ValueError(f"zoom_regions: give one region (or None) per column ({n_cols}), got {len(zoom_regions)}")
     present = [z for z in zoom_regions if z is not None]
     first = grid[0][0]
-    spacing = float(np.median(cKDTree(first).query(first, k=2)[0][:, 1])) if len(first) > 1 else 1.0
+    spacing = median_neighbour_distance(first, sample=None) if len(first) > 1 else 1.0
     half = max([2.0 * z.bounding_radius for z in present] + [8.0 * spacing])
     if view is None:
         view = facing_view(first, present[0].center) if present else "front"

@@ -1,14 +1,21 @@
-"""The paper's experiment: its methods, sequences, published Tables 1-2, and the metric conventions
-`reproduce-paper` uses to print ours beside them.
+"""The paper's experiment as `reproduce-paper` runs it: the registry methods behind its columns, the
+protocol (presets, sequences, holes) and the subjective figures.
 
-Source: Fu, Hu, Guo, "3D Dynamic Point Cloud Inpainting via Temporal Consistency on Graphs", ICME 2020,
-Tables 1 (GPSNR, dB, higher is better) and 2 (NSHD, x1e-7, lower is better), averaged over the frames
-of each sequence with synthetic holes.
+The paper's own facts (sequences, column labels, published Tables 1-2, headline gains) live in
+`bench.paper_facts`, their one source; they are re-exported here under the same names.
 """
 
 from __future__ import annotations
 
 from bench.errors import UserError
+from bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
+    HEADLINE_GAIN_DB,
+    HU_ET_AL,
+    PAPER_COLUMNS,
+    PAPER_SEQUENCES,
+    TABLE1_GPSNR,
+    TABLE2_NSHD_E7,
+)
 
 #: The columns of reproduce-paper's Tables 1-2, in order: (registry name, column label, parameters,
 #: role). role "paper": the paper's four columns, each run in its paper configuration (MeshLab's
@@ -31,8 +38,11 @@ ROLES = {"paper": "the paper's column, in the paper configuration", "ours": "our
 
 #: (registry name, column label in the paper, parameters) of the paper's four columns, in its order
 PAPER_METHODS: list[tuple[str, str, dict]] = [(n, label, p) for n, label, p, role in TABLE_COLUMNS if role == "paper"]
+if tuple(label for _, label, _ in PAPER_METHODS) != PAPER_COLUMNS:
+    raise AssertionError("bench.paper.TABLE_COLUMNS: the 'paper' columns must be bench.paper_facts.PAPER_COLUMNS, "
+                         "in order")
 #: the paper's column labels (its Tables 1-2) and every column of ours (paper's first)
-COLUMNS = [label for _, label, _ in PAPER_METHODS]
+COLUMNS = list(PAPER_COLUMNS)
 ALL_COLUMNS = [label for _, label, _, _ in TABLE_COLUMNS]
 
 
@@ -89,15 +99,13 @@ def columns_caption() -> str:
         if variant and "variant" not in d["params"]:
             given += f": variant={variant}"
         parts.append(f"{d['label']} = `{d['method']}` ({given}; version {d['version']})")
-    return ("Columns: " + "; ".join(parts) + ". Meshlab, Lozes, Hu and Proposed are the paper's columns: Hu and "
+    return ("Columns: " + "; ".join(parts) + f". Meshlab, Lozes, Hu and Proposed are the paper's columns "
+            f"(Hu: {HU_ET_AL}): Hu and "
             "Proposed in the paper configuration (variant=paper: every step as the paper writes it, every addition "
             "of ours off), MeshLab resampling the whole frame as the paper describes, Lozes as lozes-pde implements "
             "Lozes et al.; '(ours)' and '(reference)' columns are not in the paper. Every parameter value: "
             "REPORT.md, 'Columns'.")
 
-#: dataset names (bench.datasets) -> the paper's row label
-PAPER_SEQUENCES = {"longdress": "Longdress", "loot": "Loot", "redandblack": "Redandblack",
-                   "soldier": "Soldier", "ulliwegner": "UlliWegner"}
 
 #: embedded stand-ins used when the paper's data is not given -> row label (always says stand-in)
 STANDINS = {"human": "Human (stand-in)", "bunny": "Bunny (stand-in)"}
@@ -106,26 +114,6 @@ STANDINS = {"human": "Human (stand-in)", "bunny": "Bunny (stand-in)"}
 REAL_MOTION = {"samba": "Samba (real captured motion, not one of the paper's sequences)"}
 #: its points per frame by stand-in size (None: fill the 10-bit grid, ~790k points, like an 8i capture)
 REAL_MOTION_POINTS = {"tiny": 20_000, "small": 100_000, "default": None}
-
-TABLE1_GPSNR: dict[str, tuple[float, float, float, float]] = {
-    "Longdress": (11.7926, 30.3883, 41.5686, 43.1301),
-    "Loot": (16.4451, 27.3715, 40.1546, 47.5648),
-    "Redandblack": (13.1772, 24.4810, 33.9921, 39.0103),
-    "Soldier": (17.4697, 23.1571, 34.5062, 42.2980),
-    "UlliWegner": (24.9424, 31.5455, 41.3037, 45.8411),
-}
-
-#: NSHD in units of 1e-7 as printed
-TABLE2_NSHD_E7: dict[str, tuple[float, float, float, float]] = {
-    "Longdress": (24.8631, 7.1362, 2.9174, 0.9131),
-    "Loot": (14.1925, 8.9410, 3.1102, 0.3549),
-    "Redandblack": (22.8300, 9.6233, 5.9856, 1.9324),
-    "Soldier": (17.1376, 10.0044, 5.2145, 1.2057),
-    "UlliWegner": (11.2509, 6.7370, 1.9658, 0.6362),
-}
-
-#: the paper's headline: average GPSNR gain of Proposed over each method (dB)
-HEADLINE_GAIN_DB = {"Meshlab": 26.80, "Lozes": 16.18, "Hu": 5.26}
 
 
 def paper_table(metric: str) -> dict[str, dict[str, float]]:

@@ -16,6 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import UserError
+from metrics.neighbours import estimate_normals, median_neighbour_distance
+
+#: neighbours of the normals estimated for shading a cloud that carries none
+SHADING_NORMAL_NEIGHBOURS = 16
 
 VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "left": (-90.0, 0.0), "right": (90.0, 0.0),
          "top": (0.0, 90.0)}
@@ -44,15 +48,6 @@ def rotate(points: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return points[:, :1] * rotation[:, 0] + points[:, 1:2] * rotation[:, 1] + points[:, 2:3] * rotation[:, 2]
 
 
-def estimate_normals(points: np.ndarray, k: int = 16) -> np.ndarray:
-    """Unoriented unit normals (N, 3) from the k nearest neighbours (open3d's PCA estimate)."""
-    import open3d as o3d
-
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=k))
-    return np.asarray(pcd.normals)
-
-
 def lambert(normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """Lambert intensity (N,) of unoriented normals: 0.2 + 0.8 |n' . l|, n' = R n (view space),
     l = unit (-0.3, 0.4, 1) (light from the viewer, a little up-left)."""
@@ -73,7 +68,7 @@ def panel_colours(points: np.ndarray, colors, normals, shading: str, rotation: n
         raise UserError("shading='color' but the cloud has no colours; use shading='auto' or 'normal'")
     use_normals = shading in ("normal", "shaded") or colors is None
     if use_normals and normals is None:
-        normals = estimate_normals(points) if len(points) >= 3 else None
+        normals = estimate_normals(points, SHADING_NORMAL_NEIGHBOURS) if len(points) >= 3 else None
     if colors is None or shading == "normal":
         if normals is None:  # fewer than 3 points: no normal to estimate
             return np.full((len(points), 3), 128, np.uint8)
@@ -170,16 +165,14 @@ def _auto_radius(points: np.ndarray, scale: float, sample: int = 50_000) -> int:
     and divided by sqrt(N / sample): on a surface, thinning by k spreads points by sqrt(k). That
     avoids a KD-tree over a million points for a number that only needs to be roughly right.
     """
-    from scipy.spatial import cKDTree
+    from metrics.neighbours import probe
 
     n = len(points)
     if n < 2:
         return 2
-    subset = points
-    if n > sample:
-        subset = points[np.random.default_rng(0).choice(n, size=sample, replace=False)]
-    d, _ = cKDTree(subset).query(subset, k=2, workers=-1)
-    spacing = float(np.median(d[:, 1])) / np.sqrt(n / len(subset)) * scale
+    subset = probe(points, sample, seed=0)
+    # the spacing of the subset itself (its own tree), rescaled to the whole cloud
+    spacing = median_neighbour_distance(subset, sample=None) / np.sqrt(n / len(subset)) * scale
     return int(min(6, max(0, np.ceil(0.5 * spacing))))
 
 
@@ -335,12 +328,9 @@ def _zoom_radius(points: np.ndarray, scale: float, limit: int) -> int:
     """Splat radius (pixels) for a magnified crop: 0.7 x the point spacing in pixels, rounded up
     (so that disks also close the diagonal gaps of a voxel grid, sqrt(2)/2 spacing), within
     1..``limit`` (the zoom magnifies far beyond `_auto_radius`'s cap of 6)."""
-    from scipy.spatial import cKDTree
-
     if len(points) < 2:
         return max(1, min(limit, 3))
-    d, _ = cKDTree(points).query(points, k=2)
-    return int(min(limit, max(1, np.ceil(0.7 * float(np.median(d[:, 1])) * scale))))
+    return int(min(limit, max(1, np.ceil(0.7 * median_neighbour_distance(points, sample=None) * scale))))
 
 
 def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: list[str], zooms: list,
@@ -405,10 +395,8 @@ def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: lis
     W = max(16, int(round(H * (hi[0] - lo[0]) / (hi[1] - lo[1]))))
     scale = min((W - 1) / (hi[0] - lo[0]), (H - 1) / (hi[1] - lo[1]))
     if zoom_half is None:
-        from scipy.spatial import cKDTree
-
         first = panels[0][0][0]
-        spacing = float(np.median(cKDTree(first).query(first, k=2)[0][:, 1])) if len(first) > 1 else 1.0
+        spacing = median_neighbour_distance(first, sample=None) if len(first) > 1 else 1.0
         zoom_half = 12.0 * spacing
     zoom_half = float(zoom_half)
     if not zoom_half > 0:

@@ -295,12 +295,11 @@ def _peak_label(peak) -> str:
 
 
 def _uses_peak(name: str) -> bool:
-    from metrics.registry import METRICS
+    """Whether the metric's value depends on the PSNR peak (`metrics.registry`, the one source)."""
+    from metrics.registry import describe
 
-    metric = METRICS.get(name)
-    if metric is not None and hasattr(metric, "uses_peak"):
-        return bool(metric.uses_peak)
-    return "psnr" in name
+    metric = describe(name)
+    return metric is not None and metric.uses_peak
 
 
 #: how D2 got the reference normals, as stored in a run's ``env["d2_normals"]`` and printed in captions

@@ -20,16 +20,14 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-LOWER_IS_BETTER = {"nshd", "hausdorff", "chamfer", "time_s", "peak_mem_mb", "temporal_consistency"}
 
+def higher_is_better(metric: str) -> bool | None:
+    """The metric's direction from `metrics.registry.describe` (its one source); None for a metric
+    without one (a fact about the input, or a name the registry does not know): no cell is bold."""
+    from metrics.registry import describe
 
-def higher_is_better(metric: str) -> bool:
-    """From the metrics registry when it knows the metric, else by name (PSNRs and F-score up)."""
-    from metrics.registry import METRICS
-
-    if metric in METRICS and hasattr(METRICS[metric], "higher_is_better"):
-        return bool(METRICS[metric].higher_is_better)
-    return metric not in LOWER_IS_BETTER and not metric.startswith("temporal")
+    entry = describe(metric)
+    return None if entry is None else entry.higher_is_better
 
 
 def config_labels(names: pd.Series, params: pd.Series, display: dict[str, str] | None = None,
@@ -85,7 +83,7 @@ class ComparisonTable:
     metric: str
     scope: str
     peak: str
-    higher_is_better: bool
+    higher_is_better: bool | None  # None: no direction (a fact about the input), nothing in bold
     rows: list[str]
     columns: list[str]
     mean: dict
@@ -99,7 +97,7 @@ class ComparisonTable:
 
     def best(self, row: str, values: dict) -> str | None:
         present = {c: values[(row, c)] for c in self.columns if (row, c) in values and not math.isnan(values[(row, c)])}
-        if not present:
+        if not present or self.higher_is_better is None:
             return None
         pick = max if self.higher_is_better else min
         return pick(present, key=present.get)
@@ -122,13 +120,14 @@ class ComparisonTable:
         for row in self.paper or {}:
             values = self.paper[row]
             pick = max if self.higher_is_better else min
-            best = pick(values, key=values.get) if values else None
+            best = pick(values, key=values.get) if values and self.higher_is_better is not None else None
             yield row, values, best
 
     def conventions(self) -> str:
         peak = f", PSNR peak {self.peak}" if self.peak else ""
         scale = f", in units of {1 / self.scale:.0e}".replace("e-0", "e-") if self.scale != 1 else ""
-        direction = "higher is better" if self.higher_is_better else "lower is better"
+        direction = {True: "higher is better", False: "lower is better", None: "no better direction"}[
+            self.higher_is_better]
         return (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
                 f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}; "
                 "mean ± std over frames (all frames of all seeds); best of each row in bold.")

@@ -3,11 +3,8 @@
 Scale conventions, used everywhere in `holes/`:
 
 - ``point_spacing(points)``: the typical distance between neighbouring surface samples,
-  ``median_i d_8(i) / sqrt(2)`` with ``d_8(i)`` the distance from point i to its 8th nearest
-  neighbour. On a voxelized surface of step 1 the 8 nearest neighbours are the 4 edge and 4
-  diagonal neighbours, so the estimate is exactly 1; for random sampling of density rho it is
-  about ``1.13 / sqrt(rho)``. The 8th neighbour (not the 1st) keeps the estimate stable when
-  samples are duplicated or clumped.
+  ``median_i d_8(i) / sqrt(2)`` (`metrics.neighbours.point_spacing`, the project's one spacing
+  estimator: exactly 1 on a unit voxel surface).
 - ``cube_size(points)``: the cube size M that hole sizes are measured in,
   ``M = min(20 * spacing, 20 * L / 1024)`` with L the largest side of the axis-aligned bounding
   box. The first term is M as the proposed method uses it (``methods.temporal_graph``: 20 point
@@ -32,6 +29,12 @@ from scipy.spatial import cKDTree
 from holes.regions import HoleRegion
 from metrics.errors import UserError
 
+# the one point-spacing and normal estimator (metrics.neighbours), re-exported for holes' callers
+from metrics.neighbours import estimate_normals, point_spacing
+
+__all__ = ["PAPER_CUBE_SIZE", "PAPER_GRID", "bounding_box_region", "check_frame", "components_to_regions",
+           "cube_size", "estimate_normals", "point_spacing", "radius_components", "regions_mask", "tangent_basis"]
+
 #: the paper's cube size on 10-bit data, and the grid it refers to
 PAPER_CUBE_SIZE = 20.0
 PAPER_GRID = 1024.0
@@ -48,26 +51,6 @@ def check_frame(points: ArrayLike, what: str = "frame") -> np.ndarray:
         bad = int((~np.isfinite(arr).all(axis=1)).sum())
         raise UserError(f"{what}: {bad} points have NaN or infinite coordinates; clean the input first")
     return arr
-
-
-def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int = 20000, seed: int = 0) -> float:
-    """Typical neighbour distance: median 8th-NN distance / sqrt(2) (1.0 on a unit voxel grid).
-
-    At most ``sample`` points (a fixed-seed random subset) are queried, which keeps this O(sample log N).
-    """
-    points = np.asarray(points, dtype=np.float64)
-    if len(points) < 9:
-        raise UserError(f"need at least 9 points to estimate the point spacing, got {len(points)}")
-    tree = tree if tree is not None else cKDTree(points)
-    if len(points) > sample:
-        query = points[np.random.default_rng(seed).choice(len(points), sample, replace=False)]
-    else:
-        query = points
-    dist, _ = tree.query(query, k=9, workers=-1)
-    spacing = float(np.median(dist[:, 8])) / np.sqrt(2.0)
-    if not spacing > 0:
-        raise UserError("the points are (almost all) duplicates: cannot estimate a point spacing")
-    return spacing
 
 
 def cube_size(points: np.ndarray, spacing: float | None = None, tree: cKDTree | None = None) -> float:
@@ -138,20 +121,6 @@ def components_to_regions(
         else:
             regions.append(bounding_box_region(piece, margin, point_count=int(len(piece))))
     return regions, labels
-
-
-def estimate_normals(points: np.ndarray, k: int = 16) -> np.ndarray:
-    """Unoriented unit PCA normals (N, 3) from the k nearest neighbours (the point included).
-
-    open3d's multi-threaded estimate (eigenvector of the smallest eigenvalue of the neighbourhood
-    covariance); a numpy batch eigendecomposition took 17 s on a 1M-point frame, open3d ~1-2 s.
-    """
-    import open3d as o3d
-
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
-    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(int(k)))
-    normals = np.asarray(cloud.normals)
-    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
 
 def tangent_basis(normals: np.ndarray) -> np.ndarray:

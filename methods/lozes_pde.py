@@ -66,11 +66,11 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from holes.geometry import point_spacing
 from holes.regions import HoleRegion
 from methods.base import PerFrameMethod, Regions
 from methods.reference import detect_regions
 from metrics.errors import UserError
+from metrics.neighbours import point_spacing
 
 
 class LozesPDE(PerFrameMethod):
@@ -221,7 +221,7 @@ class LozesPDE(PerFrameMethod):
 def sampling_step(points: np.ndarray, sample: int = 2000, radius_spacings: float = 4.0) -> float:
     """Grid step s (same units as ``points`` (N, 3)) that reproduces the frame's areal density:
     s = 1 / sqrt(rho), rho = median over ~``sample`` probe points (even stride) of
-    #{neighbours within r} / (pi r^2), r = ``radius_spacings`` * `holes.geometry.point_spacing`.
+    #{neighbours within r} / (pi r^2), r = ``radius_spacings`` * `metrics.neighbours.point_spacing`.
 
     Counting in a ball a few spacings wide is right for any sampling pattern: it gives s = 1.01 on a
     unit voxel grid, where nearest-neighbour spacings are exact, and 2.82 (not 3.14 as the 8-NN

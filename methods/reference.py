@@ -16,6 +16,8 @@ from scipy.spatial import cKDTree
 from holes.regions import HoleRegion, check_regions_near
 from methods.base import InpaintingMethod, Regions
 from metrics.errors import UserError
+# the one nearest-sample spacing estimator (re-exported: tests and callers import it from here)
+from metrics.neighbours import median_neighbour_distance
 
 
 class NoFill(InpaintingMethod):
@@ -75,25 +77,6 @@ def icp_align(source: np.ndarray, target: np.ndarray, max_distance: float, *,
     if len(result.correspondence_set) < min_points:
         return rotation, translation  # nothing within reach: keep the starting motion
     return transform[:3, :3].copy(), transform[:3, 3].copy()
-
-
-def median_neighbour_distance(points: np.ndarray, sample: int = 20000, tree: cKDTree | None = None) -> float:
-    """Median nearest-neighbour distance of (N, 3) ``points`` (on an evenly strided subsample of
-    about ``sample`` points, so it is deterministic and cheap on 1M-point frames).
-
-    The distance to the closest sample, not a density-based spacing (`holes.geometry.point_spacing`,
-    `methods.lozes_pde.sampling_step`): temporal-copy uses it to tell a copied point that duplicates
-    an existing one (closer than half of it) from one that fills a gap."""
-    if len(points) < 2:
-        raise UserError("need at least 2 points to estimate the point spacing")
-    step = max(1, len(points) // sample)
-    probe = points[::step]
-    dist, _ = (tree if tree is not None else cKDTree(points)).query(probe, k=2, workers=-1)
-    spacing = float(np.median(dist[:, 1]))
-    if spacing <= 0:  # duplicated points: fall back to the mean of the non-zero distances
-        nonzero = dist[:, 1][dist[:, 1] > 0]
-        spacing = float(nonzero.mean()) if len(nonzero) else 1.0
-    return spacing
 
 
 class TemporalCopy(InpaintingMethod):

@@ -96,7 +96,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.geometry import point_spacing
+from metrics.neighbours import estimate_normals, point_spacing
 from methods._cubes import (
     CellGrid,
     TargetCubeOrder,
@@ -346,9 +346,8 @@ def normal_features(points: np.ndarray, tree: cKDTree, sigma: float, feature_fra
 
     The sample is a fixed-seed ``feature_fraction`` of the points (all of them at 1.0). Normal of a
     sampled point: the eigenvector of the smallest eigenvalue of the covariance of its 10 nearest
-    points in the whole frame, oriented away from the frame centroid. Written with numpy (batched
-    ``eigh``) instead of open3d's ``estimate_normals`` because open3d can only estimate the normals
-    of every point, and the AGTV needs the neighbour search anyway. AGTV of a sampled point:
+    points in the whole frame, oriented away from the frame centroid (`metrics.neighbours.estimate_normals`
+    at the sampled positions, reusing the frame's k-d tree). AGTV of a sampled point:
     a_i = sum_{j in 8-NN of i in the sample} exp(-||p_i - p_j||^2 / 2 sigma_s^2) ||n_i - s_ij n_j||_1,
     s_ij = sign(n_i . n_j), sigma_s = sigma / sqrt(feature_fraction) (the sample's spacing grows
     as 1 / sqrt(fraction) on a surface).
@@ -357,14 +356,7 @@ def normal_features(points: np.ndarray, tree: cKDTree, sigma: float, feature_fra
     count = max(min(n, 9), int(round(feature_fraction * n)))
     sample = np.sort(np.random.default_rng(0).choice(n, count, replace=False)) if count < n else np.arange(n)
     sampled = points[sample]
-    _, idx = tree.query(sampled, k=min(10, n), workers=-1)
-    neigh = points[idx]
-    neigh -= neigh.mean(axis=1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", neigh, neigh)
-    _, vectors = np.linalg.eigh(cov)
-    sample_normals = vectors[:, :, 0]
-    flip = np.einsum("ij,ij->i", sample_normals, sampled - points.mean(axis=0)) < 0
-    sample_normals[flip] *= -1.0
+    sample_normals = estimate_normals(points, 10, queries=sampled, tree=tree, orient_from=points.mean(axis=0))
     k = min(9, count)
     dist, nbr = cKDTree(sampled).query(sampled, k=k, workers=-1)
     dist, nbr = dist[:, 1:], nbr[:, 1:]

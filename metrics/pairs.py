@@ -52,6 +52,9 @@ from scipy.spatial import cKDTree
 from metrics.errors import UserError
 from metrics.types import Region
 
+# the one normal estimator and point check (re-exported: metrics.pairs.estimate_normals is public API)
+from metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
+
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
 #: than this are "at the same distance".
 SIMILAR_SQ_DISTANCE = 1e-8
@@ -59,24 +62,6 @@ SIMILAR_SQ_DISTANCE = 1e-8
 _NEIGHBOUR_SCHEDULE = (10, 15, 20, 25, 30)
 #: Squared self-distance below which pc_error ignores a point when measuring the intrinsic resolution.
 _INTRINSIC_MIN_SQ = 1e-10
-#: Neighbours used to estimate reference normals when none are given (see `estimate_normals`).
-DEFAULT_NORMAL_NEIGHBOURS = 12
-
-
-def check_points(points: ArrayLike, label: str) -> np.ndarray:
-    """``points`` as a float64 (N, 3) array with N >= 1 and finite values, else a ValueError naming ``label``."""
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise UserError(f"{label}: coordinates must be an (N, 3) array, got shape {arr.shape}")
-    if len(arr) == 0:
-        raise UserError(f"{label}: the cloud has zero points; a metric needs at least one point on each side")
-    bad = ~np.isfinite(arr).all(axis=1)
-    if bad.any():
-        raise UserError(
-            f"{label}: {int(bad.sum())} point(s) have NaN or infinite coordinates (first at index "
-            f"{int(np.flatnonzero(bad)[0])}); drop them before scoring"
-        )
-    return arr
 
 
 def _mix64(z: np.ndarray) -> np.ndarray:
@@ -417,25 +402,6 @@ def face_neighbour_mask(points: np.ndarray) -> np.ndarray | None:
             pos = np.minimum(np.searchsorted(sorted_keys, wanted), last)
             has[rest[sorted_keys[pos] == wanted]] = True
     return has
-
-
-def estimate_normals(points: np.ndarray, neighbours: int = DEFAULT_NORMAL_NEIGHBOURS) -> np.ndarray:
-    """Unit normals (N, 3) by PCA of each point's ``neighbours`` nearest points (open3d).
-
-    The normal of point p is the eigenvector of the smallest eigenvalue of the covariance of its k
-    nearest neighbours (p included), k = 12 by default: the normals stored in the golden pc_error
-    files are exactly these (open3d KNN 12; mean |cos| to them 1.0000, against 0.990-0.997 for
-    k = 6..30). Their sign is arbitrary (open3d's default, about half point outwards); `CloudPair`
-    aligns signs locally before averaging them, which makes D2 independent of orientation.
-    """
-    import open3d as o3d
-
-    pts = check_points(points, "normal estimation")
-    if len(pts) < 3:
-        raise UserError(f"normal estimation needs at least 3 points, got {len(pts)}; pass reference normals")
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
-    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=int(min(neighbours, len(pts)))))
-    return np.asarray(cloud.normals).copy()
 
 
 class CloudPair:

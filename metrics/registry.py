@@ -1,8 +1,18 @@
-"""The metrics by name, with the facts a results table needs about each.
+"""The metrics by name, with the facts a results table needs about each: the one place that says
+whether higher is better, in which unit a value is, how a change between two values is measured,
+and whether a value depends on the PSNR peak. Results tables, `dpcbench compare`, the dashboard and
+the runner ask `describe` instead of keeping their own lists.
 
-``fn`` of a frame-level metric takes ``(pair: CloudPair, selection: Selection, settings: Settings)``
-and returns a float (see `metrics.geometry`); ``fn`` of the sequence-level metric takes
-``(references, results, regions=None, *, region_margin=0.0, correspondences=None)``.
+Three families, all `Metric`:
+
+- ``METRICS``: the quality metrics this package computes. ``fn`` of a frame-level metric takes
+  ``(pair: CloudPair, selection: Selection, settings: Settings)`` and returns a float (see
+  `metrics.geometry`); ``fn`` of the sequence-level metric takes
+  ``(references, results, regions=None, *, region_margin=0.0, correspondences=None)``.
+- ``RESOURCE_METRICS``: what a run costs (``time_s``, ``peak_mem_mb``), measured by the harness
+  (``fn`` None, level "run").
+- ``INPUT_METRICS``: facts about the damaged input, not the method (``removed_fraction``): no
+  direction (``higher_is_better`` None), never a regression.
 
 ``version`` changes whenever a definition changes, so stored results say which definition made them.
 """
@@ -18,49 +28,74 @@ from metrics.temporal import temporal_consistency
 
 @dataclass(frozen=True)
 class Metric:
+    """One metric's facts.
+
+    higher_is_better: the direction (None: a fact about the input, no direction).
+    change:           how two values are compared: "delta" = current - baseline (dB, bounded scores),
+                      "ratio" = current / baseline (distances, time, memory).
+    level:            "frame", "sequence" (one value per sequence), "run" (a resource measured by the
+                      harness) or "input" (a fact about the damaged input).
+    """
+
     name: str
-    higher_is_better: bool
+    higher_is_better: bool | None
     unit: str
     version: str
     description: str
-    fn: Callable
-    level: str = "frame"  # "frame" or "sequence"
+    fn: Callable | None
+    level: str = "frame"
     uses_peak: bool = False  # a PSNR: its value depends on the peak (record the peak with it)
     is_psnr: bool = False  # +inf for identical clouds; capped in score_frame
+    change: str = "ratio"
 
 
-def _m(name, higher, unit, description, fn, **kw) -> Metric:
+def _m(name: str, higher: bool | None, unit: str, description: str, fn: Callable | None, **kw) -> Metric:
     return Metric(name, higher, unit, "1", description, fn, **kw)
 
 
 METRICS: dict[str, Metric] = {
     m.name: m
     for m in [
-        _m("gpsnr_d1", True, "dB",
-           "point-to-point geometry PSNR, pc_error 0.14 D1: 10 log10(3 p^2 / max(MSE A->B, MSE B->A))",
-           geometry.gpsnr_d1_value, uses_peak=True, is_psnr=True),
-        _m("gpsnr_d2", True, "dB",
-           "point-to-plane geometry PSNR, pc_error 0.14 D2 (reference normals, given or estimated)",
-           geometry.gpsnr_d2_value, uses_peak=True, is_psnr=True),
+        _m("gpsnr_d1", True, "dB", "point-to-point geometry PSNR, pc_error 0.14 D1: 10 log10(3 p^2 / max(MSE A->B, MSE B->A))",
+           geometry.gpsnr_d1_value, uses_peak=True, is_psnr=True, change="delta"),
+        _m("gpsnr_d2", True, "dB", "point-to-plane geometry PSNR, pc_error 0.14 D2 (reference normals, given or estimated)",
+           geometry.gpsnr_d2_value, uses_peak=True, is_psnr=True, change="delta"),
         _m("d1_mse", False, "units^2", "symmetric point-to-point MSE (pc_error mseF p2point)", geometry.d1_mse),
         _m("d2_mse", False, "units^2", "symmetric point-to-plane MSE (pc_error mseF p2plane)", geometry.d2_mse),
-        _m("hausdorff", False, "units", "symmetric Hausdorff distance H = max(h(A,B), h(B,A))",
-           geometry.hausdorff_value),
-        _m("hausdorff_sq", False, "units^2", "squared symmetric Hausdorff distance (pc_error d1 h. p2point)",
-           geometry.hausdorff_sq),
-        _m("hausdorff_psnr", True, "dB", "pc_error's Hausdorff PSNR: 10 log10(3 p^2 / H^2)",
-           geometry.hausdorff_psnr_value, uses_peak=True, is_psnr=True),
-        _m("nshd", False, "1",
-           "normalized symmetric Hausdorff distance H^2 / (D^2 N), D reference bbox diagonal, N reference points",
+        _m("hausdorff", False, "units", "symmetric Hausdorff distance H = max(h(A,B), h(B,A))", geometry.hausdorff_value),
+        _m("hausdorff_sq", False, "units^2", "squared symmetric Hausdorff distance (pc_error d1 h. p2point)", geometry.hausdorff_sq),
+        _m("hausdorff_psnr", True, "dB", "pc_error's Hausdorff PSNR: 10 log10(3 p^2 / H^2)", geometry.hausdorff_psnr_value,
+           uses_peak=True, is_psnr=True, change="delta"),
+        _m("nshd", False, "1", "normalized symmetric Hausdorff distance H^2 / (D^2 N), D reference bbox diagonal, N reference points",
            geometry.nshd_value),
         _m("chamfer", False, "units^2",
            "Chamfer distance: mean squared NN distance A->B plus mean squared NN distance B->A",
            geometry.chamfer_value),
-        _m("fscore", True, "1", "F-score at distance tau (default 2 x median reference spacing)",
-           geometry.fscore_value),
+        _m("fscore", True, "1", "F-score at distance tau (default 2 x median reference spacing)", geometry.fscore_value,
+           change="delta"),
         _m("temporal_consistency", False, "units",
            "mean frame-to-frame change of the normal error of the fill against the ground truth (hole regions)",
            temporal_consistency, level="sequence"),
+    ]
+}
+
+#: What a run costs, measured by the harness around the method (not computed here).
+RESOURCE_METRICS: dict[str, Metric] = {
+    m.name: m
+    for m in [
+        _m("time_s", False, "s", "inpainting time per frame (a sequence method's total divided by its frames)",
+           None, level="run"),
+        _m("peak_mem_mb", False, "MB", "peak resident memory of the run's worker process, interpreter included",
+           None, level="run"),
+    ]
+}
+
+#: Facts about the damaged input, stored beside the scores: compared and shown, never gated.
+INPUT_METRICS: dict[str, Metric] = {
+    m.name: m
+    for m in [
+        _m("removed_fraction", None, "1", "share of the frame's points the hole generator removed", None,
+           level="input"),
     ]
 }
 
@@ -69,8 +104,14 @@ DEFAULT_METRICS: tuple[str, ...] = ("gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff",
 
 
 def get_metric(name: str) -> Metric:
-    """The registered metric ``name``; KeyError listing the valid names otherwise."""
+    """The registered quality metric ``name``; KeyError listing the valid names otherwise."""
     try:
         return METRICS[name]
     except KeyError:
         raise KeyError(f"unknown metric {name!r}; available: {', '.join(METRICS)}") from None
+
+
+def describe(name: str) -> Metric | None:
+    """The facts of any stored metric (quality, resource or input), None for a name none of the
+    three families has (e.g. a metric of a newer code version read from an old store)."""
+    return METRICS.get(name) or RESOURCE_METRICS.get(name) or INPUT_METRICS.get(name)

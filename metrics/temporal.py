@@ -40,8 +40,8 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial import cKDTree
 
+from metrics.neighbours import estimate_normals
 from metrics.pairs import build_tree, check_points
 from metrics.types import Frames, RegionsPerFrame
 
@@ -59,20 +59,6 @@ def _region_mask(regions, points: np.ndarray, margin: float) -> np.ndarray:
     for region in regions:
         mask |= np.asarray(region.contains(points, margin), dtype=bool)
     return mask
-
-
-def pca_normals(points: np.ndarray, tree: cKDTree, queries: np.ndarray, k: int = NORMAL_NEIGHBOURS) -> np.ndarray:
-    """Unit normals (Q, 3) at ``queries``: eigenvector of the smallest eigenvalue of the covariance of
-    their k nearest ``points`` (indexed by ``tree``). Sign arbitrary (callers use |projection|)."""
-    k = int(min(k, len(points)))
-    if k < 3 or len(queries) == 0:
-        return np.zeros((len(queries), 3))
-    _, idx = tree.query(queries, k=k, workers=-1)
-    nb = points[idx.reshape(len(queries), k)]
-    centred = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.einsum("qki,qkj->qij", centred, centred)
-    _, vecs = np.linalg.eigh(cov)
-    return vecs[:, :, 0]
 
 
 class _Frame:
@@ -102,7 +88,9 @@ def _links(src: _Frame, dst: _Frame, mapping: np.ndarray | None = None) -> np.nd
         _, y_index = dst.gt_tree.query(x, k=1, workers=-1)
     else:
         y_index = mapping[src.hole]
-    normals = pca_normals(src.gt, src.gt_tree, x)
+    # a ground truth of 1-2 points has no plane: zero normals, so its links count 0
+    normals = (estimate_normals(src.gt, NORMAL_NEIGHBOURS, queries=x, tree=src.gt_tree) if len(src.gt) >= 3
+               else np.zeros((len(x), 3)))
     change = src.errors(src.hole) - dst.errors(y_index)
     return np.abs(np.einsum("ij,ij->i", change, normals))
 

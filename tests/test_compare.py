@@ -195,13 +195,46 @@ def test_nan_becoming_defined_is_flagged():
     assert status_of(float("inf"), float("inf"), "gpsnr_d1") == compare.STATUS_OK
 
 
-def test_direction_comes_from_the_metric_registry():
-    from metrics.registry import METRICS
+def test_direction_and_change_kind_come_from_the_metric_registry_only():
+    from bench import tables
+    from metrics import registry
 
-    for name, metric in METRICS.items():
-        assert compare.higher_is_better(name) == bool(metric.higher_is_better)
+    assert not hasattr(compare, "HIGHER_IS_BETTER") and not hasattr(compare, "CHANGE_KIND")
+    assert not hasattr(tables, "LOWER_IS_BETTER")
+    for name, metric in {**registry.METRICS, **registry.RESOURCE_METRICS}.items():
+        assert compare.higher_is_better(name) is metric.higher_is_better
+        assert tables.higher_is_better(name) is metric.higher_is_better
+        assert compare.change_kind(name) == metric.change
+        assert metric.change == ("delta" if metric.unit == "dB" or name == "fscore" else "ratio")
+    # the resource and input metrics the runner stores are described there too
+    assert set(compare.RESOURCE_METRICS) == {"time_s", "peak_mem_mb"} and compare.INFO_METRICS == ("removed_fraction",)
+    assert registry.describe("time_s").unit == "s" and registry.describe("peak_mem_mb").unit == "MB"
+    assert registry.describe("removed_fraction").higher_is_better is None
+    assert tables.higher_is_better("removed_fraction") is None
     with pytest.raises(ValueError, match="unknown direction"):  # a metrics.errors.UserError
         compare.higher_is_better("no_such_metric")
+    with pytest.raises(ValueError, match="unknown direction"):
+        compare.higher_is_better("removed_fraction")
+
+
+def test_peak_dependence_comes_from_the_registry():
+    from bench.runner import _uses_peak
+    from metrics import registry
+
+    assert [n for n in registry.METRICS if _uses_peak(n)] == ["gpsnr_d1", "gpsnr_d2", "hausdorff_psnr"]
+    assert not _uses_peak("time_s") and not _uses_peak("psnr_of_a_metric_nobody_registered")
+
+
+def test_a_metric_without_direction_has_no_best_cell():
+    from bench.tables import ComparisonTable
+
+    table = ComparisonTable("t", "removed_fraction", "frame", "", None, ["r"], ["a", "b"],
+                            {("r", "a"): 0.1, ("r", "b"): 0.2}, {("r", "a"): 0.0, ("r", "b"): 0.0},
+                            {("r", "a"): 1, ("r", "b"): 1})
+    assert table.best("r", table.mean) is None
+    assert "**" not in table.markdown().split("\n", 1)[1] and "no better direction" in table.conventions()
+    ranked = ComparisonTable("t", "nshd", "frame", "", False, ["r"], ["a", "b"], table.mean, table.std, table.n)
+    assert ranked.best("r", ranked.mean) == "a"
 
 
 def test_tolerances_file(tmp_path):

@@ -112,6 +112,35 @@ def test_page_is_self_contained_and_flags_the_regression(tmp_path):
     assert dashboard.external_references("<style>@import url(//cdn.example/x.css)</style>")
 
 
+def test_css_is_package_data_inlined_and_each_section_is_one_function(tmp_path):
+    import tomllib
+    from importlib import resources
+    from pathlib import Path
+
+    css = resources.files("bench").joinpath("static", "dashboard.css").read_text(encoding="utf-8")
+    assert dashboard.stylesheet() == css and ":root" in css and "tr.regressed td" in css
+    assert not hasattr(dashboard, "CSS")  # no second copy in the code
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    assert "static/*.css" in pyproject["tool"]["setuptools"]["package-data"]["bench"]  # shipped in the wheel
+    store = make_store(tmp_path / "s.sqlite")
+    page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame())
+    assert f"<style>\n{css}</style>" in page
+    # each section function renders exactly its own section, in the order of SECTIONS
+    prepared = dashboard.prepare_page(store.results_frame(), store.runs_frame(), None, None, None)
+    undated = re.compile(r"<dc:date>[^<]*</dc:date>")  # matplotlib stamps each chart with its time
+    page = undated.sub("", page)
+    ids = []
+    for section in dashboard.SECTIONS:
+        html_text = undated.sub("", section(prepared))
+        if html_text:
+            assert html_text in page and html_text.count("<section") == 1
+            ids.append(re.match(r'<section id="([a-z]+)"', html_text).group(1))
+    assert ids == ["comparison", "quality", "paper", "latest", "speed", "runs"]
+    assert dashboard.cards_section(prepared) in page
+    assert dashboard.metric_label("gpsnr_d1") == "GPSNR D1 (dB)" and dashboard.metric_label("nshd") == "NSHD"
+    assert dashboard.metric_label("time_s") == "time per frame (s)"
+
+
 def test_history_and_colours_are_stable(tmp_path):
     store = make_store(tmp_path / "s.sqlite")
     history = dashboard.build_history(store.results_frame())

@@ -244,6 +244,47 @@ def test_one_param_parser_for_every_command():
             parse_params(bad)
 
 
+def test_every_param_option_of_every_command_goes_through_the_one_parser():
+    """Every ``--param``-like option (``--param``, ``--dataset-param``) of every command is read by
+    bench.params.parse_params and by nothing else, so ``x=none`` is None everywhere."""
+    import ast
+    from pathlib import Path
+
+    import bench.commands
+    from bench.params import parse_params
+
+    folder = Path(bench.commands.__file__).parent
+    checked = {}
+    for path in sorted(folder.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        dests = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "add_argument":
+                for arg in node.args:
+                    if isinstance(arg, ast.Constant) and str(arg.value).startswith("--") and \
+                            str(arg.value).endswith("param"):
+                        dests.add(str(arg.value)[2:].replace("-", "_"))
+        if not dests:
+            continue
+        # each args.<dest> is used only as the first argument of a parse_params(...) call
+        parsed_by = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", "")) == "parse_params":
+                first = node.args[0] if node.args else None
+                if isinstance(first, ast.Attribute) and first.attr in dests:
+                    parsed_by[first.attr] = parsed_by.get(first.attr, 0) + 1
+        uses = [n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr in dests
+                and isinstance(n.value, ast.Name) and n.value.id == "args"]
+        for dest in dests:
+            assert parsed_by.get(dest), f"{path.name}: --{dest} is not read by bench.params.parse_params"
+            assert uses.count(dest) == parsed_by[dest], f"{path.name}: args.{dest} is read outside parse_params"
+        assert "partition(\"=\")" not in path.read_text() and "split(\"=\"" not in path.read_text(), path.name
+        checked[path.stem] = sorted(dests)
+    # the commands that take parameters on the command line, all of them checked above
+    assert {"damage", "detect_holes", "generate", "info", "inpaint", "render"} <= set(checked)
+    assert parse_params(["x=none"]) == {"x": None} and parse_params(["x=None"]) == {"x": None}
+
+
 def test_user_terms_messages(work, capsys):
     code, _, err = run_cli(["run", "no-such-preset", "--dry-run"], capsys)
     assert_refused(code, err, "run", "no-such-preset: no such config file", "presets: methods, paper, paper-quick")

@@ -43,7 +43,7 @@ def depth_below_hull(points):
 
 def test_surrounding_rig_sees_all_of_a_convex_object():
     pts = sphere(5000)
-    normals = estimate_normals(pts)
+    normals = estimate_normals(pts, 16)
     for count in (8, 20):
         assert visible_mask(pts, normals, sphere_cameras(pts, count), min_cos=0.2).all()
     # so the generator removes nothing, and says so instead of returning an undamaged frame

@@ -81,6 +81,31 @@ def test_paper_values_and_headline():
     assert paper.paper_table("nshd")["Soldier"]["Proposed"] == 1.2057
 
 
+def test_the_paper_facts_have_one_source():
+    """config, datasets, paper and the dashboard read bench.paper_facts; none keeps its own copy."""
+    from bench import config, dashboard, datasets, paper_facts
+
+    assert config.PAPER_SEQUENCES is paper_facts.PAPER_SEQUENCES
+    assert paper.PAPER_SEQUENCES is paper_facts.PAPER_SEQUENCES and paper.TABLE1_GPSNR is paper_facts.TABLE1_GPSNR
+    assert list(datasets.PAPER) == list(paper_facts.PAPER_SEQUENCES)
+    assert [d.title for d in datasets.PAPER.values()] == list(paper_facts.PAPER_SEQUENCES.values())
+    assert tuple(paper.COLUMNS) == paper_facts.PAPER_COLUMNS
+    assert [label for _, label, _ in paper.PAPER_METHODS] == list(paper_facts.PAPER_COLUMNS)
+    assert set(paper_facts.TABLE1_GPSNR) == set(paper_facts.TABLE2_NSHD_E7) == set(paper_facts.PAPER_SEQUENCES.values())
+    reference = dashboard.paper_reference()
+    assert set(reference["sequence"]) == set(paper_facts.PAPER_SEQUENCES)
+    nshd = reference[(reference["metric"] == "nshd") & (reference["sequence"] == "ulliwegner")]
+    assert nshd.set_index("method")["value"].to_dict() == pytest.approx(
+        {name: v * 1e-7 for (name, _, _), v in zip(paper.PAPER_METHODS, paper_facts.TABLE2_NSHD_E7["UlliWegner"])})
+    # no other module of bench spells out a published value
+    import pathlib
+
+    for path in pathlib.Path(paper_facts.__file__).parent.rglob("*.py"):
+        if path.name != "paper_facts.py":
+            text = path.read_text()
+            assert "47.5648" not in text and "0.3549" not in text, path
+
+
 def test_missing_cells_and_order(tmp_path):
     df = _store_with_results(tmp_path / "s.sqlite").results_frame("exp")
     df = df[~((df.method == "lozes-pde") & (df.sequence == "Bunny (stand-in)"))]
