@@ -40,6 +40,9 @@ class HoleGenerator:
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     version: ClassVar[str] = "1"
+    #: False for `NoHoles` only: the input is the data as captured, with no ground truth apart from
+    #: itself, so there is nothing to score a fill against, and the seed plays no part
+    removes_points: ClassVar[bool] = True
 
     def get_params(self) -> dict:
         sig = inspect.signature(type(self).__init__)
@@ -67,6 +70,28 @@ class HoleGenerator:
 
     def damage(self, frames: list[np.ndarray], seed, colors=None) -> DamageResult:
         raise NotImplementedError
+
+
+class NoHoles(HoleGenerator):
+    """Remove nothing: the data's own (real) holes are the holes, as in the real-hole protocol, where
+    a method fills the gaps of a captured sequence and only its output (and time) can be looked at.
+
+    ``damage`` returns copies of the frames (and colours), no removed point and no region; the seed
+    is not used. The counterpart of the ``none`` method (`methods.reference.NoFill`).
+    """
+
+    name = "none"
+    summary = "no damage: the data's own (real) holes; nothing removed, so no quality score"
+    version = "1"
+    removes_points = False
+
+    def __init__(self):
+        pass
+
+    def damage(self, frames: list[np.ndarray], seed=None, colors=None) -> DamageResult:
+        frames = list(frames)
+        return DamageResult([np.array(f, copy=True) for f in frames], [np.zeros(len(f), bool) for f in frames],
+                            [[] for _ in frames], colors)
 
 
 def as_generator(seed) -> np.random.Generator:
