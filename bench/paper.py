@@ -271,7 +271,8 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     import numpy as np
 
     from bench.figures import flattest_region, subjective_grid
-    from bench.runner import load_ground_truth, read_run_folder
+    from bench.provenance import read_run_folder
+    from bench.worker import load_ground_truth
 
     fig_dir = Path(fig_dir)
     notes = {}

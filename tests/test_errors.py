@@ -375,7 +375,7 @@ def test_a_folder_named_like_an_embedded_sequence_says_which_one_is_taken(work, 
 
 
 def test_config_sequence_names_never_read_a_folder_of_that_name(work):
-    from bench.runner import load_ground_truth
+    from bench.worker import load_ground_truth
 
     (work / "human").mkdir()
     (work / "human" / "f.ply").write_bytes((work / "seq" / "s_0000.ply").read_bytes())

@@ -344,7 +344,7 @@ def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch
 
 def test_mesh_folder_as_config_path(tmp_path):
     from bench.config import parse_config
-    from bench.runner import load_ground_truth
+    from bench.worker import load_ground_truth
 
     rigid_frames(tmp_path / "m", count=3)
     data = {"experiment": {"name": "x"},
