@@ -4,7 +4,7 @@ The sweep driver (`bench.runner.run_experiment`) hands runs to an executor (`ben
 calls `run_isolated` for each; that starts ``python -m bench.worker --worker ...``, and the worker
 process does, for one run (a `bench.config.RunSpec`):
 
-1. load the ground-truth sequence (``bench.datasets.load_dataset`` for names, a PLY folder for paths);
+1. load the ground-truth sequence (`bench.datasets.load_run_sequence`: a dataset name or a path);
 2. damage it with the hole generator and seed of the spec;
 3. inpaint with the method, timing each frame; methods whose frames are independent
    (``uses_neighbour_frames = False``) are called frame by frame so that time and memory are per
@@ -49,6 +49,7 @@ import numpy as np
 
 from bench.atomic import atomic_write_text
 from bench.config import RunSpec
+from bench.datasets import load_run_sequence
 from bench.provenance import (
     d2_normals_source,
     environment,
@@ -85,46 +86,6 @@ def peak_rss_mb() -> float:
         pass
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
-
-
-# -- loading ---------------------------------------------------------------------------------
-def frame_range(frames, available: int | None = None) -> range | None:
-    """The config's ``frames`` (count, or [start, stop)) as a range; None = all."""
-    if frames is None:
-        return None if available is None else range(available)
-    if isinstance(frames, int):
-        return range(frames)
-    return range(int(frames[0]), int(frames[1]))
-
-
-def load_ground_truth(sequence: dict):
-    """The intact `bench.sequences.Sequence` of a run spec's ``sequence`` entry (frames selected)."""
-    from bench.sequences import Sequence, load_sequence
-
-    wanted = frame_range(sequence.get("frames"))
-    if sequence.get("path"):
-        from bench.meshseq import list_mesh_files
-
-        if list_mesh_files(sequence["path"]) is not None:  # a folder of mesh frames: sampled with its params
-            from bench.datasets import load_dataset
-
-            return load_dataset(sequence["path"], frames=None if wanted is None else list(wanted), progress=False,
-                                **sequence.get("params", {}))
-        seq = load_sequence(sequence["path"], name=sequence.get("label") or sequence["name"])
-    else:
-        from bench.datasets import load_dataset
-
-        seq = load_dataset(sequence["name"], frames=None if wanted is None else list(wanted),
-                           data_dir=sequence.get("data_dir"), progress=False, name_only=True,
-                           **sequence.get("params", {}))
-        return seq
-    if wanted is not None:
-        if wanted.stop > len(seq.frames):
-            raise ValueError(f"sequence {seq.name!r} has {len(seq.frames)} frames; the config asks for frames "
-                             f"{wanted.start}..{wanted.stop - 1}: lower `frames`")
-        seq = Sequence(seq.name, [seq.frames[i] for i in wanted], seq.bit_depth,
-                       [seq.files[i] for i in wanted] if seq.files else [], seq.meta)
-    return seq
 
 
 # -- producing the frames ----------------------------------------------------------------------
@@ -266,7 +227,7 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     t0 = time.perf_counter()
     created = _now()
     run_dir = Path(runs_dir) / spec.inpaint_key
-    truth = load_ground_truth(spec.sequence)
+    truth = load_run_sequence(spec.sequence)
     if force or not is_complete_run_folder(run_dir):
         produce_frames(spec, truth, run_dir)
         reused = False
