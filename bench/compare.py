@@ -42,17 +42,16 @@ import io
 import json
 import math
 import os
-import platform
-import subprocess
 import sys
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from bench.atomic import atomic_write_text
 from bench.errors import UserError
+from bench.provenance import git_commit, summary_environment
 from metrics import registry as _registry
 
 if sys.version_info >= (3, 11):
@@ -104,34 +103,6 @@ def change_kind(metric: str) -> str:
     metrics.registry does not know is compared as a ratio)."""
     entry = _registry.describe(metric)
     return entry.change if entry is not None else "ratio"
-
-
-# ---------------------------------------------------------------------------------------------
-# environment and code version
-def git_commit(repo: str | os.PathLike | None = None) -> str:
-    """The checked-out commit (with "+dirty" when tracked files are modified, as the runner writes it), or 'unknown'."""
-    cwd = Path(repo) if repo else Path(__file__).resolve().parents[1]
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True,
-                                timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
-                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return commit + ("+dirty" if dirty else "")
-
-
-def environment_info() -> dict:
-    """Python and library versions and the machine, for a summary's header block."""
-    info = {"python": platform.python_version()}
-    for package in ("numpy", "scipy", "open3d", "pymeshlab", "pandas"):
-        try:
-            info[package] = metadata.version(package)
-        except metadata.PackageNotFoundError:
-            info[package] = "not installed"
-    info["machine"] = f"{platform.system()} {platform.machine()}, {os.cpu_count()} cpus"
-    info["processor"] = platform.processor() or platform.machine()
-    return info
 
 
 # ---------------------------------------------------------------------------------------------
@@ -229,7 +200,7 @@ def summary_meta(code_version: str | None = None, *, results: pd.DataFrame | Non
         "code_version": code_version or git_commit(),
         "date": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
     }
-    env = environment if environment is not None else environment_info()
+    env = environment if environment is not None else summary_environment()
     meta.update({f"env.{k}": str(v) for k, v in env.items()})
     meta.update({k: str(v) for k, v in extra.items()})
     return meta
@@ -250,11 +221,7 @@ def write_summary(summary: pd.DataFrame, path: str | os.PathLike, meta: dict | N
         text = "\n".join(header) + "\n" + buffer.getvalue()
     else:
         raise UserError(f"{path}: a summary file must end in .csv or .json")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)  # atomic: a reader never sees half a file
-    return path
+    return atomic_write_text(path, text)  # a reader never sees half a file
 
 
 def read_summary(path: str | os.PathLike) -> tuple[pd.DataFrame, dict]:

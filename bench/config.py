@@ -487,10 +487,6 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         where = f"holes[{i}]"
         _unknown_keys(hole, _HOLES_KEYS, where)
         gen = hole.get("generator")
-        if gen == "none":  # the data's own (real) holes: nothing removed, no ground truth to score against
-            cfg.holes.append({"generator": "none", "params": {}, "seed": 0, "label": hole.get("label"),
-                              "entry": None, "version": "1"})
-            continue
         if gen not in GENERATORS:
             raise ConfigError(f"{where}.generator: unknown hole generator {gen!r}; known: {', '.join(sorted(GENERATORS)) or 'none registered'}")
         if "seeds" in hole and "seed" in hole:
@@ -499,6 +495,8 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
             raise ConfigError(f"{where}.seeds: expected a non-empty list of integers, got {seeds!r}")
         cls = generator_class(gen)
+        if not cls.removes_points:  # the data's own (real) holes: no seed plays a part, one run
+            seeds = [0]
         _check_param_types(cls, hole.get("params", {}), f"{where}.params")
         for params in _expand_params(hole.get("params", {}), f"{where}.params"):
             _validate_instance(cls, params, f"{where}.params")

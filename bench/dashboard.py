@@ -750,13 +750,9 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
 
 def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, **kwargs) -> Path:
     """Render and write the page atomically; returns its path."""
-    out = Path(out)
-    page = render_dashboard(results, **kwargs)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp{os.getpid()}")
-    tmp.write_text(page, encoding="utf-8")
-    os.replace(tmp, out)
-    return out
+    from bench.atomic import atomic_write_text
+
+    return atomic_write_text(out, render_dashboard(results, **kwargs))
 
 
 def external_references(page: str) -> list[str]:

@@ -1,6 +1,8 @@
-"""The dataset registry: embedded stand-in sequences, the paper's sequences, and user folders.
+"""The dataset registry: embedded stand-in sequences, the paper's sequences, mesh sequences, and the
+one resolver from a name or path to a sequence source (`bench.sources`).
 
-``load_dataset(name_or_path, frames=None, data_dir=None, **params) -> Sequence``:
+``resolve_source(name_or_path, data_dir=None)`` -> a `bench.sources.SequenceSource`;
+``load_dataset(name_or_path, frames=None, data_dir=None, **params) -> Sequence`` resolves and loads:
 
 - an embedded name (``EMBEDDED``: "human", "bunny") generates the frames (deterministic for the
   same parameters; cached on disk, see `bench.standins.cache`);
@@ -22,64 +24,28 @@ a message that says what to do.
 
 from __future__ import annotations
 
-import inspect
 import os
-from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
 
 from bench.errors import UserError, warn
 from bench.paper_facts import PAPER_SEQUENCES
 from bench.params import parse_param_value, parse_params  # noqa: F401  (the one --param parser)
-from bench.plyio import PointCloud
-from bench.sequences import Sequence, list_frame_files, load_sequence
-
-DATA_DIR_ENV = "DPCBENCH_DATA_DIR"
-
-
-@dataclass(frozen=True)
-class EmbeddedDataset:
-    """A generated sequence: ``module.generate_frame(index, **params) -> (points, colours, normals)``."""
-
-    name: str
-    description: str
-    module: str  # import path of the generator module (GENERATOR_VERSION, generate_frame)
-    default_frames: int = 10
-
-    def generator(self):
-        import importlib
-
-        return importlib.import_module(self.module)
-
-    def parameters(self) -> dict:
-        """Parameter name -> default value of the generator (besides the frame index)."""
-        sig = inspect.signature(self.generator().generate_frame)
-        return {n: p.default for n, p in sig.parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY}
-
-
-@dataclass(frozen=True)
-class PaperDataset:
-    """One of the paper's sequences: where it is published, under which terms, which files to expect.
-
-    Expected files: ``<folder>/<subfolder>/<pattern.format(first + i)>`` for i in 0..count-1, looked
-    up under the data folder (see `find_paper_folder`). ``pattern`` None: any PLY files (naming not
-    fixed by a public release we can check).
-    """
-
-    name: str
-    title: str
-    summary: str
-    source: str
-    terms: str
-    folder: str
-    subfolder: str | None
-    pattern: str | None
-    first: int
-    count: int | None
-    bit_depth: int | None
-
+from bench.sequences import Sequence
+from bench.sources import DATA_DIR_ENV, SequenceSource, data_dir_from
+from bench.sources.embedded import EmbeddedDataset, EmbeddedSource
+from bench.sources.meshes import (
+    MeshDataset,
+    MeshDatasetSource,
+    MeshFolderSource,
+    find_mesh_folder,
+)
+from bench.sources.paper import (
+    PaperDataset,
+    PaperSource,
+    expected_files,
+    find_paper_folder,
+)
+from bench.sources.points import PointCloudSource
 
 EMBEDDED: dict[str, EmbeddedDataset] = {
     "human": EmbeddedDataset(
@@ -127,22 +93,6 @@ _PAPER_FILES: dict[str, tuple] = {
 PAPER: dict[str, PaperDataset] = {name: PaperDataset(name, label, *_PAPER_FILES[name])
                                   for name, label in PAPER_SEQUENCES.items()}
 
-@dataclass(frozen=True)
-class MeshDataset:
-    """A known mesh sequence read at run time: ``<data dir>/<folder>/<pattern.format(i)>``, i in
-    0..count-1. ``params``: its default sampling parameters (`bench.meshseq.load_mesh_sequence`)."""
-
-    name: str
-    title: str
-    summary: str
-    source: str
-    terms: str
-    folder: str
-    pattern: str
-    count: int
-    params: dict
-
-
 MESHES: dict[str, MeshDataset] = {
     "samba": MeshDataset(
         "samba", "Samba (MIT)",
@@ -154,58 +104,6 @@ MESHES: dict[str, MeshDataset] = {
         "research data under its owners' terms: read at run time, never redistributed with dpcbench",
         "mit_samba", "samba_{:04d}.obj", 20, {"bit_depth": 10}),
 }
-
-
-def default_data_dirs() -> list[Path]:
-    """Where data is looked for when no folder is given: ``../shared/data`` beside the repository."""
-    repo = Path(__file__).resolve().parents[1]
-    return [repo.parent / "shared" / "data"]
-
-
-def find_mesh_folder(info: MeshDataset, data_dir=None) -> Path | None:
-    """The folder holding ``info``'s first frame: under the given data folder (or $DPCBENCH_DATA_DIR), as
-    ``<dir>/<folder>``, ``<dir>/data/<folder>`` or ``<dir>`` itself, else under `default_data_dirs`."""
-    roots = [r for r in [data_dir_from(data_dir)] if r is not None] + default_data_dirs()
-    first = info.pattern.format(0)
-    for root in roots:
-        for folder in (root / info.folder, root / "data" / info.folder, root):
-            if (folder / first).is_file():
-                return folder
-    return None
-
-
-def load_mesh_dataset(name: str, frames=None, data_dir=None, *, progress: bool = True, **params) -> Sequence:
-    """A registered mesh sequence (``MESHES``), sampled by `bench.meshseq.load_mesh_sequence`."""
-    info = MESHES[name]
-    folder = find_mesh_folder(info, data_dir)
-    if folder is None:
-        looked = ", ".join(str(p) for p in ([data_dir_from(data_dir)] if data_dir_from(data_dir) else [])
-                           + default_data_dirs())
-        raise UserError(f"{info.title}: no {info.folder}/{info.pattern.format(0)} found under {looked}. It is "
-                        f"published as: {info.source}. Terms: {info.terms}. Put the frames in <data dir>/{info.folder}/ "
-                        f"and pass --data-dir <data dir> (or set {DATA_DIR_ENV}).")
-    files = [folder / info.pattern.format(i) for i in range(info.count)]
-    missing = [p.name for p in files if not p.is_file()]
-    if missing:
-        raise UserError(f"{info.title}: {len(missing)} of {info.count} frame files missing from {folder} "
-                        f"(first: {missing[0]}); re-copy the sequence")
-    indices = _frame_indices(frames, len(files), info.title)
-    seq = _mesh_sequence(files, indices, info.name, progress, {**info.params, **params})
-    seq.meta.update({"dataset": info.name, "source": info.source, "terms": info.terms, "folder": str(folder)})
-    return seq
-
-
-def _mesh_sequence(files, indices, name, progress, params) -> Sequence:
-    import inspect
-
-    from bench.meshseq import load_mesh_sequence
-
-    known = [n for n, p in inspect.signature(load_mesh_sequence).parameters.items()
-             if p.kind is inspect.Parameter.KEYWORD_ONLY and n not in ("name", "progress")]
-    unknown = sorted(set(params) - set(known))
-    if unknown:
-        raise UserError(f"{name}: unknown mesh sequence parameter(s) {', '.join(unknown)}; accepted: {', '.join(known)}")
-    return load_mesh_sequence(files, indices, name=name, progress=progress, **params)
 
 
 def _datasets_version() -> str:
@@ -239,179 +137,25 @@ def parse_frames(text: str | None):
         raise UserError(f"--frames {text!r}: give a count (10), a list (0,5,9) or a range (0-9)") from None
 
 
-def _frame_indices(frames, available: int | None, label: str) -> list[int] | None:
-    """frames (None | count | iterable of indices) -> sorted-as-given list of indices (None = all)."""
-    if frames is None:
-        return None if available is None else list(range(available))
-    if isinstance(frames, (int, np.integer)):
-        if frames < 1:
-            raise UserError(f"{label}: frames must be at least 1, got {frames}")
-        indices = list(range(int(frames)))
-    else:
-        indices = [int(i) for i in frames]
-        if not indices:
-            raise UserError(f"{label}: the frame list is empty")
-        if min(indices) < 0:
-            raise UserError(f"{label}: frame indices must be >= 0, got {min(indices)}")
-    if available is not None and max(indices) >= available:
-        raise UserError(f"{label}: frame {max(indices)} requested but the sequence has {available} frames "
-                        f"(0..{available - 1}); ask for fewer frames")
-    return indices
+def resolve_source(name_or_path: str | os.PathLike, data_dir=None, *, name_only: bool = False,
+                   label: str | None = None) -> SequenceSource:
+    """The one resolver from a name or path to its `bench.sources.SequenceSource`, in this order:
 
+    1. an embedded name (``EMBEDDED``), unless a file or folder of that name is in the working
+       directory (it is what the user has at hand: taken, with a note; ``name_only`` never looks on disk);
+    2. a registered mesh sequence name (``MESHES``) that is not a path here;
+    3. a folder or glob of mesh frames (OBJ, OFF, PLY with faces);
+    4. a paper sequence name (``PAPER``), unless shadowed as in 1;
+    5. a folder, glob or file of PLY point cloud frames.
 
-def generate_embedded(name: str, frames=None, *, cache: bool = True, progress: bool = True, **params) -> Sequence:
-    """Generate (or read from the cache) frames of an embedded sequence."""
-    from bench.standins.cache import cache_key, load_cached, store_cached
-
-    info = EMBEDDED[name]
-    known = info.parameters()
-    unknown = sorted(set(params) - set(known))
-    if unknown:
-        raise UserError(f"{name}: unknown parameter(s) {', '.join(unknown)}; accepted: "
-                        + ", ".join(f"{k} (default {v!r})" for k, v in known.items()))
-    from bench.params import check_param_types
-
-    check_param_types(info.generator().generate_frame, params, f"embedded sequence {name}")
-    full = {**known, **params}
-    indices = _frame_indices(info.default_frames if frames is None else frames, None, name)
-    module = info.generator()
-    out: list[PointCloud] = []
-    iterator: Iterable[int] = indices
-    if progress and len(indices) > 1:
-        from bench.progress import progress_bar
-
-        iterator = progress_bar(indices, desc=f"generating {name}", unit="frame")
-    for index in iterator:
-        key = cache_key(name, module.GENERATOR_VERSION, full, index)
-        arrays = load_cached(key, name) if cache else None
-        if arrays is not None and "normals" not in arrays:  # written by an older dpcbench: regenerate
-            arrays = None
-        if arrays is None:
-            try:
-                points, colours, normals = module.generate_frame(index, **full)
-            except UserError:
-                raise
-            except ValueError as err:  # generate_frame's refusal of a parameter value (types checked above)
-                raise UserError(f"embedded sequence {name}: {err}") from None
-            # voxel indices (<= 16 bits) are stored exactly as uint16; float samples keep float64;
-            # normals as float32, the type of the PLY files, so that the frames in memory and the
-            # frames written (which pc_error reads) carry the same normals
-            arrays = {"points": points if full.get("bit_depth") is None else points.astype(np.uint16),
-                      "colors": colours, "normals": normals.astype(np.float32)}
-            if cache:
-                store_cached(key, name, arrays)
-        out.append(PointCloud(arrays["points"].astype(np.float64), arrays["colors"],
-                              arrays["normals"].astype(np.float64)))
-    bit_depth = full.get("bit_depth")
-    meta = {"generator": name, "version": module.GENERATOR_VERSION, "params": full, "frame_indices": indices,
-            "description": info.description}
-    return Sequence(name, out, None if bit_depth is None else int(bit_depth), [], meta)
-
-
-def data_dir_from(data_dir: str | os.PathLike | None) -> Path | None:
-    """The data folder: the argument, else ``$DPCBENCH_DATA_DIR``, else None."""
-    value = data_dir if data_dir not in (None, "") else os.environ.get(DATA_DIR_ENV)
-    return Path(value).expanduser() if value else None
-
-
-def find_paper_folder(info: PaperDataset, data_dir: Path) -> Path | None:
-    """The folder holding the sequence's PLY frames: ``data_dir`` itself, ``data_dir/<folder>``, or
-    ``data_dir/<folder>/<subfolder>`` (folder names matched case-insensitively)."""
-    def child(parent: Path, name: str) -> Path | None:
-        if not parent.is_dir():
-            return None
-        for entry in sorted(parent.iterdir()):
-            if entry.is_dir() and entry.name.lower() == name.lower():
-                return entry
-        return None
-
-    candidates = [data_dir]
-    top = child(data_dir, info.folder)
-    if top is not None:
-        candidates.insert(0, top)
-        if info.subfolder:
-            sub = child(top, info.subfolder)
-            if sub is not None:
-                candidates.insert(0, sub)
-    for folder in candidates:
-        plys = [p for p in folder.iterdir() if p.suffix.lower() == ".ply"] if folder.is_dir() else []
-        if info.pattern is None and folder != data_dir and plys:
-            return folder
-        if info.pattern is not None and any(p.name.startswith(info.folder) for p in plys):
-            return folder
-    return None
-
-
-def expected_files(info: PaperDataset) -> list[str] | None:
-    """The file names of the full sequence (None when the naming is not fixed)."""
-    if info.pattern is None or info.count is None:
-        return None
-    return [info.pattern.format(info.first + i) for i in range(info.count)]
-
-
-def where_to_get(info: PaperDataset) -> str:
-    layout = f"{info.folder}/{info.subfolder + '/' if info.subfolder else ''}"
-    example = expected_files(info)
-    files = f"{example[0]} .. {example[-1]}" if example else "its PLY frames"
-    return (f"{info.title} is published as: {info.source}. Terms: {info.terms}. Put a local copy so that "
-            f"<data dir>/{layout} holds {files}, then pass --data-dir <data dir> (or set {DATA_DIR_ENV}).")
-
-
-def load_paper(name: str, frames=None, data_dir=None, progress: bool = True) -> Sequence:
-    """Read a paper sequence from the local copy, checking the expected files first."""
-    info = PAPER[name]
-    root = data_dir_from(data_dir)
-    if root is None:
-        raise UserError(f"{info.title}: no data folder given. {where_to_get(info)}")
-    if not root.is_dir():
-        raise UserError(f"{info.title}: data folder {root} does not exist. {where_to_get(info)}")
-    folder = find_paper_folder(info, root)
-    if folder is None:
-        raise UserError(f"{info.title}: no {info.folder} PLY frames found under {root}. {where_to_get(info)}")
-    expected = expected_files(info)
-    if expected is None:
-        files = list_frame_files(folder)
-        indices = _frame_indices(frames, len(files), info.title)
-        chosen = [files[i] for i in indices]
-    else:
-        indices = _frame_indices(frames, len(expected), info.title)
-        chosen = [folder / expected[i] for i in indices]
-        missing = [p.name for p in chosen if not p.is_file()]
-        if missing:
-            shown = ", ".join(missing[:3]) + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
-            raise UserError(f"{info.title}: {len(missing)} of the {len(chosen)} requested frame files are missing "
-                            f"from {folder}: {shown}. {where_to_get(info)}")
-    seq = load_sequence(chosen, name=info.name, progress=progress)
-    if info.bit_depth is not None and seq.bit_depth is not None and seq.bit_depth > info.bit_depth:
-        raise UserError(f"{info.title}: {folder} holds coordinates beyond {info.bit_depth} bits; is it the "
-                        f"{info.bit_depth}-bit release?")
-    seq.meta.update({"dataset": info.name, "source": info.source, "terms": info.terms, "folder": str(folder)})
-    return seq
-
-
-def load_path(path: str | os.PathLike, frames=None, progress: bool = True) -> Sequence:
-    """A user's folder / glob / file of PLY frames."""
-    files = list_frame_files(path)
-    indices = _frame_indices(frames, len(files), str(path))
-    p = Path(str(path))
-    label = p.name if p.is_dir() else p.stem
-    seq = load_sequence([files[i] for i in indices], name=label, progress=progress)
-    seq.meta["source"] = str(path)
-    return seq
-
-
-def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *, progress: bool = True,
-                 name_only: bool = False, **params) -> Sequence:
-    """An embedded sequence, a paper sequence, or a PLY folder/glob/file, as a `Sequence` (see module doc).
-
-    ``params`` go to the embedded generator (e.g. ``size="tiny"``, ``motion="dance"``, ``bit_depth=9``,
-    ``seed=1``, ``cache=False``); they are refused for files.
+    ``data_dir``: where paper and mesh sequences are looked for (default ``$DPCBENCH_DATA_DIR``);
+    ``label``: the name of a path source (default: the folder's name). Unknown names that are no path
+    raise `UserError` listing the known ones.
     """
+    from bench.meshseq import list_mesh_files
+
     text = str(name_or_path)
     key = text.lower()
-    # a file or folder of a dataset's name in the working directory is what the user has at hand: it
-    # is taken, and a note says so (./human is unambiguous); ``name_only`` (configs, whose `name`
-    # is always a dataset) never looks on disk
     shadowed = (key in EMBEDDED or key in PAPER) and not name_only and Path(text).exists()
     if shadowed and Path(text).name == text:
         kind = "embedded" if key in EMBEDDED else "paper"
@@ -419,30 +163,49 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
         warn(f"{text!r} is both the {kind} sequence {key} and the {what} {Path(text).resolve()}; using the {what} "
              f"(run from another folder for the {kind} sequence, or write ./{text} to silence this note)")
     if key in EMBEDDED and not shadowed:
-        cache = params.pop("cache", True)
-        return generate_embedded(key, frames, cache=cache, progress=progress, **params)
+        return EmbeddedSource(EMBEDDED[key])
     if key in MESHES and not Path(text).exists():
-        return load_mesh_dataset(key, frames, data_dir, progress=progress, **params)
-    from bench.meshseq import list_mesh_files
-
+        return MeshDatasetSource(MESHES[key], data_dir)
     mesh_files = list_mesh_files(text)
     if mesh_files is not None:
-        p = Path(text)
-        indices = _frame_indices(frames, len(mesh_files), text)
-        seq = _mesh_sequence(mesh_files, indices, p.name if p.is_dir() else p.stem, progress, params)
-        seq.meta["source"] = text
-        return seq
-    if params:
-        raise UserError(f"{text}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
-                        f"sequences ({', '.join(EMBEDDED)}) and to mesh sequences ({', '.join(MESHES)}, or a folder "
-                        "of OBJ/OFF/PLY meshes)")
+        return MeshFolderSource(text, mesh_files, label)
     if key in PAPER and not shadowed:
-        return load_paper(key, frames, data_dir, progress=progress)
+        return PaperSource(PAPER[key], data_dir)
     if not Path(text).exists() and not any(ch in text for ch in "*?["):
         raise UserError(f"{text}: not a dataset name and no such file or folder. Known names: embedded "
                         f"{', '.join(EMBEDDED)}; paper sequences {', '.join(PAPER)} (need --data-dir); mesh "
                         f"sequences {', '.join(MESHES)}; or give a folder of PLY frames or of mesh frames")
-    return load_path(text, frames, progress=progress)
+    return PointCloudSource(text, label)
+
+
+def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *, progress: bool = True,
+                 name_only: bool = False, **params) -> Sequence:
+    """An embedded sequence, a paper sequence, a mesh sequence or a PLY folder/glob/file, as a `Sequence`:
+    `resolve_source` then its ``load`` (see the module doc).
+
+    ``params`` go to the embedded generator (e.g. ``size="tiny"``, ``motion="dance"``, ``bit_depth=9``,
+    ``seed=1``, ``cache=False``) or to the mesh sampling; they are refused for point cloud files and
+    the paper's sequences.
+    """
+    source = resolve_source(name_or_path, data_dir, name_only=name_only)
+    if params and source.kind in ("paper", "points"):
+        raise UserError(f"{name_or_path}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
+                        f"sequences ({', '.join(EMBEDDED)}) and to mesh sequences ({', '.join(MESHES)}, or a folder "
+                        "of OBJ/OFF/PLY meshes)")
+    return source.load(frames, progress=progress, **params)
+
+
+def load_run_sequence(sequence: dict) -> Sequence:
+    """The intact sequence of a run spec's ``sequence`` entry (`bench.config.RunSpec`): ``name`` (a
+    dataset name, never looked up on disk) or ``path`` (named by ``label``), ``frames`` (count or
+    [start, stop)), ``params``, ``data_dir``."""
+    frames = sequence.get("frames")
+    wanted = None if frames is None else list(range(frames) if isinstance(frames, int) else range(*frames))
+    if sequence.get("path"):
+        source = resolve_source(sequence["path"], label=sequence.get("label") or sequence["name"])
+    else:
+        source = resolve_source(sequence["name"], sequence.get("data_dir"), name_only=True)
+    return source.load(wanted, progress=False, **sequence.get("params", {}))
 
 
 def describe_datasets(data_dir=None) -> list[dict]:

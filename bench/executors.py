@@ -1,5 +1,5 @@
 """Executors: where runs execute. Every one runs each run in its own worker process with a timeout
-(`bench.runner.run_isolated`), so a crash, a hang or a kill -9 inside a method is one failed run.
+(`bench.worker.run_isolated`), so a crash, a hang or a kill -9 inside a method is one failed run.
 
 - ``serial``: one run at a time.
 - ``pool`` (default): up to ``jobs`` runs at once (default: all cores). Driver threads each start
@@ -24,7 +24,7 @@ from pathlib import Path
 
 from bench.config import RunSpec
 from bench.errors import UserError
-from bench.runner import kill_live_workers, run_isolated
+from bench.worker import kill_live_workers, run_isolated
 
 EXECUTORS = ("serial", "pool", "dask")
 

@@ -181,7 +181,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     import copy
 
     from bench.config import (
-        parse_config,
+        parse_config,  # stdlib tomllib, or tomli on Python 3.10
         tomllib,  # stdlib tomllib, or tomli on Python 3.10
     )
 
@@ -260,8 +260,9 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
 
     import numpy as np
 
+    from bench.datasets import load_run_sequence
     from bench.figures import flattest_region, subjective_grid
-    from bench.runner import load_ground_truth, read_run_folder
+    from bench.provenance import read_run_folder
 
     fig_dir = Path(fig_dir)
     notes = {}
@@ -277,7 +278,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     done = _done_folders(store, specs)
     if done:
         spec0, folder0 = next(iter(done.values()))
-        truth = load_ground_truth(spec0.sequence)
+        truth = load_run_sequence(spec0.sequence)
         content0 = read_run_folder(folder0)
         n = len(truth.frames)
         shown = sorted(set(np.linspace(0, n - 1, min(4, n)).round().astype(int).tolist()))
@@ -308,7 +309,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     done = _done_folders(store, protocol.real)
     if done:
         spec0, folder0 = next(iter(done.values()))
-        truth = load_ground_truth(spec0.sequence)
+        truth = load_run_sequence(spec0.sequence)
         content0 = read_run_folder(folder0)
         detected = content0["detected"] or [[] for _ in content0["damaged"]]
         shown = list(range(len(content0["damaged"])))

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import plyfile
 
+from bench.atomic import atomic_path
 from bench.errors import UserError
 
 
@@ -187,8 +188,6 @@ def write_ply(path: str | os.PathLike, cloud: PointCloud | np.ndarray, *, ascii:
     if cloud.normals is not None:
         table["nx"], table["ny"], table["nz"] = cloud.normals.T
     element = plyfile.PlyElement.describe(table, "vertex")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    plyfile.PlyData([element], text=ascii, byte_order="<").write(str(tmp))
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        plyfile.PlyData([element], text=ascii, byte_order="<").write(str(tmp))
     return path

@@ -10,11 +10,11 @@ the same scale and the same bounds, so motion and sizes compare across panels.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from bench.atomic import atomic_path
 from bench.errors import UserError
 from metrics.neighbours import estimate_normals, median_neighbour_distance
 
@@ -304,11 +304,9 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     # tight_layout ignores the suptitle: keep the top 0.4 inch (reserved in fig_h) for it
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - (0.4 / fig_h if suptitle else 0.0)))
     out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp{os.getpid()}.png")
-    fig.savefig(tmp, dpi=dpi, facecolor="white")
+    with atomic_path(out, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=dpi, facecolor="white")
     plt.close(fig)
-    os.replace(tmp, out)
     return out
 
 
@@ -464,9 +462,7 @@ def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: lis
     if title:
         ax.text(width / 2, 0.1 * H, title, ha="center", va="center", fontsize=font)
     out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp{os.getpid()}.png")
-    fig.savefig(tmp, dpi=dpi, facecolor="white")
+    with atomic_path(out, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=dpi, facecolor="white")
     plt.close(fig)
-    os.replace(tmp, out)
     return out

@@ -190,9 +190,9 @@ def uses_d2(metric: str) -> bool:
 
 def d2_normals_note(runs: pd.DataFrame, run_ids=None) -> str:
     """One sentence for table captions: which normals D2 used, read from the runs' stored
-    ``env["d2_normals"]`` (`bench.runner.d2_normals_source`): "normals from file" or "estimated by
+    ``env["d2_normals"]`` (`bench.provenance.d2_normals_source`): "normals from file" or "estimated by
     PCA of 12 neighbours", per sequence when they differ; "" when ``runs`` is empty."""
-    from bench.runner import D2_NORMALS_TEXT
+    from bench.provenance import D2_NORMALS_TEXT
 
     if runs is None or runs.empty:
         return ""

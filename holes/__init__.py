@@ -9,7 +9,8 @@ A frame is an (N, 3) float array; a sequence is a list of them. Nothing here dep
 - `holes.occlusion`: "occlusion" (what a simulated camera rig does not see; open3d HPR).
 - `holes.detection`: detect_holes for captured frames without ground truth; detection_scores.
 - `holes.geometry`:  point spacing, cube size M, connected pieces -> regions, normals.
-- `holes.registry`:  GENERATORS name -> class.
+- `holes.registry`:  GENERATORS name -> class ("none": `holes.base.NoHoles`, the data's own holes).
+- `holes.lazy`:      the lazy name -> "module:Attr" registry that holes and methods share.
 """
 
 from holes.regions import HoleRegion, regions_from_json, regions_to_json

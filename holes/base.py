@@ -54,9 +54,34 @@ class HoleGenerator(Parameterized):
     version: ClassVar[str] = "1"
     _kind: ClassVar[str] = "hole generator"
     _param_hooks: ClassVar[tuple[str, ...]] = ("_check_params", "_check")
+    #: False for `NoHoles` only: the input is the data as captured, with no ground truth apart from
+    #: itself, so there is nothing to score a fill against, and the seed plays no part
+    removes_points: ClassVar[bool] = True
 
     def damage(self, frames: list[np.ndarray], seed: Seed, colors: Colors = None) -> DamageResult:
         raise NotImplementedError
+
+
+class NoHoles(HoleGenerator):
+    """Remove nothing: the data's own (real) holes are the holes, as in the real-hole protocol, where
+    a method fills the gaps of a captured sequence and only its output (and time) can be looked at.
+
+    ``damage`` returns copies of the frames (and colours), no removed point and no region; the seed
+    is not used. The counterpart of the ``none`` method (`methods.reference.NoFill`).
+    """
+
+    name = "none"
+    summary = "no damage: the data's own (real) holes; nothing removed, so no quality score"
+    version = "1"
+    removes_points = False
+
+    def __init__(self):
+        pass
+
+    def damage(self, frames: list[np.ndarray], seed=None, colors=None) -> DamageResult:
+        frames = list(frames)
+        return DamageResult([np.array(f, copy=True) for f in frames], [np.zeros(len(f), bool) for f in frames],
+                            [[] for _ in frames], colors)
 
 
 def as_generator(seed: Seed | None) -> np.random.Generator:

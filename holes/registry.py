@@ -1,23 +1,23 @@
-"""Hole generators by name (lazy import strings)."""
+"""Hole generators by name (lazy import strings: `holes.lazy.LazyRegistry`)."""
 
 from __future__ import annotations
 
-import importlib
+from holes.lazy import LazyRegistry
 
-# name -> "module:ClassName"; filled in by holes/ modules
-GENERATORS: dict[str, str] = {
+#: name -> "module:ClassName"
+GENERATORS = LazyRegistry("hole generator", {
+    "none": "holes.base:NoHoles",
     "region": "holes.synthetic:RegionHoles",
     "dropout": "holes.synthetic:DropoutHoles",
     "occlusion": "holes.occlusion:OcclusionHoles",
-}
+}, plural="generators")
 
 
 def generator_class(name: str):
-    if name not in GENERATORS:
-        raise KeyError(f"unknown hole generator {name!r}; known generators: {', '.join(sorted(GENERATORS))}")
-    module_name, _, attr = GENERATORS[name].partition(":")
-    return getattr(importlib.import_module(module_name), attr)
+    """The class registered as ``name``; KeyError naming the known generators otherwise."""
+    return GENERATORS.load(name)
 
 
 def get_generator(name: str, **params):
+    """A configured generator instance: ``get_generator("region", preset="medium")``."""
     return generator_class(name)(**params)

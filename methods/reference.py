@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 from holes.regions import HoleRegion, check_regions_near
 from methods.base import InpaintingMethod, Regions
 from metrics.errors import UserError
+
 # the one nearest-sample spacing estimator (re-exported: tests and callers import it from here)
 from metrics.neighbours import median_neighbour_distance
 

@@ -109,7 +109,6 @@ from methods._registration import alignment_residual
 from methods.base import InpaintingMethod
 from methods.reference import icp_align
 
-
 #: most source points an ICP call pairs: a rigid motion has 6 unknowns, and 2000 evenly spread
 #: pairs pin it down as well as the 10-20k of a large hole's shell on an 800k-point frame (the
 #: alignment cost is then independent of the point density)

@@ -96,7 +96,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from metrics.neighbours import estimate_normals, point_spacing
 from methods._cubes import (
     CellGrid,
     TargetCubeOrder,
@@ -109,6 +108,7 @@ from methods._graph import TemporalLinks, solve_cube, spatial_laplacian, tempora
 from methods._registration import RigidFit, align_best
 from methods.base import InpaintingMethod
 from metrics.errors import UserError
+from metrics.neighbours import estimate_normals, point_spacing
 
 if TYPE_CHECKING:
     from holes.regions import HoleRegion

@@ -50,10 +50,10 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from metrics.errors import UserError
-from metrics.types import Region
 
 # the one normal estimator and point check (re-exported: metrics.pairs.estimate_normals is public API)
 from metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
+from metrics.types import Region
 
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
 #: than this are "at the same distance".

@@ -218,7 +218,7 @@ def test_direction_and_change_kind_come_from_the_metric_registry_only():
 
 
 def test_peak_dependence_comes_from_the_registry():
-    from bench.runner import _uses_peak
+    from bench.worker import _uses_peak
     from metrics import registry
 
     assert [n for n in registry.METRICS if _uses_peak(n)] == ["gpsnr_d1", "gpsnr_d2", "hausdorff_psnr"]

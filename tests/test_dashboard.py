@@ -113,9 +113,10 @@ def test_page_is_self_contained_and_flags_the_regression(tmp_path):
 
 
 def test_css_is_package_data_inlined_and_each_section_is_one_function(tmp_path):
-    import tomllib
     from importlib import resources
     from pathlib import Path
+
+    import tomllib
 
     css = resources.files("bench").joinpath("static", "dashboard.css").read_text(encoding="utf-8")
     assert dashboard.stylesheet() == css and ":root" in css and "tr.regressed td" in css

@@ -417,11 +417,11 @@ def test_a_folder_named_like_an_embedded_sequence_says_which_one_is_taken(work, 
 
 
 def test_config_sequence_names_never_read_a_folder_of_that_name(work):
-    from bench.runner import load_ground_truth
+    from bench.datasets import load_run_sequence
 
     (work / "human").mkdir()
     (work / "human" / "f.ply").write_bytes((work / "seq" / "s_0000.ply").read_bytes())
-    seq = load_ground_truth({"name": "human", "params": {"size": "tiny"}, "frames": 1})
+    seq = load_run_sequence({"name": "human", "params": {"size": "tiny"}, "frames": 1})
     assert len(seq.frames) == 1 and len(seq.frames[0]) > 10000  # the embedded figure, not the 800-point file
 
 

@@ -322,10 +322,10 @@ def test_temporal_consistency_follows_true_correspondences():
 
 # -- configs, presets, the samba data ----------------------------------------------------------------------
 def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch, capsys):
-    import bench.datasets as datasets
+    import bench.sources.meshes as meshes
     from bench.config import ConfigError, parse_config
 
-    monkeypatch.setattr(datasets, "default_data_dirs", lambda: [tmp_path / "nothing"])
+    monkeypatch.setattr(meshes, "default_data_dirs", lambda: [tmp_path / "nothing"])
     monkeypatch.delenv("DPCBENCH_DATA_DIR", raising=False)
     data = {"experiment": {"name": "x"},
             "sequences": [{"name": "human", "params": {"size": "tiny"}, "frames": 2},
@@ -343,7 +343,7 @@ def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch
 
 def test_mesh_folder_as_config_path(tmp_path):
     from bench.config import parse_config
-    from bench.runner import load_ground_truth
+    from bench.datasets import load_run_sequence
 
     rigid_frames(tmp_path / "m", count=3)
     data = {"experiment": {"name": "x"},
@@ -351,7 +351,7 @@ def test_mesh_folder_as_config_path(tmp_path):
             "holes": [{"generator": "region", "seed": 0}], "methods": [{"name": "none"}]}
     run = parse_config(data).expand()[0]
     assert run.versions["data"]["mesh"]["params"] == {"points": 2000, "bit_depth": 7}
-    truth = load_ground_truth(run.sequence)
+    truth = load_run_sequence(run.sequence)
     assert len(truth.frames) == 2 and truth.bit_depth == 7 and truth.motion is not None
     other = parse_config({**data, "sequences": [{**data["sequences"][0], "params": {"points": 3000}}]}).expand()[0]
     assert other.run_id != run.run_id

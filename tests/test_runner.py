@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 
 from bench.config import parse_config
-from bench.runner import read_run_folder, run_experiment
+from bench.provenance import read_run_folder
+from bench.runner import run_experiment
 from bench.store import ResultsStore
 from tests import runner_fixtures as helpers
 

@@ -65,6 +65,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    from bench.atomic import atomic_write_text
     from bench.outputs import Outputs, record_written
     from bench.sequences import Sequence, save_sequence, sequence_file_names
     from holes.regions import regions_to_json
@@ -107,9 +108,7 @@ def run(args) -> int:
 
     if RECORDED:
         record["warnings"] = list(RECORDED)  # the notes printed while it was made (e.g. which input was taken)
-    tmp = out / "holes.json.tmp"
-    tmp.write_text(json.dumps(record, indent=1, default=_jsonable))
-    tmp.replace(out / "holes.json")
+    atomic_write_text(out / "holes.json", json.dumps(record, indent=1, default=_jsonable))
     record_written(files + [out / "masks.npz", out / "holes.json"])
     print(f"{len(files)} frames -> {out}: removed {np.mean(fractions):.2%} of the points on average "
           f"(min {min(fractions):.2%}, max {max(fractions):.2%}), "

@@ -32,6 +32,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    from bench.atomic import atomic_write_text
     from bench.outputs import Outputs, record_written
     from bench.params import check_param_types
     from bench.progress import progress_bar
@@ -59,10 +60,7 @@ def run(args) -> int:
 
     if RECORDED:
         record["warnings"] = list(RECORDED)  # the notes printed while it was made
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(record, indent=1))
-    tmp.replace(out)
+    atomic_write_text(out, json.dumps(record, indent=1))
     record_written([out])
     print(f"{len(regions)} frames: {sum(len(r) for r in regions)} hole regions "
           f"({', '.join(str(len(r)) for r in regions[:10])}{' ...' if len(regions) > 10 else ''} per frame) -> {out}")

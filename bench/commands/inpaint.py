@@ -62,6 +62,7 @@ def make_method(name: str, params: dict):
 
 
 def run(args) -> int:
+    from bench.atomic import atomic_write_text
     from bench.outputs import Outputs, record_written
     from bench.plyio import PointCloud
     from bench.sequences import Sequence, save_sequence, sequence_file_names
@@ -107,9 +108,7 @@ def run(args) -> int:
     }
     if RECORDED:
         record["warnings"] = list(RECORDED)
-    tmp = out / "inpaint.json.tmp"
-    tmp.write_text(json.dumps(record, indent=1, default=str))
-    tmp.replace(out / "inpaint.json")
+    atomic_write_text(out / "inpaint.json", json.dumps(record, indent=1, default=str))
     record_written(files + [out / "inpaint.json"])
     added = sum(record["points"]) - sum(record["input_points"])
     print(f"{args.method}: {len(files)} frames -> {out} ({added:+d} points, {seconds:.1f} s)")

@@ -11,10 +11,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from bench.atomic import atomic_path
 
 
 def cache_dir() -> Path:
@@ -53,15 +54,8 @@ def store_cached(key: str, generator: str, arrays: dict[str, np.ndarray]) -> Pat
     (generation still works, it just is not cached)."""
     path = cache_path(key, generator)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".npz", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(fh, key=np.array(key), **arrays)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(key), **arrays)
     except OSError:
         return None
     return path

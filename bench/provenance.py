@@ -1,0 +1,156 @@
+"""Provenance and run folders: where a result came from, and the folder of frames it was scored on.
+
+- `git_commit` / `environment`: the one probe of the code version and the environment, recorded
+  with every run (``env`` in the store) and in every summary's header (`summary_environment`).
+- A **run folder** ``RUNS_DIR/<inpaint_key>/`` holds what one (data, holes, method) produced:
+
+      damaged/frame_0000.ply ...    the damaged input frames (float32 PLY, colours when the data has them)
+      inpainted/frame_0000.ply ...  the method's output frames
+      holes.json                    the hole regions (`holes.regions.regions_to_json`) and removed fractions
+      detected.json                 the detected regions, when the protocol detects them
+      manifest.json                 the run's identity and timings (see `bench.worker.produce_frames`)
+
+  `write_run_folder` writes it atomically (`bench.atomic.atomic_folder`); `read_run_folder` reads it
+  back. A folder with ``manifest.json`` is complete: the worker reuses it instead of re-inpainting.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+#: packages whose versions every run records (those not installed are left out)
+RECORDED_PACKAGES = ("dpcbench", "numpy", "scipy", "open3d", "pymeshlab", "pandas", "matplotlib", "plyfile",
+                     "dask", "distributed")
+#: packages a summary's header names (with "not installed" when absent)
+SUMMARY_PACKAGES = ("numpy", "scipy", "open3d", "pymeshlab", "pandas")
+
+
+def git_commit(repo: str | os.PathLike | None = None) -> str:
+    """The checked-out commit of ``repo`` (default: this checkout), with "+dirty" when tracked files
+    are modified, or "unknown" (no git, not a checkout)."""
+    cwd = Path(repo) if repo else Path(__file__).resolve().parents[1]
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True,
+                                timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return commit + ("+dirty" if dirty else "")
+
+
+def package_versions(names=RECORDED_PACKAGES) -> dict[str, str | None]:
+    """name -> installed version, or None when the package is not installed."""
+    from importlib import metadata
+
+    versions: dict[str, str | None] = {}
+    for name in names:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def environment() -> dict:
+    """Package versions, Python, git commit and machine of this process (a run's ``env``)."""
+    return {
+        "packages": {k: v for k, v in package_versions().items() if v is not None},
+        "python": platform.python_version(),
+        "git_commit": git_commit(),
+        "machine": {"node": platform.node(), "system": platform.system(), "release": platform.release(),
+                    "arch": platform.machine(), "cpus": os.cpu_count()},
+    }
+
+
+def summary_environment() -> dict:
+    """The environment as a summary's flat header block: python, a version (or "not installed") per
+    `SUMMARY_PACKAGES`, machine ("Linux x86_64, 8 cpus") and processor."""
+    info = {"python": platform.python_version()}
+    info.update({k: v or "not installed" for k, v in package_versions(SUMMARY_PACKAGES).items()})
+    info["machine"] = f"{platform.system()} {platform.machine()}, {os.cpu_count()} cpus"
+    info["processor"] = platform.processor() or platform.machine()
+    return info
+
+
+# -- how D2 got its reference normals --------------------------------------------------------------
+#: how D2 got the reference normals, as stored in a run's ``env["d2_normals"]`` and printed in captions
+D2_NORMALS_FILE = "file"
+D2_NORMALS_ESTIMATED = "estimated"
+D2_NORMALS_TEXT = {
+    D2_NORMALS_FILE: "normals from file (the ground truth's own, as pc_error reads them)",
+    D2_NORMALS_ESTIMATED: "normals estimated by PCA of 12 neighbours (the ground truth has none)",
+}
+
+
+def d2_normals_source(truth) -> str:
+    """``"file"`` when every ground-truth frame carries normals (the stand-ins' exact normals, or a
+    PLY's nx ny nz): D2 uses them, as pc_error does; ``"estimated"`` otherwise (`metrics.pairs.
+    estimate_normals` on the frames without)."""
+    return D2_NORMALS_FILE if all(f.normals is not None for f in truth.frames) else D2_NORMALS_ESTIMATED
+
+
+# -- run folders -----------------------------------------------------------------------------------
+def _json_default(value):
+    """numpy values inside region extras (e.g. rim points) as plain JSON."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
+def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors: list | None,
+                     inpainted: list[np.ndarray], holes: dict, detected: dict | None, manifest: dict) -> None:
+    """Write a run folder (layout in the module doc) atomically, replacing one of that name.
+
+    damaged / inpainted: the (N_f, 3) frames; damaged_colors: their (N_f, 3) uint8 colours or None;
+    holes / detected: `holes.regions.regions_to_json` documents; manifest: the run's facts (JSON).
+    """
+    from bench.atomic import atomic_folder
+    from bench.plyio import PointCloud, write_ply
+
+    with atomic_folder(run_dir) as tmp:
+        for i, (frame, result) in enumerate(zip(damaged, inpainted)):
+            colors = None if damaged_colors is None else damaged_colors[i]
+            write_ply(tmp / "damaged" / f"frame_{i:04d}.ply", PointCloud(frame, colors))
+            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result))
+        (tmp / "holes.json").write_text(json.dumps(holes, indent=1, default=_json_default))
+        if detected is not None:
+            (tmp / "detected.json").write_text(json.dumps(detected, indent=1, default=_json_default))
+        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1, default=str))
+
+
+def read_run_folder(run_dir: Path) -> dict:
+    """The damaged and inpainted frames ((N,3) arrays), regions and manifest of a run folder."""
+    from bench.plyio import read_ply
+    from bench.sequences import natural_key
+    from holes.regions import regions_from_json
+
+    def frames(sub):
+        files = sorted((run_dir / sub).glob("*.ply"), key=lambda p: natural_key(p.name))
+        return [read_ply(f).points for f in files]
+
+    detected = run_dir / "detected.json"
+    return {"damaged": frames("damaged"), "inpainted": frames("inpainted"),
+            "regions": regions_from_json(run_dir / "holes.json"),
+            "detected": regions_from_json(detected) if detected.is_file() else None,
+            "manifest": json.loads((run_dir / "manifest.json").read_text())}
+
+
+def is_complete_run_folder(run_dir: Path) -> bool:
+    """True when ``run_dir`` was written to the end (its manifest is the last file written)."""
+    return (Path(run_dir) / "manifest.json").is_file()
+
+
+def clean_stale_temp(runs_dir: Path) -> int:
+    """Remove temporary run folders (``.tmp-*``) whose writer process is gone (left by killed runs)."""
+    from bench.atomic import remove_stale_folders
+
+    return remove_stale_folders(runs_dir)

@@ -1,0 +1,380 @@
+"""The worker: one run (load -> damage -> inpaint -> write frames -> score) in its own process.
+
+The sweep driver (`bench.runner.run_experiment`) hands runs to an executor (`bench.executors`), which
+calls `run_isolated` for each; that starts ``python -m bench.worker --worker ...``, and the worker
+process does, for one run (a `bench.config.RunSpec`):
+
+1. load the ground-truth sequence (`bench.datasets.load_run_sequence`: a dataset name or a path);
+2. damage it with the hole generator and seed of the spec;
+3. inpaint with the method, timing each frame; methods whose frames are independent
+   (``uses_neighbour_frames = False``) are called frame by frame so that time and memory are per
+   frame; a temporal method is called once on the whole sequence and gets sequence-level figures only;
+4. write the run folder ``RUNS_DIR/<inpaint_key>`` (`bench.provenance.write_run_folder`: atomic, a
+   killed run leaves only a ``.tmp-*`` folder, which is never read and is removed by the next sweep);
+5. score every metric per frame from the frames *as written* (float32 PLY), with
+   ``metrics.score_frame`` for scope "frame" (whole frames) and scope "holes" (the frame's regions),
+   and ``metrics.temporal_consistency`` at frame -1.
+
+Step 1-4 are skipped when ``RUNS_DIR/<inpaint_key>/manifest.json`` exists (same data, holes and
+method): a new metric or peak needs no re-inpainting. The outcome goes back to the driver (as JSON),
+which alone writes the results store (`bench.store`), so store writes never race with a worker
+being killed.
+
+Per-frame measurements stored as metrics (scope "frame"):
+- ``time_s``: wall time of the method on that frame (``time.perf_counter``); at frame -1 the
+  method's total time for the sequence.
+- ``peak_mem_mb``: peak resident set size of the worker process while the method ran on that frame
+  (Linux: ``VmHWM`` from /proc/self/status after resetting it through /proc/self/clear_refs;
+  elsewhere ``resource.getrusage(...).ru_maxrss``, the process-lifetime peak). It includes the
+  interpreter and loaded libraries, so it is an upper bound of what the method needs; it sees native
+  allocations (open3d, pymeshlab) that tracemalloc would miss.
+- ``removed_fraction``: share of the frame's points the hole generator removed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from bench.atomic import atomic_write_text
+from bench.config import RunSpec
+from bench.datasets import load_run_sequence
+from bench.provenance import (
+    d2_normals_source,
+    environment,
+    is_complete_run_folder,
+    read_run_folder,
+    write_run_folder,
+)
+from holes.lazy import import_entry
+
+WORKER_FLAG = "--worker"
+_LIVE_PROCESSES: set = set()
+_LIVE_LOCK = threading.Lock()
+
+
+# -- memory --------------------------------------------------------------------------------
+def _reset_peak_rss() -> bool:
+    """Reset the kernel's peak-RSS counter of this process (Linux >= 4.0); False when unsupported."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size in MiB: VmHWM (since the last reset) on Linux, else ru_maxrss."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
+
+
+# -- producing the frames ----------------------------------------------------------------------
+def _inpaint_timed(method, frames: list[np.ndarray], regions) -> tuple[list[np.ndarray], list[dict], dict]:
+    """Run the method; per-frame timing for frame-independent methods, one timing otherwise."""
+    per_frame: list[dict] = []
+    if not getattr(method, "uses_neighbour_frames", False):
+        out = []
+        for i, frame in enumerate(frames):
+            _reset_peak_rss()
+            t0 = time.perf_counter()
+            result = method.inpaint([frame], None if regions is None else [regions[i]])
+            per_frame.append({"frame": i, "time_s": time.perf_counter() - t0, "peak_mem_mb": peak_rss_mb()})
+            out.append(result[0])
+        total = {"time_s": sum(p["time_s"] for p in per_frame), "peak_mem_mb": max(p["peak_mem_mb"] for p in per_frame)}
+        return out, per_frame, total
+    _reset_peak_rss()
+    t0 = time.perf_counter()
+    out = method.inpaint(frames, regions)
+    total = {"time_s": time.perf_counter() - t0, "peak_mem_mb": peak_rss_mb()}
+    return list(out), per_frame, total
+
+
+def _check_output(out: list, frames: list, name: str) -> list[np.ndarray]:
+    if len(out) != len(frames):
+        raise ValueError(f"method {name} returned {len(out)} frames for {len(frames)} input frames")
+    checked = []
+    for i, arr in enumerate(out):
+        arr = np.asarray(arr, dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0 or not np.isfinite(arr).all():
+            raise ValueError(f"method {name} returned an invalid frame {i} (shape {arr.shape}, must be (N>0, 3) finite)")
+        checked.append(arr)
+    return checked
+
+
+def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
+    """Damage, inpaint, and write the run folder atomically (`bench.provenance.write_run_folder`)."""
+    from holes.regions import regions_to_json
+
+    frames = truth.points
+    colors = truth.colors if all(c is not None for c in truth.colors) else None
+    generator = import_entry(spec.holes["entry"])(**spec.holes["params"])
+    damage = generator.damage(frames, spec.holes["seed"], colors=colors)
+    mode = spec.protocol.get("regions", "given")
+    detected, detect_time = None, 0.0
+    if mode == "given":
+        regions = damage.regions
+    elif mode == "detected":
+        from holes.detection import detect_holes
+
+        t0 = time.perf_counter()
+        detected = [detect_holes(f, **spec.protocol.get("detection", {})) for f in damage.frames]
+        detect_time = time.perf_counter() - t0
+        regions = detected
+    else:
+        regions = None
+    method = import_entry(spec.method["entry"])(**spec.method["params"])
+    inpainted, per_frame, total = _inpaint_timed(method, damage.frames, regions)
+    inpainted = _check_output(inpainted, damage.frames, spec.method["name"])
+
+    holes = regions_to_json(damage.regions, generator=spec.holes["generator"], params=spec.holes["params"],
+                            seed=spec.holes["seed"],
+                            per_frame=[{"removed_fraction": float(m.mean())} for m in damage.removed])
+    manifest = {"inpaint_key": spec.inpaint_key, "spec": spec.identity(), "frames": len(frames),
+                "points": [len(f) for f in frames], "per_frame": per_frame, "total": total,
+                "removed_fraction": [float(m.mean()) for m in damage.removed], "regions_mode": mode,
+                "detect_time_s": detect_time, "created_by_pid": os.getpid(),
+                # every parameter as the method resolved it (a variant's switches included)
+                "method_params_resolved": method.get_params()}
+    # --force, or another worker finished the same frames first: the folder is replaced
+    write_run_folder(run_dir, damaged=damage.frames, damaged_colors=damage.colors, inpainted=inpainted, holes=holes,
+                     detected=None if detected is None else regions_to_json(detected, detector="holes.detection"),
+                     manifest=manifest)
+
+
+# -- scoring ---------------------------------------------------------------------------------
+def _peak_label(peak) -> str:
+    if isinstance(peak, str):
+        return peak
+    return str(int(peak)) if float(peak) == int(peak) else repr(float(peak))
+
+
+def _uses_peak(name: str) -> bool:
+    """Whether the metric's value depends on the PSNR peak (`metrics.registry`, the one source)."""
+    from metrics.registry import describe
+
+    metric = describe(name)
+    return metric is not None and metric.uses_peak
+
+
+def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) -> list[dict]:
+    """Every metric per frame and scope (and peak for PSNRs), plus temporal consistency at frame -1.
+
+    PSNRs are as `metrics.score_pair` returns them (capped at its ``max_psnr``, 200 dB by default,
+    when a result equals the reference). D2 uses the ground truth's own normals when its frames carry
+    them (`d2_normals_source`), else normals estimated by PCA of 12 neighbours."""
+    import metrics as metrics_pkg
+
+    cfg = spec.metrics
+    names = cfg["names"]
+    peak_names = [n for n in names if _uses_peak(n)]
+    rows: list[dict] = []
+    for f, (cloud, result) in enumerate(zip(truth.frames, inpainted)):
+        # one CloudPair per frame: its KD-trees and neighbour queries serve every scope and peak
+        pair = metrics_pkg.make_pair(cloud.points, result, cloud.normals)
+        for scope in cfg["scopes"]:
+            frame_regions = regions[f] if scope == "holes" else None
+            if scope == "holes" and not frame_regions:
+                continue  # no hole in this frame: nothing to score in the hole region
+            for k, peak in enumerate(cfg["peaks"]):
+                wanted = names if k == 0 else peak_names
+                if not wanted:
+                    continue
+                values, _capped = metrics_pkg.score_pair(pair, wanted, peak=peak, regions=frame_regions,
+                                                         region_margin=cfg["region_margin"])
+                for name, value in values.items():
+                    rows.append({"frame": f, "metric": name, "scope": scope,
+                                 "peak": _peak_label(peak) if name in peak_names else "", "value": value})
+    if cfg.get("temporal_consistency") and len(inpainted) > 1:
+        # true point correspondences when the sequence knows them (mesh sequences), else nearest-point links
+        motion = getattr(truth, "motion", None)
+        value = metrics_pkg.temporal_consistency(truth.points, inpainted, regions, region_margin=cfg["region_margin"],
+                                                 correspondences=None if motion is None else motion.correspondences())
+        items = value.items() if isinstance(value, dict) else [("temporal_consistency", value)]
+        for name, val in items:
+            if isinstance(val, (int, float, np.floating)):
+                metric = name if name.startswith("temporal_consistency") else f"temporal_consistency_{name}"
+                rows.append({"frame": -1, "metric": metric, "scope": "holes", "peak": "", "value": float(val)})
+    return rows
+
+
+def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = False) -> dict:
+    """Do one run in this process; returns the outcome dict the driver stores.
+
+    outcome: {"run_id", "status": "done", "record": {...run facts...}, "results": [rows]}
+    Raises on any failure (the worker wrapper turns that into a "failed" outcome).
+    """
+    t0 = time.perf_counter()
+    created = _now()
+    run_dir = Path(runs_dir) / spec.inpaint_key
+    truth = load_run_sequence(spec.sequence)
+    if force or not is_complete_run_folder(run_dir):
+        produce_frames(spec, truth, run_dir)
+        reused = False
+    else:
+        reused = True
+    folder = read_run_folder(run_dir)
+    if len(folder["inpainted"]) != len(truth.frames):
+        raise ValueError(f"{run_dir}: holds {len(folder['inpainted'])} frames, the sequence has {len(truth.frames)}; "
+                         "rerun with --force")
+    # without removed points (the data's own holes) there is no ground truth apart from the input
+    # itself: no quality scores
+    removes_points = import_entry(spec.holes["entry"]).removes_points
+    results = score_run(spec, truth, folder["inpainted"], folder["regions"]) if removes_points else []
+    manifest = folder["manifest"]
+    for entry in manifest["per_frame"]:
+        results.append({"frame": entry["frame"], "metric": "time_s", "scope": "frame", "peak": "", "value": entry["time_s"]})
+        results.append({"frame": entry["frame"], "metric": "peak_mem_mb", "scope": "frame", "peak": "",
+                        "value": entry["peak_mem_mb"]})
+    results.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "", "value": manifest["total"]["time_s"]})
+    results.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "",
+                    "value": manifest["total"]["peak_mem_mb"]})
+    for f, frac in enumerate(manifest["removed_fraction"]):
+        results.append({"frame": f, "metric": "removed_fraction", "scope": "frame", "peak": "", "value": frac})
+    env = environment()
+    env["frames_reused"] = reused
+    env["d2_normals"] = d2_normals_source(truth)
+    record = {
+        "sequence": spec.sequence_label, "holes": spec.holes["generator"], "holes_params": spec.holes["params"],
+        "seed": spec.holes["seed"], "method": spec.method["name"], "method_params": spec.method["params"],
+        "method_version": spec.versions["method"], "code_version": env["git_commit"], "spec": spec.to_dict(),
+        "wall_time_s": time.perf_counter() - t0, "peak_mem_mb": manifest["total"]["peak_mem_mb"], "env": env,
+        "created_at": created, "finished_at": _now(), "output_dir": str(run_dir),
+    }
+    return {"run_id": spec.run_id, "status": "done", "record": record, "results": results}
+
+
+def _now() -> str:
+    from bench.store import now_iso
+
+    return now_iso()
+
+
+# -- the worker process -------------------------------------------------------------------------
+def _exit_with_parent() -> None:
+    """End this worker when its driver dies (e.g. kill -9), instead of computing for nobody."""
+    parent = os.getppid()
+
+    def watch():
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent:
+                os._exit(3)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def worker_main(spec_path: str, out_path: str, runs_dir: str, force: bool) -> int:
+    _exit_with_parent()
+    spec = RunSpec.from_dict(json.loads(Path(spec_path).read_text()))
+    try:
+        outcome = execute_run(spec, runs_dir, force=force)
+    except BaseException as err:  # every failure becomes a recorded message
+        tb = traceback.format_exc()
+        outcome = {"run_id": spec.run_id, "status": "failed", "error": f"{type(err).__name__}: {err}",
+                   "traceback": tb[-4000:]}
+    atomic_write_text(out_path, json.dumps(outcome, default=float))
+    return 0
+
+
+def _tail(path: Path, lines: int = 12) -> str:
+    try:
+        text = path.read_text(errors="replace").strip().splitlines()
+    except OSError:
+        return ""
+    return "\n".join(text[-lines:])
+
+
+def run_isolated(spec_dict: dict, runs_dir: str, force: bool = False, threads: int | None = None) -> dict:
+    """Run one spec in a fresh ``python -m bench.worker --worker`` process with the spec's timeout.
+
+    Returns the outcome dict; a crash (non-zero exit, a signal such as kill -9, os._exit) or a
+    timeout becomes ``{"status": "failed", "error": ...}`` with the exit code and the log's tail.
+    Importable by Dask workers (they run it on their machine; ``runs_dir`` must be reachable there).
+    """
+    spec = RunSpec.from_dict(spec_dict)
+    runs = Path(runs_dir)
+    logs = runs / "logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="dpcbench-run-") as tmp:
+        spec_path = Path(tmp) / "spec.json"
+        out_path = Path(tmp) / "outcome.json"
+        spec_path.write_text(json.dumps(spec_dict))
+        log_path = logs / f"{spec.run_id}.log"
+        env = dict(os.environ, DPCBENCH_QUIET="1", PYTHONUNBUFFERED="1")
+        if threads:
+            for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+                env.setdefault(var, str(threads))
+        cmd = [sys.executable, "-m", "bench.worker", WORKER_FLAG, str(spec_path), str(out_path), str(runs)]
+        if force:
+            cmd.append("--force")
+        t0 = time.perf_counter()
+        with open(log_path, "w") as log:
+            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
+            with _LIVE_LOCK:
+                _LIVE_PROCESSES.add(proc)
+            try:
+                proc.wait(timeout=spec.timeout_s)
+                timed_out = False
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+                timed_out = True
+            except BaseException:  # Ctrl-C in the driver: the worker goes with it
+                proc.kill()
+                proc.wait()
+                raise
+            finally:
+                with _LIVE_LOCK:
+                    _LIVE_PROCESSES.discard(proc)
+        elapsed = time.perf_counter() - t0
+        base = {"run_id": spec.run_id, "status": "failed", "wall_time_s": elapsed, "log": str(log_path)}
+        if timed_out:
+            return {**base, "error": f"timed out after {spec.timeout_s:g} s; the worker was killed "
+                                     "(raise experiment.timeout_s or --timeout if the method is just slow)"}
+        if out_path.is_file():
+            outcome = json.loads(out_path.read_text())
+            if outcome["status"] == "failed":
+                outcome["log"] = str(log_path)
+            return outcome
+        code = proc.returncode
+        how = f"killed by signal {signal.Signals(-code).name}" if code < 0 else f"exited with code {code}"
+        tail = _tail(log_path)
+        return {**base, "error": f"worker process {how} without a result" + (f"; last output:\n{tail}" if tail else "")}
+
+
+def kill_live_workers() -> None:
+    """Kill every worker process this driver started (on Ctrl-C)."""
+    with _LIVE_LOCK:
+        procs = list(_LIVE_PROCESSES)
+    for proc in procs:
+        try:
+            proc.kill()
+        except OSError:
+            pass
+
+
+if __name__ == "__main__":
+    if len(sys.argv) >= 5 and sys.argv[1] == WORKER_FLAG:
+        sys.exit(worker_main(sys.argv[2], sys.argv[3], sys.argv[4], "--force" in sys.argv[5:]))
+    print("usage: python -m bench.worker --worker SPEC_JSON OUTCOME_JSON RUNS_DIR [--force]", file=sys.stderr)
+    sys.exit(2)
