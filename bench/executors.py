@@ -31,8 +31,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from bench.config import RunSpec
-from bench.runner import kill_live_workers, run_isolated
 from bench.errors import UserError
+from bench.runner import kill_live_workers, run_isolated
 
 EXECUTORS = ("serial", "pool", "dask")
 

@@ -15,7 +15,11 @@ import pytest
 
 from bench.config import parse_config
 from bench.errors import UserError
-from bench.executors import SHARED_MARKER_PREFIX, SharedStorageError, check_shared_runs_dir
+from bench.executors import (
+    SHARED_MARKER_PREFIX,
+    SharedStorageError,
+    check_shared_runs_dir,
+)
 from bench.runner import run_experiment
 from bench.store import ResultsStore
 from tests import test_runner_helpers as helpers
@@ -115,7 +119,7 @@ def test_tcp_scheduler_runs_a_grid_on_two_workers(env, tcp_cluster, tmp_path):
 def test_worker_that_cannot_see_the_run_folder_stops_the_sweep(env, tcp_cluster, tmp_path, monkeypatch):
     """The driver's marker is not where the workers look (as on a machine without the shared mount):
     every worker fails the check, nothing runs, and the message says what to do."""
-    import bench.executors as executors
+    from bench import executors
 
     real_unlink = Path.unlink
     # the driver writes its marker, then it vanishes before the workers look: what a worker on another
