@@ -149,7 +149,7 @@ def zbuffer_visible_mask(points: np.ndarray, normals: np.ndarray, cameras: np.nd
     points = np.asarray(points, dtype=np.float32)
     normals = np.asarray(normals, dtype=np.float32)
     seen = np.zeros(len(points), dtype=bool)
-    radius = int(round(splat * pixels_per_spacing))
+    radius = round(splat * pixels_per_spacing)
     world_up = np.array([0.0, 1.0, 0.0])
     for cam in np.asarray(cameras, dtype=np.float64):
         forward = center - cam

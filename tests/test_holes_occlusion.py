@@ -7,7 +7,12 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from holes.geometry import estimate_normals, point_spacing
-from holes.occlusion import sphere_cameras, stage_cameras, visible_mask, zbuffer_visible_mask
+from holes.occlusion import (
+    sphere_cameras,
+    stage_cameras,
+    visible_mask,
+    zbuffer_visible_mask,
+)
 from holes.registry import get_generator
 
 

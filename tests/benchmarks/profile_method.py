@@ -19,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from conftest import SIZES, bench_sequence, damage  # noqa: E402
+from conftest import SIZES, bench_sequence, damage
 
 
 def main() -> int:
