@@ -173,6 +173,7 @@ def cmd_grid(args) -> dict:
             tcp = TcpCluster(2, root / "tcp").__enter__()
             out["tcp_cluster_start_s"] = tcp.start_s
             out["scheduler_overhead_tcp2"] = scheduler_overhead(tcp.address)
+            print(f"  tcp cluster up in {tcp.start_s:.1f} s; no-op tasks: {out['scheduler_overhead_tcp2']}", flush=True)
         try:
             for name in setups:
                 executor, jobs, needs_tcp = EXECUTOR_SETUPS[name]
