@@ -113,8 +113,8 @@ def visible_mask(points: np.ndarray, normals: np.ndarray, cameras: np.ndarray, m
     seen = np.zeros(len(points), dtype=bool)
     for cam in cameras:
         far = float(np.sqrt(((points - cam) ** 2).sum(axis=1).max()))
-        _, kept = cloud.hidden_point_removal(cam, far * hpr_factor)
-        kept = np.asarray(kept, dtype=np.int64)
+        _, kept_list = cloud.hidden_point_removal(cam, far * hpr_factor)
+        kept = np.asarray(kept_list, dtype=np.int64)
         view = cam - points[kept]
         view /= np.linalg.norm(view, axis=1, keepdims=True)
         cos = np.abs(np.einsum("ij,ij->i", view, normals[kept]))
