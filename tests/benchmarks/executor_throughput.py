@@ -220,6 +220,43 @@ def cmd_grid(args) -> dict:
     return out
 
 
+class WorkerCpuPoller:
+    """Samples, once a second, the CPU time (user + system, /proc/PID/stat) of every run worker process
+    (``python -m bench.runner --worker``) whose command line names ``runs_dir``; keeps the last sample
+    per run id. On a shared machine a run's wall time measures the load, its CPU time the run (Linux only)."""
+
+    def __init__(self, runs_dir: Path):
+        import threading
+
+        self.runs_dir = str(runs_dir)
+        self.cpu_s: dict[str, float] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._poll, daemon=True)
+
+    def _poll(self):
+        tick = os.sysconf("SC_CLK_TCK")
+        while not self._stop.is_set():
+            for proc in Path("/proc").glob("[0-9]*"):
+                try:
+                    cmd = (proc / "cmdline").read_text().split("\0")
+                    if "--worker" not in cmd or self.runs_dir not in cmd:
+                        continue
+                    spec = json.loads(Path(cmd[cmd.index("--worker") + 1]).read_text())
+                    fields = (proc / "stat").read_text().rsplit(")", 1)[1].split()
+                    self.cpu_s[spec["run_id"]] = (int(fields[11]) + int(fields[12])) / tick
+                except (OSError, ValueError, KeyError, IndexError):
+                    continue  # the process ended between listing and reading
+            self._stop.wait(1.0)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+
+
 def cmd_paper_costs(args) -> dict:
     from bench.config import parse_config
     from bench.paper import table_methods
@@ -245,7 +282,8 @@ def cmd_paper_costs(args) -> dict:
         seq = load_dataset(s, frames=args.frames, size=args.size)
         gen[s] = {"load_s": time.perf_counter() - t0, "points": [len(f) for f in seq.points]}
     workdir = Path(args.workdir or tempfile.mkdtemp(prefix="dpcbench-papercosts-"))
-    wall, store = _sweep(cfg, "serial", 1, None, workdir)
+    with WorkerCpuPoller((workdir / "runs").resolve()) as poller:
+        wall, store = _sweep(cfg, "serial", 1, None, workdir)
     runs = store.runs_frame()
     res = store.results_frame()
     times = res[(res.metric == "time_s") & (res.scope == "frame")]
@@ -260,17 +298,21 @@ def cmd_paper_costs(args) -> dict:
         rows.append({"sequence": spec.sequence["name"], "column": column_label(spec.method["name"], spec.method["params"]),
                      "frames": args.frames, "run_wall_s": float(run.wall_time_s), "method_s": method_total,
                      "method_per_frame_s": method_total / args.frames,
-                     "rest_per_frame_s": (float(run.wall_time_s) - method_total) / args.frames})
+                     "rest_per_frame_s": (float(run.wall_time_s) - method_total) / args.frames,
+                     # the whole worker process (load, damage, method, write, score), sampled each second
+                     "run_cpu_s": poller.cpu_s.get(run.run_id)})
     out = {"size": args.size, "frames": args.frames, "sweep_wall_s": wall, "generation": gen, "runs": rows,
            "load_before": load_before, "load_after": load_average()}
     print(f"\nper-frame cost at size={args.size}, {args.frames} frames a run, serial, 1 run each "
           f"(load before {load_before}, after {out['load_after']})")
     for s, g in gen.items():
         print(f"  {s}: {g['points']} points; load/generate {g['load_s']:.1f} s")
-    print(f"{'sequence':8s} {'column':32s} {'method s/frame':>14s} {'rest s/frame':>12s} {'run wall s':>10s}")
+    print(f"{'sequence':8s} {'column':32s} {'method s/frame':>14s} {'rest s/frame':>12s} {'run wall s':>10s} "
+          f"{'run CPU s':>9s}")
     for r in rows:
+        cpu = f"{r['run_cpu_s']:9.1f}" if r["run_cpu_s"] is not None else f"{'-':>9s}"
         print(f"{r['sequence']:8s} {r['column']:32s} {r['method_per_frame_s']:14.2f} {r['rest_per_frame_s']:12.2f} "
-              f"{r['run_wall_s']:10.1f}")
+              f"{r['run_wall_s']:10.1f} {cpu}")
     if not args.workdir:
         shutil.rmtree(workdir, ignore_errors=True)
     return out
@@ -295,9 +337,13 @@ def cmd_project(args) -> dict:
     task_overhead = grid["scheduler_overhead_tcp2"]["round_trip_median_s"]
     # a machine with W workers delivers (its W-worker rate / its serial rate) runs' worth of serial work
     speedup = s["dask2"]["runs_per_min"] / s["serial"]["runs_per_min"] if "dask2" in s else 1.0
+    if args.speedup is not None:  # e.g. when the grid's setups ran under different loads
+        speedup = args.speedup
     per_frame = {}
     for r in costs["runs"]:
-        per_frame.setdefault(r["column"], {})[r["sequence"]] = r["method_per_frame_s"] + r["rest_per_frame_s"]
+        # CPU time of the run where sampled (wall time on a loaded machine measures the load), else wall
+        whole = r.get("run_cpu_s") if args.use_cpu and r.get("run_cpu_s") else r["run_wall_s"]
+        per_frame.setdefault(r["column"], {})[r["sequence"]] = whole / r["frames"]
     seqs = sorted({r["sequence"] for r in costs["runs"]})
     n_seq_configs = args.sequences
     hole_configs, seeds = 2, 3  # bench/presets/paper.toml: independent and coherent holes, seeds 0-2
@@ -326,8 +372,9 @@ def cmd_project(args) -> dict:
     for col, by_seq in per_frame.items():
         print(f"  {col:32s} " + ", ".join(f"{q} {v:.1f}" for q, v in by_seq.items()))
     print(f"overheads a run: worker process {process_overhead:.2f} s, Dask task round trip {task_overhead * 1e3:.1f} ms")
-    print(f"{args.machines} machines x {args.workers_per_machine} workers; measured 2-worker speedup on one "
-          f"machine {speedup:.2f}")
+    how = "given (--speedup)" if args.speedup is not None else "measured (dask2 / serial)"
+    print(f"{args.machines} machines x {args.workers_per_machine} workers; 2-worker speedup on one machine "
+          f"{speedup:.2f}, {how}")
     print(f"total work {total_work / 3600:.1f} worker-hours; longest single run {longest / 3600:.1f} h")
     print(f"projected wall time: {out['makespan_h']:.1f} h (perfect balance would give {out['ideal_h']:.1f} h; "
           "a run is the unit of scheduling, so the longest run bounds it)")
@@ -355,6 +402,9 @@ def main(argv=None) -> int:
     p.add_argument("--sequences", type=int, default=5, help="sequences in the preset (the paper has 5)")
     p.add_argument("--machines", type=int, default=10)
     p.add_argument("--workers-per-machine", type=int, default=2)
+    p.add_argument("--speedup", type=float, default=None,
+                   help="runs' worth of serial work 2 workers on one machine deliver (default: measured dask2/serial)")
+    p.add_argument("--use-cpu", action="store_true", help="per-run CPU time instead of wall time where sampled")
     p.add_argument("--json", default=None)
     args = parser.parse_args(argv)
     out = {"grid": cmd_grid, "paper-costs": cmd_paper_costs, "project": cmd_project}[args.cmd](args)
