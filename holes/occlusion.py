@@ -1,9 +1,12 @@
 """Acquisition (occlusion) holes: what a rig of K cameras around the subject cannot see.
 
-Visibility test (version 2): a z-buffer of splats per camera (`zbuffer_visible_mask`), what a
-renderer does: a point is seen when no splat of another surface lies in front of it. Version 1 used
-open3d's hidden point removal (``visibility="hpr"``, kept): ~2 s a camera on a 1M-point frame, 89 %
-of the generator's 26.8 s on Longdress, against well under a second a camera for the z-buffer.
+Two visibility operators. Default ``visibility="hpr"``: open3d's hidden point removal (below): ~2 s
+a camera on a 1M-point frame, 89 % of the generator's 26.8 s on Longdress. ``visibility="zbuffer"``
+(opt-in): a z-buffer of splats per camera (`zbuffer_visible_mask`), what a renderer does: a point is
+seen when no splat of another surface lies in front of it; 5.8 s CPU for the whole generator on
+Longdress against 37.3 s with HPR (same run, loaded machine). It is not the default because it
+removes fewer points: 14,674 against 28,158 on Longdress (IoU 0.49, 96 % of its set inside HPR's),
+3 against 20 on the tiny human, too few for `reproduce-paper --quick`'s real-holes rows.
 Agreement (tests/benchmarks/occlusion_agreement.py, small stand-ins, frame 0): IoU of the removed
 sets 0.89 on the bunny with the stage rig (9k points removed), 0.35-0.38 where both remove only
 100-200 points (human), HPR removing about twice as many there; on a closed-form two-sphere case
@@ -226,9 +229,9 @@ class OcclusionHoles(HoleGenerator):
                Measured on the embedded human (small, frame 0, sphere rig): 11.2 % of the points
                unseen without this, and none of them on visible surface (render); see the report.
     max_fraction: refuse a rig that removes more than this fraction of a frame.
-    visibility: "zbuffer" (default; `zbuffer_visible_mask`, a z-buffer of splats of one point
-               spacing per camera) or "hpr" (version 1's operator, open3d hidden point removal,
-               `visible_mask`; about 2 s a camera on a 1M-point frame).
+    visibility: "hpr" (default; open3d hidden point removal, `visible_mask`; about 2 s a camera on a
+               1M-point frame) or "zbuffer" (`zbuffer_visible_mask`, a z-buffer of splats of one point
+               spacing per camera; 6x less CPU on Longdress, but it removes fewer points, see above).
     depth_tolerance: z-buffer only: a point within this many point spacings behind the nearest
                surface in its pixel is on that surface.
     splat:     z-buffer only: splat radius in point spacings (at the depth nearest the camera).
@@ -236,13 +239,14 @@ class OcclusionHoles(HoleGenerator):
     """
 
     name = "occlusion"
-    summary = "acquisition holes: points no camera of a simulated capture rig sees (z-buffer of splats + grazing angle)"
-    version = "2"
+    summary = "acquisition holes: points no camera of a simulated capture rig sees (open3d HPR or a z-buffer + grazing angle)"
+    # still "1": the default operator (HPR) and its output are unchanged; visibility="zbuffer" is opt-in
+    version = "1"
 
     def __init__(self, rig: str = "stage", cameras=None, rings=(0.3, 0.8), per_ring: int = 6, count: int = 20,
                  distance: float = 1.5, up: str = "y", min_cos: float = 0.2, random_azimuth: bool = False,
                  normal_k: int = 16, seen_within: float = 1.5, max_fraction: float = 0.5,
-                 visibility: str = "zbuffer", depth_tolerance: float = 2.0, splat: float = 1.0):
+                 visibility: str = "hpr", depth_tolerance: float = 2.0, splat: float = 1.0):
         self.rig = rig
         self.cameras = cameras
         self.rings = rings
