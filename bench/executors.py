@@ -10,7 +10,13 @@
   starts the worker process on its Dask worker's machine and returns the outcome to the driver.
   Task keys are ``dpcbench-<run_id>``, so a resubmitted run is the same task, and only the driver
   writes the store: a retried or duplicated task cannot duplicate rows. The run folders
-  (``runs_dir``) must be on a filesystem the Dask workers share with the driver.
+  (``runs_dir``) must be on a filesystem the Dask workers share with the driver, at the same path
+  (README, "Shared storage"): the driver writes a marker file with a fresh token into ``runs_dir``,
+  and every worker checks that it reads that token and can write there, once before the sweep
+  (`check_shared_runs_dir` on every worker; a failure stops the sweep with a `UserError` naming the
+  workers) and again at the start of each task (for workers that join later). Without the check a
+  worker on another machine would create an empty ``runs_dir`` of its own and write the frames
+  where neither the driver nor the other workers find them.
 
 Each executor's ``execute(specs, runs_dir, force)`` yields ``(spec, outcome)`` as runs finish.
 """
@@ -19,6 +25,8 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
+import socket
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,6 +35,48 @@ from bench.errors import UserError
 from bench.worker import kill_live_workers, run_isolated
 
 EXECUTORS = ("serial", "pool", "dask")
+
+#: name prefix of the marker files the Dask driver writes into the run folder (one per sweep)
+SHARED_MARKER_PREFIX = ".dpcbench-shared-"
+
+
+class SharedStorageError(RuntimeError):
+    """A worker cannot read the driver's run folder or cannot write into it."""
+
+
+def check_shared_runs_dir(runs_dir: str, token: str) -> str:
+    """On a worker: check that ``runs_dir`` is the driver's run folder and writable from here.
+
+    Reads ``runs_dir/.dpcbench-shared-<token>`` (written by the driver; it must hold ``token``) and
+    creates and removes a probe file beside it. Returns this worker's host name; raises
+    `SharedStorageError` with what is wrong and what to do.
+    """
+    host = socket.gethostname()
+    where = f"worker on host {host!r} (pid {os.getpid()})"
+    advice = ("the run folders must be on storage every Dask worker reaches at the same path (e.g. an NFS "
+              "mount); put --store (the run folders default to <store folder>/runs) or --runs-dir there")
+    marker = Path(runs_dir) / f"{SHARED_MARKER_PREFIX}{token}"
+    try:
+        seen = marker.read_text().strip()
+    except OSError as err:
+        raise SharedStorageError(f"{where} cannot see the run folder {runs_dir} that the driver prepared "
+                                 f"(missing {marker.name}: {type(err).__name__}); {advice}") from err
+    if seen != token:
+        raise SharedStorageError(f"{where} reads a different {marker.name} in {runs_dir} than the driver wrote; {advice}")
+    probe = Path(runs_dir) / f".dpcbench-probe-{host}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    try:
+        probe.write_text("probe")
+        probe.unlink()
+    except OSError as err:
+        raise SharedStorageError(f"{where} cannot write into the run folder {runs_dir} "
+                                 f"({type(err).__name__}: {err}); {advice}") from err
+    return host
+
+
+def run_on_dask_worker(spec_dict: dict, runs_dir: str, force: bool, token: str) -> dict:
+    """The Dask task: the shared-storage check, then `run_isolated` on this worker's machine."""
+    check_shared_runs_dir(runs_dir, token)
+    return run_isolated(spec_dict, runs_dir, force, None)
 
 
 def _failed(spec: RunSpec, err: BaseException) -> dict:
@@ -104,10 +154,14 @@ class DaskExecutor:
             cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
                                    dashboard_address=None)
             client = Client(cluster)
+        token = uuid.uuid4().hex
+        marker = Path(runs_dir) / f"{SHARED_MARKER_PREFIX}{token}"
         try:
+            marker.write_text(token)
+            self._check_workers(client, str(runs_dir), token)
             futures = {}
             for spec in specs:
-                fut = client.submit(run_isolated, spec.to_dict(), str(runs_dir), force, None,
+                fut = client.submit(run_on_dask_worker, spec.to_dict(), str(runs_dir), force, token,
                                     key=f"dpcbench-{spec.run_id}", pure=False)
                 futures[fut.key] = (spec, fut)
             for fut in as_completed([f for _, f in futures.values()]):
@@ -117,9 +171,18 @@ class DaskExecutor:
                 except Exception as err:  # the task failed on the worker (e.g. worker lost)
                     yield spec, _failed(spec, err)
         finally:
+            marker.unlink(missing_ok=True)
             client.close()
             if cluster is not None:
                 cluster.close()
+
+    @staticmethod
+    def _check_workers(client, runs_dir: str, token: str) -> None:
+        """Run `check_shared_runs_dir` on every connected worker; any failure stops the sweep."""
+        answers = client.run(check_shared_runs_dir, runs_dir, token, on_error="return")
+        problems = [f"{addr}: {ans}" for addr, ans in sorted(answers.items()) if isinstance(ans, BaseException)]
+        if problems:
+            raise UserError("Dask workers cannot use the run folder; nothing was run:\n  " + "\n  ".join(problems))
 
 
 def make_executor(name: str, jobs: int | None = None, scheduler: str | None = None):

@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from holes.geometry import estimate_normals
-from holes.occlusion import sphere_cameras, stage_cameras, visible_mask
+from holes.geometry import estimate_normals, point_spacing
+from holes.occlusion import (
+    sphere_cameras,
+    stage_cameras,
+    visible_mask,
+    zbuffer_visible_mask,
+)
 from holes.registry import get_generator
 
 
@@ -122,3 +127,87 @@ def test_random_azimuth_depends_on_the_seed_only(human_frame):
     a, b, c = (gen.damage([human_frame], s).removed[0] for s in (1, 1, 2))
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def fibonacci_sphere(n, radius, centre):
+    """n evenly spread points on a sphere and their outward unit normals."""
+    i = np.arange(n) + 0.5
+    z = 1 - 2 * i / n
+    theta = np.pi * (1 + 5**0.5) * i
+    rho = np.sqrt(1 - z**2)
+    dirs = np.column_stack([rho * np.cos(theta), rho * np.sin(theta), z])
+    return np.asarray(centre) + radius * dirs, dirs
+
+
+def segment_hits_sphere(points, cam, centre, radius, slack):
+    """Mask (N,) of the points whose segment from ``cam`` meets the sphere more than ``slack`` before them."""
+    d = points - cam
+    length = np.linalg.norm(d, axis=1)
+    d /= length[:, None]
+    oc = cam - centre
+    b = d @ oc
+    disc = b * b - (oc @ oc - radius * radius)
+    t = -b - np.sqrt(np.maximum(disc, 0.0))
+    return (disc > 0) & (t > 0) & (t < length - slack)
+
+
+def test_zbuffer_matches_ray_casting_with_an_occluder():
+    """Closed form: a small sphere between the camera and a big one casts a shadow on it. The
+    z-buffer must never call a hidden point seen, and miss at most 1.5 % of the points that are
+    truly seen (they lie in a band of about one splat along the occluder's outline; measured
+    495 of 68,000 points; HPR on the same case misses 423)."""
+    big, n_big = fibonacci_sphere(60000, 100.0, [0, 0, 0])
+    small, n_small = fibonacci_sphere(8000, 30.0, [0, 0, 160.0])
+    pts, normals = np.vstack([big, small]), np.vstack([n_big, n_small])
+    cam = np.array([0.0, 0.0, 400.0])
+    view = (cam - pts) / np.linalg.norm(cam - pts, axis=1, keepdims=True)
+    facing = np.einsum("ij,ij->i", view, normals) >= 0.2
+    truth = facing & ~segment_hits_sphere(pts, cam, np.zeros(3), 100.0, 0.5) & ~segment_hits_sphere(
+        pts, cam, np.array([0, 0, 160.0]), 30.0, 0.5)
+    shadow = facing[:60000] & ~truth[:60000]
+    assert shadow.sum() > 1000  # the case does test occlusion by another object
+    seen = zbuffer_visible_mask(pts, normals, cam[None], 0.2, point_spacing(pts), np.zeros(3))
+    assert not (seen & ~truth).any()
+    assert (truth & ~seen).sum() < 0.015 * len(pts)
+    assert not seen[:60000][shadow].any()
+
+
+@pytest.mark.parametrize("operator", ["zbuffer", "hpr"])
+def test_both_operators_see_all_of_a_convex_object(operator):
+    pts = sphere(5000)
+    normals = estimate_normals(pts)
+    for count in (8, 20):
+        cams = sphere_cameras(pts, count)
+        if operator == "hpr":
+            seen = visible_mask(pts, normals, cams, min_cos=0.2)
+        else:
+            seen = zbuffer_visible_mask(pts, normals, cams, 0.2, point_spacing(pts), np.zeros(3))
+        assert seen.all()
+
+
+def test_zbuffer_grazing_threshold():
+    """Closed form on a sphere seen from one camera: at min_cos 0.2 (the generator's default) and 0.5
+    the seen set is exactly the cap with cos(normal, view) >= min_cos. (Near min_cos 0 the slope term
+    of the depth slack grows without bound and lets points just behind the horizon through: 1064 of
+    20,000 at 0, 76 at 0.1, measured.)"""
+    pts = sphere()
+    cam = np.array([[0.0, 0.0, 400.0]])
+    normals = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    spacing = point_spacing(pts)
+    view = cam - pts
+    cos = np.einsum("ij,ij->i", normals, view / np.linalg.norm(view, axis=1, keepdims=True))
+    loose = zbuffer_visible_mask(pts, normals, cam, 0.2, spacing, np.zeros(3))
+    strict = zbuffer_visible_mask(pts, normals, cam, 0.5, spacing, np.zeros(3))
+    np.testing.assert_array_equal(loose, cos >= 0.2)
+    np.testing.assert_array_equal(strict, cos >= 0.5)
+
+
+def test_zbuffer_generator_and_bad_visibility_is_refused(human_frame):
+    zbuf = get_generator("occlusion", rig="sphere", count=8, visibility="zbuffer").damage([human_frame], 0)
+    assert 0 < zbuf.removed_fraction[0] < 0.01
+    # as with HPR (test above), what stays unseen lies in the concavities (10 points on this frame,
+    # of which HPR also removes 2: the two operators disagree on such small sets)
+    depth = depth_below_hull(human_frame)
+    assert depth[zbuf.removed[0]].mean() > 1.5 * depth.mean()
+    with pytest.raises(ValueError, match="visibility must be 'zbuffer' or 'hpr'"):
+        get_generator("occlusion", visibility="raytrace").damage([human_frame], 0)

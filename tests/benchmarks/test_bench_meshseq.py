@@ -15,7 +15,13 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from bench.meshseq import face_areas_normals, fit_placement, frame_from_samples, load_mesh_sequence, sample_barycentric
+from bench.meshseq import (
+    face_areas_normals,
+    fit_placement,
+    frame_from_samples,
+    load_mesh_sequence,
+    sample_barycentric,
+)
 
 TARGET = 800_000
 

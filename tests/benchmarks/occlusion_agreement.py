@@ -1,0 +1,86 @@
+"""Occlusion generator: the z-buffer visibility (version 2's default) against open3d's hidden point
+removal (version 1), on the stand-ins: agreement of the removed (occluded) sets and the time of each.
+
+    python tests/benchmarks/occlusion_agreement.py --size small --frames 2
+    python tests/benchmarks/occlusion_agreement.py --ply /work/shared/data/8i_longdress_1300/*.ply
+
+Prints, per frame and rig: points, removed by each operator, IoU = |A & B| / |A | B| of the removed
+sets, the share of each set the other also removes, and the wall time of ``damage`` (min of
+``--repeats``). Both operators share every other step (normals, grazing test, ``seen_within``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+
+def removed_mask(gen, frame) -> tuple[np.ndarray, float]:
+    t0 = time.perf_counter()
+    result = gen.damage([frame], seed=0)
+    wall = time.perf_counter() - t0
+    return np.asarray(result.removed[0], dtype=bool), wall
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sequences", default="human,bunny")
+    parser.add_argument("--size", default="small")
+    parser.add_argument("--frames", type=int, default=2)
+    parser.add_argument("--ply", nargs="*", default=None, help="PLY frames to use instead of the stand-ins")
+    parser.add_argument("--rigs", default="stage,sphere8")
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--skip-hpr", action="store_true", help="time the z-buffer only")
+    args = parser.parse_args(argv)
+    from holes.occlusion import OcclusionHoles
+
+    frames: list[tuple[str, np.ndarray]] = []
+    if args.ply:
+        from bench.plyio import read_ply
+
+        for path in args.ply:
+            frames.append((Path(path).stem, np.asarray(read_ply(path, colors=False).points, dtype=np.float64)))
+    else:
+        from bench.datasets import load_dataset
+
+        for name in args.sequences.split(","):
+            seq = load_dataset(name, frames=args.frames, size=args.size)
+            frames += [(f"{name}[{i}]", f) for i, f in enumerate(seq.points)]
+    rigs = {"stage": {"rig": "stage"}, "sphere8": {"rig": "sphere", "count": 8}}
+    print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; min of {args.repeats} run(s)")
+    print(f"{'frame':16s} {'rig':8s} {'points':>8s} {'hpr rm':>7s} {'zbuf rm':>7s} {'IoU':>6s} "
+          f"{'zb&h/h':>7s} {'zb&h/zb':>7s} {'hpr s':>7s} {'zbuf s':>7s}")
+    for label, frame in frames:
+        for rig in args.rigs.split(","):
+            params = {**rigs[rig], "max_fraction": 0.9}
+            zb_times, hpr_times = [], []
+            for _ in range(args.repeats):
+                zb, t = removed_mask(OcclusionHoles(visibility="zbuffer", **params), frame)
+                zb_times.append(t)
+            if args.skip_hpr:
+                print(f"{label:16s} {rig:8s} {len(frame):8d} {'':>7s} {zb.sum():7d} {'':>6s} {'':>7s} {'':>7s} "
+                      f"{'':>7s} {min(zb_times):7.2f}")
+                continue
+            for _ in range(args.repeats):
+                hpr, t = removed_mask(OcclusionHoles(visibility="hpr", **params), frame)
+                hpr_times.append(t)
+            both = (zb & hpr).sum()
+            union = (zb | hpr).sum()
+            iou = both / union if union else 1.0
+            print(f"{label:16s} {rig:8s} {len(frame):8d} {hpr.sum():7d} {zb.sum():7d} {iou:6.3f} "
+                  f"{both / max(hpr.sum(), 1):7.3f} {both / max(zb.sum(), 1):7.3f} {min(hpr_times):7.2f} "
+                  f"{min(zb_times):7.2f}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
