@@ -1,7 +1,7 @@
 """`temporal-fusion`: fill each hole from every frame that saw the missing surface, motion-compensated,
 fused, projected onto the surface and kept steady over time; a spatial fill only where no frame saw it.
 
-Not a method from the paper. It starts from what the measurements of issues 5-12 showed: where a
+Not a method from the paper. It starts from what our measurements (methods/NOTES.md) showed: where a
 neighbouring frame holds the missing patch, a rigidly aligned copy of it (`temporal-copy`) beats any
 graph fill by 10 dB; where no frame holds it (coherent holes, occlusions), a spatial fill is needed,
 and it must sit on the surface and stay put from frame to frame.
@@ -16,7 +16,10 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
 1. Rim shell: the points of frame f within ``shell = max(shell_factor * r, shell_spacings * s)``
    of R (points inside R, where an oriented occlusion box keeps some, count too: they are data).
 2. Candidates: every frame g with 0 < |g - f| <= ``window``, nearest first (f-1, f+1, f-2, ...).
-   Each is motion-compensated to frame f:
+   Coverage test first: when one of g's own hole regions (moved to frame f by the motion of the
+   frame one step nearer) comes within R's rim (centre distance < r + r_g + shell), g lacks part of
+   the patch and its rim is holed (coherent holes drift by less than a hole per frame), so g is no
+   source; f-1 is still aligned for its motion (step 5). The others are motion-compensated to f:
    a. rigid: g's points within ``r + 2 shell`` of where R lies in g (under the motion of the frame
       one step nearer to f, so a far frame starts from the chained motion) are aligned onto frame
       f's points near R by point-to-point ICP of g's shell (`methods.reference.icp_align`, open3d;
@@ -39,30 +42,34 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
 4. Agreement: an accepted point of a later candidate that lies farther than ``accept_spacings * s``
    off the local plane of the points accepted before it (its 8 nearest within ``3 s``) disagrees
    with the better-aligned frames and is dropped; points with no earlier point near are kept.
-5. Reuse (``reuse_previous``): the points frame f-1's result added (its fill, raw copies and spatial
-   fill alike) are moved to frame f by the motion of candidate f-1 (steps 2a and 2c) and fill the
-   parts of R still open, as in step 3. A persistent hole keeps the fill it had, moved with the body,
-   instead of getting a fresh spatial fill each frame (which would flicker).
-6. Fallback (spatial fill) where no frame saw the surface: the open parts are the holes
-   `holes.detection.detect_holes` finds in the local crop (frame f's points within ``r + 2 shell``
-   of R plus the fused points) whose centre lies within R grown by the shell (every hole when no
-   point was fused). When there is one, R is filled by `fu-nonlocal` (methods.temporal_graph, the
-   cube-based non-local graph fill) run on frame f's points within ``r + 2 shell + 3 M`` of R
-   plus the fused points (its cubes of side M = 20 units need hole-free surface around the hole to
-   copy from), with temporal-graph's unit (1/1024 of the largest bounding-box side, here at least
-   s / 4 so that a cube spans 5 spacings); its new points farther than ``fill_gap_spacings * s``
-   from the fused ones are added.
-7. Surface projection: every new point (on voxelized data: every point not copied from a captured
-   frame; copies are voxels of a captured surface already) is moved onto a moving-least-squares
+5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
+   fill alike) are moved to frame f by f-1's motion (steps 2a and 2c, computed even when f-1 failed
+   the coverage test) and, where they still fit the rim (points within 3 s of the rim and farther
+   than ``accept_spacings * s`` off its local plane are dropped, as in step 4), fill the parts of R
+   that the copies left open. They *replace* the spatial fill there (step 6 fills only what is still
+   open), so fills never pile up, and a persistent hole keeps the fill it had, moved with the body.
+6. Spatial fill, only where no frame saw the surface and nothing was reused, and only where it can be
+   put on the surface with confidence (`rim_surface_fill`): the support is R's rim plus the copied
+   points; its PCA frame (u, v, n) must make it a height field (at most ``MAX_STEEP`` = 1/4 of the
+   support's normals more than 60 degrees off n); a thin-plate spline h(u, v) (in units of s,
+   smoothing 1, quadratic polynomial part) is fitted to the support; hold-out test: the spline of the
+   outer rim alone (farther than shell / 2 from R) must predict the inner rim's heights with RMS error
+   at most ``surface_holdout_spacings * s``, since the inner ring is as far from the outer rim as the
+   hole's edge. Grid points (step s, s / 2 on voxelized data, then rounded to the voxels the surface
+   passes through; on unvoxelized data the step is the frame's median nearest-neighbour distance, so
+   the fill has the data's density) inside the convex hull of the support's (u, v) (interpolation,
+   never extrapolation), inside R and farther than ``fill_gap_spacings * s`` from every point are
+   lifted onto the spline. A hole that fails a test stays open: D2 must not drop below no fill, and
+   an off-surface fill costs more in D2 than an open hole.
+7. Surface projection of the copies and reused points: every such new point (on voxelized data: the
+   reused ones only; copies are voxels of a captured surface already) is moved onto a moving-least-squares
    surface of its neighbourhood (frame f's points near R and the new points): the ``mls_neighbours`` nearest
    support points, a PCA frame at their centroid, a least-squares quadric height field
    h(u, v) = c0 + c1 u + c2 v + c3 u^2 + c4 u v + c5 v^2 (Gaussian weights, bandwidth the distance
    to the farthest neighbour / 2), and the point replaced by (u, v, h(u, v)).
-8. Voxelized input (every coordinate an integer; ``snap="auto"``): the spatial and reused points are
-   turned into the voxels of the surface they sample (temporal-graph's `_voxelize`: voxels within
-   half a voxel of the local tangent plane); then all new points are rounded to the grid (half up),
-   duplicates merged, and voxels that frame f already occupies dropped: one point per voxel, never
-   on a captured one.
+8. Voxelized input (every coordinate an integer; ``snap="auto"``): all new points are rounded to the
+   grid (half up), duplicates merged, and voxels that frame f already occupies dropped: one point per
+   voxel, never on a captured one.
 
 Every step is vectorised over points; the per-hole work runs on crops of size O(r^2 / s^2), so the
 time is linear in the points (one k-d tree per frame) and in the holes.
@@ -86,12 +93,16 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   gap_spacings      0.5 s: a copied point closer than half a spacing to a captured one duplicates it.
   fill_gap_spacings 1.0 s: a point of a later candidate nearer than one spacing to an accepted one
                     samples the same surface element.
-  reuse_previous    False (measured, not chosen by a rule): on medium coherent holes, 4 frames,
-                    seed 0, whole-frame D1 / D2 dB, dfaust 23.85/29.55 without reuse against
-                    19.08/22.31 with it (reused and fresh points pile up: 4654 -> 8214 new points),
-                    human tiny 19.99/23.10 against 19.76/22.31. Known open problem: step 5 should
-                    *replace* the spatial fill of a persistent hole, not add to it.
+  reuse_previous    True: a persistent hole's surface is the same surface, moved (step 5). Version 1
+                    had it off because reused and fresh points piled up (dfaust coherent 23.85 ->
+                    19.08 dB); with replace-not-add (version 2) it is better on every figure, human
+                    small coherent seed 0, 4 frames: D1 25.65 -> 26.02, D2 28.42 -> 29.49 dB, temporal
+                    consistency 0.400 -> 0.293.
   fallback          True: the spatial fill of step 6 (False leaves what no frame saw open).
+  surface_holdout_spacings  1.0 s: a surface that misses the rim's own inner ring by a spacing or more
+                    is a wrong surface (the same rule as ``accept_spacings``). Seen (human small and
+                    dfaust, medium coherent holes, seed 0, frame 0): hold-out 0.09-0.75 s where the
+                    fill's true D2 RMS error was 0.18-0.61 s; 4.2 and 5.1 s where it was 1.3 and 2.0 s.
   mls_neighbours    20: a quadric has 6 coefficients; 20 points over-determine it ~3 times while
                     spanning about 2.5 s, so the fit follows the surface, not the noise.
   snap              "auto": voxelize when the input is voxelized (True/False force it).
@@ -104,15 +115,24 @@ import warnings
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.geometry import point_spacing
+from holes.regions import HoleRegion
 from methods._registration import alignment_residual
 from methods.base import InpaintingMethod
 from methods.reference import icp_align
+from metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing
 
 #: most source points an ICP call pairs: a rigid motion has 6 unknowns, and 2000 evenly spread
 #: pairs pin it down as well as the 10-20k of a large hole's shell on an 800k-point frame (the
 #: alignment cost is then independent of the point density)
 ICP_POINTS = 2000
+
+#: most rim points the spatial fill's thin-plate spline interpolates (a dense solve, O(K^3))
+SURFACE_POINTS = 1000
+
+#: largest fraction of the spatial fill's support whose normals may be more than 60 degrees off the
+#: fit's axis: a rim that is a height field over its own PCA plane has almost none (a hole on a
+#: limb's side: the rim spans < 120 degrees of arc); a quarter means the rim wraps round a fold
+MAX_STEEP = 0.25
 
 
 def even_subset(points: np.ndarray, count: int) -> np.ndarray:
@@ -123,20 +143,6 @@ def even_subset(points: np.ndarray, count: int) -> np.ndarray:
 
 
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
-
-def pca_normals(points: np.ndarray, queries: np.ndarray, tree: cKDTree | None = None, k: int = 10) -> np.ndarray:
-    """Unit normals (Q, 3) at ``queries``: eigenvector of the smallest eigenvalue of the covariance of
-    their ``k`` nearest ``points``. Sign arbitrary."""
-    if len(queries) == 0:
-        return np.zeros((0, 3))
-    k = int(min(k, len(points)))
-    if k < 3:
-        return np.tile([0.0, 0.0, 1.0], (len(queries), 1))
-    tree = tree if tree is not None else cKDTree(points)
-    _, idx = tree.query(queries, k=k)
-    nb = points[idx] - points[idx].mean(axis=1, keepdims=True)
-    return np.linalg.eigh(np.einsum("qki,qkj->qij", nb, nb))[1][:, :, 0]
-
 
 def rim_displacement(rim: np.ndarray, moved_source: np.ndarray, max_distance: float) -> tuple[np.ndarray, np.ndarray]:
     """Normal residual of the rim after a rigid alignment: (rim points kept (K, 3), v (K, 3)).
@@ -153,7 +159,7 @@ def rim_displacement(rim: np.ndarray, moved_source: np.ndarray, max_distance: fl
     if not keep.any():
         return np.zeros((0, 3)), np.zeros((0, 3))
     p = moved_source[idx[keep]]
-    n = pca_normals(moved_source, p, tree)
+    n = estimate_normals(moved_source, 10, queries=p, tree=tree)
     offset = np.einsum("ij,ij->i", rim[keep] - p, n)
     return rim[keep], offset[:, None] * n
 
@@ -251,6 +257,96 @@ def disagreeing(points: np.ndarray, accepted: np.ndarray, reach: float, toleranc
     return out
 
 
+def fit_height_field(support: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """One least-squares quadric height field over all of ``support`` (K, 3), K >= 6:
+    (centre (3,), axes (3, 3) with rows u, v, n, coefficients (6,), RMS residual, fraction of
+    support points whose PCA normal (10 neighbours) is more than 60 degrees off n).
+
+    Frame: PCA of the support (n the least-variance axis, u the largest); h(u, v) = c0 + c1 u + c2 v
+    + c3 u^2 + c4 u v + c5 v^2 minimising sum (h(u_i, v_i) - h_i)^2 (unweighted: every rim point is
+    evidence of the same surface). The last two figures are the confidence of step 6: the residual
+    says whether one quadric describes the rim at all, the normal fraction whether the surface is a
+    height field over the (u, v) plane (it is not where the rim wraps round a limb)."""
+    centre = support.mean(axis=0)
+    spread = support - centre
+    axes = np.linalg.eigh(spread.T @ spread)[1][:, ::-1].T  # rows: largest, middle, least variance
+    axes = np.array([axes[0], axes[1], np.cross(axes[0], axes[1])])
+    u, v, h = spread @ axes[0], spread @ axes[1], spread @ axes[2]
+    design = np.stack([np.ones_like(u), u, v, u * u, u * v, v * v], axis=1)
+    coef = np.linalg.lstsq(design, h, rcond=None)[0]
+    rms = float(np.sqrt(np.mean((design @ coef - h) ** 2)))
+    normals = estimate_normals(support, 10, queries=support)
+    steep = float(np.mean(np.abs(normals @ axes[2]) < 0.5))
+    return centre, axes, coef, rms, steep
+
+
+def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
+                     voxelized: bool, step: float | None = None, max_steep: float = MAX_STEEP,
+                     gap_spacings: float = 1.0, ring: float = 0.0,
+                     max_holdout_spacings: float = 1.0) -> np.ndarray:
+    """Spatial fill (step 6 of the module docstring) of the parts of ``region`` that no point of
+    ``covered`` is within ``gap_spacings * spacing`` of, on the thin-plate-spline height field of
+    ``support`` (K, 3) (the rim and the copied points around the hole). Returns (P, 3) points; (0, 3)
+    when the surface is not trusted.
+
+    Frame and height-field test: `fit_height_field` (at most ``max_steep`` of the support's normals
+    more than 60 degrees off the axis n). Spline: scipy's ``RBFInterpolator`` (thin-plate kernel,
+    smoothing 1, quadratic polynomial) of the heights h_i = (p_i - c) . n over (u_i, v_i), all in units
+    of ``spacing``, on at most `SURFACE_POINTS` evenly strided support points. Hold-out test (when
+    ``ring`` > 0): the spline of the support points farther than ``ring`` from the region must predict
+    the heights of those within it with RMS error at most ``max_holdout_spacings`` (in spacings).
+    Grid: step ``spacing / 2`` on voxelized data (then rounded half up to voxels, unique), else
+    ``step`` (default ``spacing``); only grid points inside the convex hull of the support's (u, v),
+    inside ``region`` and not covered are lifted onto the spline."""
+    if len(support) < 12:
+        return np.zeros((0, 3))
+    centre, axes, _coef, _rms, steep = fit_height_field(support)
+    if steep > max_steep:
+        return np.zeros((0, 3))
+    from scipy.interpolate import RBFInterpolator
+    from scipy.spatial import Delaunay, QhullError
+
+    support = even_subset(support, SURFACE_POINTS)
+    spread = support - centre
+    uv = spread @ axes[:2].T
+    step = spacing / 2.0 if voxelized else (step or spacing)
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    gu = np.arange(lo[0], hi[0] + step, step)
+    gv = np.arange(lo[1], hi[1] + step, step)
+    grid = np.stack(np.meshgrid(gu, gv, indexing="ij"), axis=-1).reshape(-1, 2)
+    try:
+        inside_hull = Delaunay(uv).find_simplex(grid) >= 0
+    except QhullError:
+        return np.zeros((0, 3))
+    grid = grid[inside_hull]
+    if not len(grid):
+        return np.zeros((0, 3))
+    heights = (spread @ axes[2]) / spacing
+    if ring > 0:
+        # hold-out test of the surface across a gap: fit the outer rim only, predict the inner ring
+        # (the rim points within ``ring`` of the region), which lies as far from the outer rim as the
+        # hole's edge does
+        inner = region.contains(support, margin=ring)
+        if inner.sum() >= 6 and (~inner).sum() >= 12:
+            outer_spline = RBFInterpolator(uv[~inner] / spacing, heights[~inner], kernel="thin_plate_spline",
+                                           smoothing=1.0, degree=2)
+            held_out = float(np.sqrt(np.mean((outer_spline(uv[inner] / spacing) - heights[inner]) ** 2)))
+            if held_out > max_holdout_spacings:
+                return np.zeros((0, 3))
+    # thin-plate spline in point-spacing units (the biharmonic membrane through the rim, the smooth
+    # surface that bends least); smoothing 1: the rim's heights are samples with ~0.3-0.5 s noise
+    spline = RBFInterpolator(uv / spacing, heights, kernel="thin_plate_spline",
+                             smoothing=1.0, degree=2)
+    u, v = grid[:, 0], grid[:, 1]
+    h = spline(grid / spacing) * spacing
+    points = centre + u[:, None] * axes[0] + v[:, None] * axes[1] + h[:, None] * axes[2]
+    points = points[region.contains(points)]
+    points = points[far_from(points, covered, gap_spacings * spacing)]
+    if voxelized and len(points):
+        points = np.unique(np.floor(points + 0.5), axis=0)
+    return points
+
+
 def refine_point_to_plane(source: np.ndarray, target: np.ndarray, max_distance: float,
                           init: tuple[np.ndarray, np.ndarray], iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
     """Rigid (R, t) refining ``init`` by point-to-plane ICP (open3d): minimises
@@ -282,20 +378,24 @@ def refine_point_to_plane(source: np.ndarray, target: np.ndarray, max_distance: 
 
 class TemporalFusion(InpaintingMethod):
     """Motion-compensated fusion of every frame within +-``window`` that saw the missing surface,
-    surface projection, voxel snapping, reuse of the previous frame's fill, spatial fallback.
+    surface projection, voxel snapping, reuse of the previous frame's fill (replacing, never adding),
+    thin-plate-spline fill of the rim's surface where no frame saw it and the surface is trusted.
     See the module docstring for each step and for how each default was chosen."""
 
     name = "temporal-fusion"
     summary = ("fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
-               "compensation), MLS surface projection, steady reuse of the previous fill, graph fallback")
-    version = "1"
+               "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
+               "rim's surface where no frame saw it and the fit is trusted")
+    version = "2"
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
 
-    def __init__(self, window=3, shell_factor=0.5, shell_spacings=4.0, icp_iterations=30, accept_spacings=1.0,
-                 refine=True, deform=True, deform_neighbours=32, gap_spacings=0.5, fill_gap_spacings=1.0,
-                 reuse_previous=False, fallback=True, mls_neighbours=20, snap="auto"):
+    def __init__(self, window: int = 3, shell_factor: float = 0.5, shell_spacings: float = 4.0,
+                 icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
+                 deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
+                 reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
+                 mls_neighbours: int = 20, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -308,6 +408,7 @@ class TemporalFusion(InpaintingMethod):
         self.fill_gap_spacings = fill_gap_spacings
         self.reuse_previous = reuse_previous
         self.fallback = fallback
+        self.surface_holdout_spacings = surface_holdout_spacings
         self.mls_neighbours = mls_neighbours
         self.snap = snap
 
@@ -333,6 +434,7 @@ class TemporalFusion(InpaintingMethod):
         number("accept_spacings", True)
         number("gap_spacings", False)
         number("fill_gap_spacings", False)
+        number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
@@ -340,7 +442,7 @@ class TemporalFusion(InpaintingMethod):
             raise ValueError(f"{self.name}: snap must be 'auto', true or false, got {self.snap!r}")
 
     # -- sequence ------------------------------------------------------------------------------
-    def inpaint(self, frames, regions=None):
+    def inpaint(self, frames: list[np.ndarray], regions: list[list[HoleRegion]] | None = None) -> list[np.ndarray]:
         self._validate()
         frames, regions = self._check_inputs(frames, regions)
         if regions is None:
@@ -361,14 +463,9 @@ class TemporalFusion(InpaintingMethod):
         voxelized = self.snap is True or (self.snap == "auto" and integer)
         largest = max(range(len(frames)), key=lambda g: len(frames[g]))
         spacing = 1.0 if integer else point_spacing(frames[largest], tree=tree_of(largest))
-        if integer:
-            unit = 1.0
-        else:
-            # temporal-graph's unit (1/1024 of the largest bounding-box side), but at least s / 4 so
-            # that a cube of M = 20 units spans 5 spacings and holds ~25 points, more than the graph
-            # fill's min_known_points = 16 (sparse clouds would otherwise have no usable cube)
-            unit = max(float(np.ptp(frames[largest], axis=0).max()) / 1024.0, spacing / 4.0)
-        context = dict(frames=frames, tree_of=tree_of, spacing=spacing, unit=unit, voxelized=voxelized)
+        # the spatial fill's grid step on unvoxelized data: the frame's own sampling density
+        step = spacing if integer else median_neighbour_distance(frames[largest], tree=tree_of(largest))
+        context = dict(step=step, frames=frames, regions=regions, tree_of=tree_of, spacing=spacing, voxelized=voxelized)
         outputs: list[np.ndarray] = []
         previous_fill = np.zeros((0, 3))
         for f, frame in enumerate(frames):
@@ -433,6 +530,13 @@ class TemporalFusion(InpaintingMethod):
             nearer = g - 1 if g > f else g + 1
             rotation0, translation0, _ = motions.get(nearer, motions[f])
             centre_g = (region.center - translation0) @ rotation0
+            # coverage test: frame g has a hole of its own over R or R's rim, so it lacks part of the
+            # patch and its rim alignment pairs a holed shell (coherent holes): its motion still
+            # carries the previous fill (step 5), but it is no source of points
+            own_hole = any(np.linalg.norm(other.center - centre_g) < region.bounding_radius + other.bounding_radius + shell
+                           for other in ctx["regions"][g])
+            if own_hole and not (self.reuse_previous and g == f - 1):
+                continue
             idx = np.asarray(tree_of(g).query_ball_point(centre_g, reach), dtype=np.int64)
             if len(idx) < 6:
                 continue
@@ -466,7 +570,7 @@ class TemporalFusion(InpaintingMethod):
             if self.deform:
                 field = rim_displacement(rim, moved[~inside], 2 * spacing)
             motions[g] = (rotation, translation, field)
-            if inside.any():
+            if inside.any() and not own_hole:
                 candidates.append((residual, abs(g - f), g, self._deformed(moved[inside], field)))
 
         # steps 3-4: fusion, the best-agreeing frame first, later ones only where nothing is yet
@@ -490,21 +594,24 @@ class TemporalFusion(InpaintingMethod):
             moved = moved[far_from(moved, local_tree, self.gap_spacings * spacing)]
             if len(accepted):
                 moved = moved[far_from(moved, cKDTree(accepted), self.fill_gap_spacings * spacing)]
+            # the moved fill must still fit the rim: points off the rim's local plane are dropped
+            # (what they covered is filled afresh below)
+            moved = moved[~disagreeing(moved, rim, 3 * spacing, self.accept_spacings * spacing)]
             if len(moved):
                 accepted = np.vstack([accepted, moved])
 
-        # step 6: spatial fallback where no frame saw the surface
+        # step 6: spatial fill, on the rim's surface, of what no frame saw (and nothing was reused)
+        spatial = np.zeros((0, 3))
         if self.fallback:
-            spatial = self._spatial_fill(f, local, accepted, region, shell, ctx)
-            if len(spatial):
-                spatial = spatial[far_from(spatial, local_tree, self.gap_spacings * spacing)]
-                if len(accepted):
-                    spatial = spatial[far_from(spatial, cKDTree(accepted), self.fill_gap_spacings * spacing)]
-                accepted = np.vstack([accepted, spatial])
-        if not len(accepted):
-            return accepted
+            covered = cKDTree(np.vstack([local, accepted])) if len(accepted) else local_tree
+            support = np.vstack([rim, accepted[:copied]]) if copied else rim
+            spatial = rim_surface_fill(support, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
+                                       max_holdout_spacings=self.surface_holdout_spacings, ring=shell / 2,
+                                       gap_spacings=self.fill_gap_spacings)
+        if not len(accepted) and not len(spatial):
+            return np.zeros((0, 3))
 
-        # step 7: onto the surface of rim + fused points
+        # step 7: copies and reused points onto the surface of rim + fused points
         # (on voxelized data the copies are voxels of a captured surface already: projecting them
         # onto a smooth fit and rounding back thins the staircase, measured -0.8 dB D1)
         first = copied if ctx["voxelized"] else 0
@@ -512,12 +619,8 @@ class TemporalFusion(InpaintingMethod):
             support = np.vstack([local, accepted])
             accepted[first:] = mls_project(accepted[first:], support, int(self.mls_neighbours))
         if ctx["voxelized"] and copied < len(accepted):
-            # the grid voxels of the surface the spatial/reused points sample (temporal-graph's
-            # surface voxelization): rounding each point alone leaves gaps where the fit is oblique
-            from methods.temporal_graph import TemporalGraph
-
-            surface = TemporalGraph._voxelize(accepted[copied:], [region])
-            accepted = np.vstack([accepted[:copied], surface])
+            accepted = np.vstack([accepted[:copied], np.unique(np.floor(accepted[copied:] + 0.5), axis=0)])
+        accepted = np.vstack([accepted, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
 
     def _deformed(self, points, field) -> np.ndarray:
@@ -526,41 +629,6 @@ class TemporalFusion(InpaintingMethod):
         anchors, displacement = field
         return points + interpolate_displacement(points, anchors, displacement, int(self.deform_neighbours))
 
-    def _spatial_fill(self, f, local, accepted, region, shell, ctx) -> np.ndarray:
-        """New points of the spatial fill (fu-nonlocal on a crop of frame f) in the parts of
-        ``region`` that stay open after fusion (step 6)."""
-        crop = np.vstack([local, accepted]) if len(accepted) else local
-        if len(crop) < 40:
-            return np.zeros((0, 3))
-        if len(accepted):
-            from holes.detection import detect_holes
 
-            try:
-                found = detect_holes(crop)
-            except ValueError:
-                return np.zeros((0, 3))
-            if not any(region.contains(h.center[None, :], margin=shell)[0] for h in found):
-                return np.zeros((0, 3))  # the fused points closed the hole
-        # the whole region is filled; the caller keeps only the points where nothing was fused
-        open_parts = [region]
-        # the graph fill looks for similar cubes anywhere around the hole: give it 3 cubes of
-        # surface beyond the hole's crop (a crop of the hole alone holds no hole-free cube)
-        frame = ctx["frames"][f]
-        wide = np.asarray(ctx["tree_of"](f).query_ball_point(
-            region.center, region.bounding_radius + 2 * shell + 3 * 20.0 * ctx["unit"]), dtype=np.int64)
-        crop = np.vstack([frame[wide], accepted]) if len(accepted) else frame[wide]
-        from methods.temporal_graph import FuNonlocal
-
-        filler = FuNonlocal(spacing=ctx["unit"], snap=False)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            try:
-                result = filler.inpaint([crop], [open_parts])[0]
-            except ValueError:
-                return np.zeros((0, 3))
-        new = result[len(crop):]
-        return new[region.contains(new)]
-
-
-__all__ = ["TemporalFusion", "disagreeing", "interpolate_displacement", "mls_project", "pca_normals",
-           "rim_displacement", "snap_to_voxels"]
+__all__ = ["TemporalFusion", "disagreeing", "fit_height_field", "interpolate_displacement", "mls_project",
+           "rim_displacement", "rim_surface_fill", "snap_to_voxels"]
