@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 BENCHMARK_COLUMNS = [
     "source", "datetime", "commit", "commit_time", "dirty", "branch", "machine",

@@ -20,8 +20,8 @@ import pkgutil
 import sys
 import warnings
 
-from bench import __version__
-from bench.errors import RECORDED, UserError
+from dpcbench.bench import __version__
+from dpcbench.bench.errors import RECORDED, UserError
 
 
 def one_line(text: str) -> str:
@@ -43,12 +43,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"dpcbench {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    import bench.commands as commands_pkg
+    import dpcbench.bench.commands as commands_pkg
 
     for info in sorted(pkgutil.iter_modules(commands_pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
             continue
-        module = importlib.import_module(f"bench.commands.{info.name}")
+        module = importlib.import_module(f"dpcbench.bench.commands.{info.name}")
         module.register(subparsers)
     return parser
 
@@ -61,7 +61,7 @@ def _show_warning(command: str):
 
 
 def main(argv: list[str] | None = None) -> int:
-    from bench import outputs
+    from dpcbench.bench import outputs
 
     parser = build_parser()
     args = parser.parse_args(argv)

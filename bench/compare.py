@@ -49,10 +49,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.atomic import atomic_write_text
-from bench.errors import UserError
-from bench.provenance import git_commit, summary_environment
-from metrics import registry as _registry
+from dpcbench.bench.atomic import atomic_write_text
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.provenance import git_commit, summary_environment
+from dpcbench.metrics import registry as _registry
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -64,7 +64,8 @@ import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from bench.paper_facts import PAPER_SEQUENCES  # the paper's sequences (name -> row label), one source
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.paper_facts import PAPER_SEQUENCES  # the paper's sequences (name -> row label), one source
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -81,9 +82,6 @@ _SEQUENCE_KEYS = {"name", "path", "params", "frames", "label", "optional"}
 _HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
 _METHOD_KEYS = {"name", "params", "label"}
 _METRICS_KEYS = {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
-
-
-from bench.errors import UserError
 
 
 class ConfigError(UserError):
@@ -240,7 +238,7 @@ def _validate_instance(cls, params: dict, where: str) -> None:
 
 def _check_dataset_name(name, where: str) -> None:
     """A sequence `name` must be an embedded or a paper dataset (a folder goes in `path`)."""
-    from bench.datasets import EMBEDDED, MESHES, PAPER
+    from dpcbench.bench.datasets import EMBEDDED, MESHES, PAPER
 
     if not isinstance(name, str) or name.lower() not in set(EMBEDDED) | set(PAPER) | set(MESHES):
         import difflib
@@ -254,8 +252,8 @@ def _check_dataset_name(name, where: str) -> None:
 
 def _check_dataset_params(name: str, params: dict, where: str) -> None:
     """Parameters of an embedded dataset: known names and types (paper sequences take none)."""
-    from bench.datasets import EMBEDDED, MESHES
-    from bench.params import check_param_types
+    from dpcbench.bench.datasets import EMBEDDED, MESHES
+    from dpcbench.bench.params import check_param_types
 
     if name.lower() in MESHES:  # mesh sampling parameters are checked by the mesh loader
         return
@@ -293,7 +291,7 @@ def _table_list(data: dict, key: str) -> list[dict]:
 
 # -- data fingerprints -----------------------------------------------------------------------
 def _mesh_fingerprint(files: list[Path], sequence: dict) -> dict:
-    from bench.meshseq import GENERATOR_VERSION
+    from dpcbench.bench.meshseq import GENERATOR_VERSION
 
     stats = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
     return {"folder": files[0].parent.name, "files": len(files), "stat_hash": stable_hash(stats),
@@ -313,7 +311,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         path = Path(sequence["path"]).expanduser()
         if not path.exists():
             raise ConfigError(f"{where}.path: {path} does not exist; give a folder of PLY frames")
-        from bench.meshseq import list_mesh_files
+        from dpcbench.bench.meshseq import list_mesh_files
 
         mesh_files = list_mesh_files(path)
         if mesh_files is not None:
@@ -328,7 +326,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
                               "lower `frames`")
         return fingerprint
     name = sequence["name"]
-    from bench.datasets import MESHES, find_mesh_folder
+    from dpcbench.bench.datasets import MESHES, find_mesh_folder
 
     if name.lower() in MESHES:
         info = MESHES[name.lower()]
@@ -340,7 +338,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         files = [folder / info.pattern.format(i) for i in range(info.count)]
         return _mesh_fingerprint([p for p in files if p.is_file()], sequence)
     if name.lower() in PAPER_SEQUENCES:
-        from bench.datasets import PAPER, data_dir_from, find_paper_folder
+        from dpcbench.bench.datasets import PAPER, data_dir_from, find_paper_folder
 
         root = data_dir_from(sequence.get("data_dir"))
         if root is None:
@@ -350,7 +348,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         if folder is None:
             raise ConfigError(f"{where}.name: no folder of {name} PLY frames under {root}")
         return _folder_fingerprint(folder)
-    import bench.datasets as datasets
+    import dpcbench.bench.datasets as datasets
 
     version = datasets.DATASETS_VERSION
     return {"dataset": name, "params": sequence.get("params", {}), "version": str(version)}
@@ -379,7 +377,7 @@ class ExperimentConfig:
 
 
 def _metric_registry():
-    from metrics.registry import METRICS
+    from dpcbench.metrics.registry import METRICS
 
     return METRICS
 
@@ -448,7 +446,7 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
             raise ConfigError("experiment.detection: only used with regions = \"detected\"; remove it or set regions")
         if not isinstance(detection, dict) or not all(_is_scalar(v) for v in detection.values()):
             raise ConfigError("experiment.detection: expected a table of detect_holes parameters (single values)")
-        from holes.detection import detect_holes
+        from dpcbench.holes.detection import detect_holes
 
         _check_param_types(detect_holes, detection, "experiment.detection")
         cfg.detection = dict(detection)
@@ -475,13 +473,13 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
                  "params": seq.get("params", {}), "frames": frames, "label": seq.get("label")}
         if not path:
             _check_dataset_name(entry["name"], where)
-        for j, params in enumerate(_expand_params(entry["params"], f"{where}.params")):
+        for params in _expand_params(entry["params"], f"{where}.params"):
             if not path:
                 _check_dataset_params(entry["name"], params, f"{where}.params")
             # "_optional" is not part of the run's identity (expand_config drops it)
             cfg.sequences.append({**entry, "params": params, "_where": where, "_optional": optional})
 
-    from holes.registry import GENERATORS, generator_class
+    from dpcbench.holes.registry import GENERATORS, generator_class
 
     for i, hole in enumerate(_table_list(data, "holes")):
         where = f"holes[{i}]"
@@ -504,7 +502,7 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
                 cfg.holes.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
                                   "entry": GENERATORS[gen], "version": str(getattr(cls, "version", "1"))})
 
-    from methods.registry import METHODS, method_class
+    from dpcbench.methods.registry import METHODS, method_class
 
     for i, meth in enumerate(_table_list(data, "methods")):
         where = f"methods[{i}]"

@@ -42,8 +42,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench import compare
-from bench.paper_facts import PAPER_SEQUENCES
+from dpcbench.bench import compare
+from dpcbench.bench.paper_facts import PAPER_SEQUENCES
 
 QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
 #: display names; the unit is metrics.registry's (`metric_label`)
@@ -62,7 +62,7 @@ PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
 
 def metric_label(metric: str) -> str:
     """A column or panel title: the display name, with the registry's unit when it is dB, s or MB."""
-    from metrics.registry import describe
+    from dpcbench.metrics.registry import describe
 
     entry = describe(metric)
     name = METRIC_NAMES.get(metric, metric)
@@ -76,8 +76,8 @@ def paper_reference() -> pd.DataFrame:
     `bench.paper.PAPER_METHODS`. The paper's GPSNR is plotted against our gpsnr_d1 (point-to-point,
     as pc_error's D1), and its NSHD (printed x1e-7) against our nshd.
     """
-    from bench import paper_facts
-    from bench.paper import PAPER_METHODS
+    from dpcbench.bench import paper_facts
+    from dpcbench.bench.paper import PAPER_METHODS
 
     methods = [name for name, _, _ in PAPER_METHODS]
     name_of = {label: name for name, label in paper_facts.PAPER_SEQUENCES.items()}
@@ -87,7 +87,7 @@ def paper_reference() -> pd.DataFrame:
         for label, values in table.items():
             for method, value in zip(methods, values):
                 rows.append({"sequence": name_of[label], "method": method, "metric": metric,
-                             "value": float(value) * scale, "source": "bench.paper_facts"})
+                             "value": float(value) * scale, "source": "dpcbench.bench.paper_facts"})
     return pd.DataFrame(rows, columns=["sequence", "method", "metric", "value", "source"])
 
 
@@ -401,8 +401,8 @@ def paper_gaps(history: History, paper: pd.DataFrame, runs: pd.DataFrame | None 
     graph methods, meshlab output=whole) where the store holds it, else at its defaults (for the
     graph methods: our tuned variant, not the paper configuration). ``runs`` (the store's runs
     table) supplies the labels that experiment configs gave to hole configurations ("coherent holes")."""
-    from bench.paper import PAPER_METHODS
-    from bench.tables import config_labels, given_labels
+    from dpcbench.bench.paper import PAPER_METHODS
+    from dpcbench.bench.tables import config_labels, given_labels
 
     proposed = "temporal-graph"
     others = [m for m in paper["method"].drop_duplicates() if m != proposed]
@@ -654,7 +654,7 @@ def latest_section(page: Page) -> str:
         return ""
     normals_note = ""
     if runs is not None and len(runs) and "gpsnr_d2" in page.metrics_present:
-        from bench.tables import d2_normals_note
+        from dpcbench.bench.tables import d2_normals_note
 
         done = runs[runs["status"] == "done"]
         newest = done[done["code_version"].astype(str) == history.versions[-1]]
@@ -673,7 +673,7 @@ def speed_section(page: Page) -> str:
         speed.append(f'<h3>Inpainting time per frame (results store)</h3>'
                      f'<div class="figure" data-chart="time" data-commits="{len(history.versions)}">{chart}</div>')
     if page.n_bench:
-        from bench import benchsuite
+        from dpcbench.bench import benchsuite
 
         bench_chart = benchmark_chart(benchmarks)
         latest_bench = benchsuite.latest_per_benchmark(benchmarks)
@@ -750,7 +750,7 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
 
 def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, **kwargs) -> Path:
     """Render and write the page atomically; returns its path."""
-    from bench.atomic import atomic_write_text
+    from dpcbench.bench.atomic import atomic_write_text
 
     return atomic_write_text(out, render_dashboard(results, **kwargs))
 

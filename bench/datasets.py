@@ -27,25 +27,25 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from bench.errors import UserError, warn
-from bench.paper_facts import PAPER_SEQUENCES
-from bench.params import parse_param_value, parse_params  # noqa: F401  (the one --param parser)
-from bench.sequences import Sequence
-from bench.sources import DATA_DIR_ENV, SequenceSource, data_dir_from
-from bench.sources.embedded import EmbeddedDataset, EmbeddedSource
-from bench.sources.meshes import (
+from dpcbench.bench.errors import UserError, warn
+from dpcbench.bench.paper_facts import PAPER_SEQUENCES
+from dpcbench.bench.params import parse_param_value, parse_params  # noqa: F401  (the one --param parser)
+from dpcbench.bench.sequences import Sequence
+from dpcbench.bench.sources import DATA_DIR_ENV, SequenceSource, data_dir_from
+from dpcbench.bench.sources.embedded import EmbeddedDataset, EmbeddedSource
+from dpcbench.bench.sources.meshes import (
     MeshDataset,
     MeshDatasetSource,
     MeshFolderSource,
     find_mesh_folder,
 )
-from bench.sources.paper import (
+from dpcbench.bench.sources.paper import (
     PaperDataset,
     PaperSource,
     expected_files,
     find_paper_folder,
 )
-from bench.sources.points import PointCloudSource
+from dpcbench.bench.sources.points import PointCloudSource
 
 EMBEDDED: dict[str, EmbeddedDataset] = {
     "human": EmbeddedDataset(
@@ -53,14 +53,14 @@ EMBEDDED: dict[str, EmbeddedDataset] = {
         "procedural human figure in motion (walk/dance/wave), smooth-blended body parts, surface voxelized "
         "like 8i data (integer coordinates at bit_depth, one point per surface voxel), with colours; "
         "size=tiny ~24k, small ~96k, default ~575k points per frame",
-        "bench.standins.human",
+        "dpcbench.bench.standins.human",
     ),
     "bunny": EmbeddedDataset(
         "bunny",
         "the Stanford bunny scan (pymeshlab sample mesh) bent, twisted and bumped non-rigidly while turning, "
         "resampled every frame and voxelized at bit_depth (or float samples with bit_depth=None); "
         "size=tiny ~19k, small ~97k, default ~630k points per frame",
-        "bench.standins.bunny",
+        "dpcbench.bench.standins.bunny",
     ),
 }
 
@@ -107,7 +107,7 @@ MESHES: dict[str, MeshDataset] = {
 
 
 def _datasets_version() -> str:
-    from bench.standins import bunny, human
+    from dpcbench.bench.standins import bunny, human
 
     return f"human{human.GENERATOR_VERSION}-bunny{bunny.GENERATOR_VERSION}"
 
@@ -152,7 +152,7 @@ def resolve_source(name_or_path: str | os.PathLike, data_dir=None, *, name_only:
     ``label``: the name of a path source (default: the folder's name). Unknown names that are no path
     raise `UserError` listing the known ones.
     """
-    from bench.meshseq import list_mesh_files
+    from dpcbench.bench.meshseq import list_mesh_files
 
     text = str(name_or_path)
     key = text.lower()

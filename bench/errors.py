@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import warnings
 
-from metrics.errors import UserError
+from dpcbench.metrics.errors import UserError
 
 __all__ = ["RECORDED", "InputWarning", "UserError", "warn"]
 

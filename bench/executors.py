@@ -30,9 +30,9 @@ import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
-from bench.config import RunSpec
-from bench.errors import UserError
-from bench.worker import kill_live_workers, run_isolated
+from dpcbench.bench.config import RunSpec
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.worker import kill_live_workers, run_isolated
 
 EXECUTORS = ("serial", "pool", "dask")
 

@@ -15,8 +15,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from bench.tables import ComparisonTable, frame_values  # noqa: E402
-from metrics.neighbours import median_neighbour_distance  # noqa: E402
+from dpcbench.bench.tables import ComparisonTable, frame_values  # noqa: E402
+from dpcbench.metrics.neighbours import median_neighbour_distance  # noqa: E402
 
 
 def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = "") -> Path:
@@ -60,7 +60,7 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
 def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_png: str | Path, *,
                      column_of=None, columns: list[str] | None = None, title: str = "") -> Path:
     """One panel per sequence: the metric against frame index, one line per method (mean over seeds)."""
-    from bench.tables import method_labels
+    from dpcbench.bench.tables import method_labels
 
     sel = frame_values(df, metric, scope, peak).copy()
     sel["column"] = column_of(sel) if column_of else method_labels(sel)
@@ -139,8 +139,8 @@ def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list
                        the damaged input).
     view:              None = facing the first zoom region from outside the body (`facing_view`).
     """
-    from bench.render import render_zoom_grid
-    from holes.regions import union_mask
+    from dpcbench.bench.render import render_zoom_grid
+    from dpcbench.holes.regions import union_mask
 
     grid, highlight = [], []
     for r, (_label, frames) in enumerate(rows):

@@ -62,7 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 #: bump when the output for the same input and parameters changes (part of the cache key)
 GENERATOR_VERSION = 1
@@ -101,7 +101,7 @@ def list_mesh_files(source: str | os.PathLike) -> list[Path] | None:
     sequence (its first candidate file is a point cloud, or it holds no OBJ/OFF/PLY file)."""
     import glob
 
-    from bench.sequences import natural_key
+    from dpcbench.bench.sequences import natural_key
 
     text = str(source)
     path = Path(text)
@@ -400,9 +400,9 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
                        cache: bool = True, progress: bool = False):
     """A `bench.sequences.Sequence` sampled from mesh files (module docstring); ``frames``: indices into
     ``files`` (None: all). The Sequence carries ``motion`` (a `MeshMotion`) when connectivity is shared."""
-    from bench.plyio import PointCloud
-    from bench.sequences import Sequence
-    from bench.standins.cache import cache_key, load_cached, store_cached
+    from dpcbench.bench.plyio import PointCloud
+    from dpcbench.bench.sequences import Sequence
+    from dpcbench.bench.standins.cache import cache_key, load_cached, store_cached
 
     _check_params(points, density, bit_depth, oversampling)
     bit_depth = None if bit_depth is None else int(bit_depth)
@@ -495,7 +495,7 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
     out_frames, anchors, placed_vertices = [], [], []
     iterator = indices
     if progress and len(indices) > 1:
-        from bench.progress import progress_bar
+        from dpcbench.bench.progress import progress_bar
 
         iterator = progress_bar(indices, desc=f"sampling {name}", unit="frame")
     for i in iterator:

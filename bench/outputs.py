@@ -31,7 +31,7 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 #: output paths (files and folders, resolved) claimed by the running command
 CLAIMED: list[Path] = []
@@ -39,7 +39,7 @@ LEDGER_NAME = "written-outputs.jsonl"
 
 
 def ledger_path() -> Path:
-    from bench.standins.cache import cache_dir
+    from dpcbench.bench.standins.cache import cache_dir
 
     return cache_dir() / LEDGER_NAME
 

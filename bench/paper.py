@@ -7,8 +7,8 @@ The paper's own facts (sequences, column labels, published Tables 1-2, headline 
 
 from __future__ import annotations
 
-from bench.errors import UserError
-from bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
     HEADLINE_GAIN_DB,
     HU_ET_AL,
     PAPER_COLUMNS,
@@ -39,7 +39,7 @@ ROLES = {"paper": "the paper's column, in the paper configuration", "ours": "our
 #: (registry name, column label in the paper, parameters) of the paper's four columns, in its order
 PAPER_METHODS: list[tuple[str, str, dict]] = [(n, label, p) for n, label, p, role in TABLE_COLUMNS if role == "paper"]
 if tuple(label for _, label, _ in PAPER_METHODS) != PAPER_COLUMNS:
-    raise AssertionError("bench.paper.TABLE_COLUMNS: the 'paper' columns must be bench.paper_facts.PAPER_COLUMNS, "
+    raise AssertionError("dpcbench.bench.paper.TABLE_COLUMNS: the 'paper' columns must be bench.paper_facts.PAPER_COLUMNS, "
                          "in order")
 #: the paper's column labels (its Tables 1-2) and every column of ours (paper's first)
 COLUMNS = list(PAPER_COLUMNS)
@@ -74,7 +74,7 @@ def column_descriptions(with_all_params: bool = False) -> list[dict]:
     """Per column: label, role, registry method, the parameters given, the method's version and,
     with ``with_all_params``, every parameter as the method resolves it (`get_params`, switches of
     a variant included) at this code version."""
-    from methods.registry import method_class
+    from dpcbench.methods.registry import method_class
 
     out = []
     for name, label, params, role in TABLE_COLUMNS:
@@ -159,7 +159,7 @@ def available_paper_sequences(data_dir) -> list[str]:
     """Names (bench.datasets.PAPER keys) of the paper's sequences found under ``data_dir``."""
     from pathlib import Path
 
-    from bench.datasets import PAPER, find_paper_folder
+    from dpcbench.bench.datasets import PAPER, find_paper_folder
 
     root = Path(data_dir).expanduser()
     if not root.is_dir():
@@ -180,7 +180,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     """
     import copy
 
-    from bench.config import (
+    from dpcbench.bench.config import (
         parse_config,  # stdlib tomllib, or tomli on Python 3.10
         tomllib,  # stdlib tomllib, or tomli on Python 3.10
     )
@@ -260,9 +260,9 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
 
     import numpy as np
 
-    from bench.datasets import load_run_sequence
-    from bench.figures import flattest_region, subjective_grid
-    from bench.provenance import read_run_folder
+    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.figures import flattest_region, subjective_grid
+    from dpcbench.bench.provenance import read_run_folder
 
     fig_dir = Path(fig_dir)
     notes = {}

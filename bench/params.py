@@ -20,8 +20,8 @@ from __future__ import annotations
 import json
 import math
 
-from bench.errors import UserError
-from metrics.params import check_param_types, signature_params
+from dpcbench.bench.errors import UserError
+from dpcbench.metrics.params import check_param_types, signature_params
 
 __all__ = ["check_param_types", "parse_param_value", "parse_params", "signature_params"]
 

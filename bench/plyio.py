@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import plyfile
 
-from bench.atomic import atomic_path
-from bench.errors import UserError
+from dpcbench.bench.atomic import atomic_path
+from dpcbench.bench.errors import UserError
 
 
 @dataclass

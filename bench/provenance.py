@@ -113,8 +113,8 @@ def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors
     damaged / inpainted: the (N_f, 3) frames; damaged_colors: their (N_f, 3) uint8 colours or None;
     holes / detected: `holes.regions.regions_to_json` documents; manifest: the run's facts (JSON).
     """
-    from bench.atomic import atomic_folder
-    from bench.plyio import PointCloud, write_ply
+    from dpcbench.bench.atomic import atomic_folder
+    from dpcbench.bench.plyio import PointCloud, write_ply
 
     with atomic_folder(run_dir) as tmp:
         for i, (frame, result) in enumerate(zip(damaged, inpainted)):
@@ -129,9 +129,9 @@ def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors
 
 def read_run_folder(run_dir: Path) -> dict:
     """The damaged and inpainted frames ((N,3) arrays), regions and manifest of a run folder."""
-    from bench.plyio import read_ply
-    from bench.sequences import natural_key
-    from holes.regions import regions_from_json
+    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.sequences import natural_key
+    from dpcbench.holes.regions import regions_from_json
 
     def frames(sub):
         files = sorted((run_dir / sub).glob("*.ply"), key=lambda p: natural_key(p.name))
@@ -151,6 +151,6 @@ def is_complete_run_folder(run_dir: Path) -> bool:
 
 def clean_stale_temp(runs_dir: Path) -> int:
     """Remove temporary run folders (``.tmp-*``) whose writer process is gone (left by killed runs)."""
-    from bench.atomic import remove_stale_folders
+    from dpcbench.bench.atomic import remove_stale_folders
 
     return remove_stale_folders(runs_dir)

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.atomic import atomic_path
-from bench.errors import UserError
-from metrics.neighbours import estimate_normals, median_neighbour_distance
+from dpcbench.bench.atomic import atomic_path
+from dpcbench.bench.errors import UserError
+from dpcbench.metrics.neighbours import estimate_normals, median_neighbour_distance
 
 #: neighbours of the normals estimated for shading a cloud that carries none
 SHADING_NORMAL_NEIGHBOURS = 16
@@ -165,7 +165,7 @@ def _auto_radius(points: np.ndarray, scale: float, sample: int = 50_000) -> int:
     and divided by sqrt(N / sample): on a surface, thinning by k spreads points by sqrt(k). That
     avoids a KD-tree over a million points for a number that only needs to be roughly right.
     """
-    from metrics.neighbours import probe
+    from dpcbench.metrics.neighbours import probe
 
     n = len(points)
     if n < 2:
@@ -201,7 +201,7 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from bench.progress import progress_bar
+    from dpcbench.bench.progress import progress_bar
 
     if shading not in SHADINGS:
         raise UserError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench import figures, paper
-from bench.compare import newest_runs
-from bench.tables import (
+from dpcbench.bench import figures, paper
+from dpcbench.bench.compare import newest_runs
+from dpcbench.bench.tables import (
     ComparisonTable,
     comparison_table,
     config_labels,

@@ -16,9 +16,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from bench.config import RunSpec
-from bench.executors import make_executor
-from bench.provenance import clean_stale_temp, git_commit
+from dpcbench.bench.config import RunSpec
+from dpcbench.bench.executors import make_executor
+from dpcbench.bench.provenance import clean_stale_temp, git_commit
 
 
 class RunSummary:
@@ -58,7 +58,7 @@ def run_experiment(specs: list[RunSpec], store, *, runs_dir: str | os.PathLike |
     once, in one transaction, so an interrupted sweep keeps all finished runs and loses only those
     in flight, which the next call redoes.
     """
-    from bench.progress import progress_bar  # tqdm loads only when a sweep runs
+    from dpcbench.bench.progress import progress_bar  # tqdm loads only when a sweep runs
 
     runs_path = Path(runs_dir).resolve() if runs_dir else default_runs_dir(store.path)
     runs_path.mkdir(parents=True, exist_ok=True)

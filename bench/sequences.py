@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import UserError
-from bench.plyio import PointCloud, read_ply, write_ply
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
 
 
 def natural_key(name: str) -> list:
@@ -100,7 +100,7 @@ def load_sequence(source: str | os.PathLike | list, *, name: str | None = None, 
         files = list_frame_files(source)
     iterator = files
     if progress and len(files) > 3:
-        from bench.progress import progress_bar
+        from dpcbench.bench.progress import progress_bar
 
         iterator = progress_bar(files, desc="reading frames", unit="frame")
     frames = [read_ply(f, colors=colors) for f in iterator]

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 SCHEMA_VERSION = 1
 
@@ -140,7 +140,7 @@ class ResultsStore:
     def check_path(path: Path) -> None:
         """UserError unless a store can be created or written at ``path`` (nothing is created):
         not under a file, not a folder, in a folder that can be written (SQLite's journal goes beside)."""
-        from bench.outputs import _check_writable_folder, _existing_ancestor
+        from dpcbench.bench.outputs import _check_writable_folder, _existing_ancestor
 
         base = _existing_ancestor(path.parent)
         if not base.is_dir():

@@ -24,7 +24,7 @@ import pandas as pd
 def higher_is_better(metric: str) -> bool | None:
     """The metric's direction from `metrics.registry.describe` (its one source); None for a metric
     without one (a fact about the input, or a name the registry does not know): no cell is bold."""
-    from metrics.registry import describe
+    from dpcbench.metrics.registry import describe
 
     entry = describe(metric)
     return None if entry is None else entry.higher_is_better
@@ -192,7 +192,7 @@ def d2_normals_note(runs: pd.DataFrame, run_ids=None) -> str:
     """One sentence for table captions: which normals D2 used, read from the runs' stored
     ``env["d2_normals"]`` (`bench.provenance.d2_normals_source`): "normals from file" or "estimated by
     PCA of 12 neighbours", per sequence when they differ; "" when ``runs`` is empty."""
-    from bench.provenance import D2_NORMALS_TEXT
+    from dpcbench.bench.provenance import D2_NORMALS_TEXT
 
     if runs is None or runs.empty:
         return ""

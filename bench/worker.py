@@ -1,7 +1,7 @@
 """The worker: one run (load -> damage -> inpaint -> write frames -> score) in its own process.
 
 The sweep driver (`bench.runner.run_experiment`) hands runs to an executor (`bench.executors`), which
-calls `run_isolated` for each; that starts ``python -m bench.worker --worker ...``, and the worker
+calls `run_isolated` for each; that starts ``python -m dpcbench.bench.worker --worker ...``, and the worker
 process does, for one run (a `bench.config.RunSpec`):
 
 1. load the ground-truth sequence (`bench.datasets.load_run_sequence`: a dataset name or a path);
@@ -47,17 +47,17 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.atomic import atomic_write_text
-from bench.config import RunSpec
-from bench.datasets import load_run_sequence
-from bench.provenance import (
+from dpcbench.bench.atomic import atomic_write_text
+from dpcbench.bench.config import RunSpec
+from dpcbench.bench.datasets import load_run_sequence
+from dpcbench.bench.provenance import (
     d2_normals_source,
     environment,
     is_complete_run_folder,
     read_run_folder,
     write_run_folder,
 )
-from holes.lazy import import_entry
+from dpcbench.holes.lazy import import_entry
 
 WORKER_FLAG = "--worker"
 _LIVE_PROCESSES: set = set()
@@ -123,7 +123,7 @@ def _check_output(out: list, frames: list, name: str) -> list[np.ndarray]:
 
 def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
     """Damage, inpaint, and write the run folder atomically (`bench.provenance.write_run_folder`)."""
-    from holes.regions import regions_to_json
+    from dpcbench.holes.regions import regions_to_json
 
     frames = truth.points
     colors = truth.colors if all(c is not None for c in truth.colors) else None
@@ -134,7 +134,7 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
     if mode == "given":
         regions = damage.regions
     elif mode == "detected":
-        from holes.detection import detect_holes
+        from dpcbench.holes.detection import detect_holes
 
         t0 = time.perf_counter()
         detected = [detect_holes(f, **spec.protocol.get("detection", {})) for f in damage.frames]
@@ -157,7 +157,7 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
                 "method_params_resolved": method.get_params()}
     # --force, or another worker finished the same frames first: the folder is replaced
     write_run_folder(run_dir, damaged=damage.frames, damaged_colors=damage.colors, inpainted=inpainted, holes=holes,
-                     detected=None if detected is None else regions_to_json(detected, detector="holes.detection"),
+                     detected=None if detected is None else regions_to_json(detected, detector="dpcbench.holes.detection"),
                      manifest=manifest)
 
 
@@ -170,7 +170,7 @@ def _peak_label(peak) -> str:
 
 def _uses_peak(name: str) -> bool:
     """Whether the metric's value depends on the PSNR peak (`metrics.registry`, the one source)."""
-    from metrics.registry import describe
+    from dpcbench.metrics.registry import describe
 
     metric = describe(name)
     return metric is not None and metric.uses_peak
@@ -182,7 +182,7 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) 
     PSNRs are as `metrics.score_pair` returns them (capped at its ``max_psnr``, 200 dB by default,
     when a result equals the reference). D2 uses the ground truth's own normals when its frames carry
     them (`d2_normals_source`), else normals estimated by PCA of 12 neighbours."""
-    import metrics as metrics_pkg
+    import dpcbench.metrics as metrics_pkg
 
     cfg = spec.metrics
     names = cfg["names"]
@@ -264,7 +264,7 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
 
 
 def _now() -> str:
-    from bench.store import now_iso
+    from dpcbench.bench.store import now_iso
 
     return now_iso()
 
@@ -305,7 +305,7 @@ def _tail(path: Path, lines: int = 12) -> str:
 
 
 def run_isolated(spec_dict: dict, runs_dir: str, force: bool = False, threads: int | None = None) -> dict:
-    """Run one spec in a fresh ``python -m bench.worker --worker`` process with the spec's timeout.
+    """Run one spec in a fresh ``python -m dpcbench.bench.worker --worker`` process with the spec's timeout.
 
     Returns the outcome dict; a crash (non-zero exit, a signal such as kill -9, os._exit) or a
     timeout becomes ``{"status": "failed", "error": ...}`` with the exit code and the log's tail.
@@ -324,7 +324,7 @@ def run_isolated(spec_dict: dict, runs_dir: str, force: bool = False, threads: i
         if threads:
             for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
                 env.setdefault(var, str(threads))
-        cmd = [sys.executable, "-m", "bench.worker", WORKER_FLAG, str(spec_path), str(out_path), str(runs)]
+        cmd = [sys.executable, "-m", "dpcbench.bench.worker", WORKER_FLAG, str(spec_path), str(out_path), str(runs)]
         if force:
             cmd.append("--force")
         t0 = time.perf_counter()
@@ -376,5 +376,5 @@ def kill_live_workers() -> None:
 if __name__ == "__main__":
     if len(sys.argv) >= 5 and sys.argv[1] == WORKER_FLAG:
         sys.exit(worker_main(sys.argv[2], sys.argv[3], sys.argv[4], "--force" in sys.argv[5:]))
-    print("usage: python -m bench.worker --worker SPEC_JSON OUTCOME_JSON RUNS_DIR [--force]", file=sys.stderr)
+    print("usage: python -m dpcbench.bench.worker --worker SPEC_JSON OUTCOME_JSON RUNS_DIR [--force]", file=sys.stderr)
     sys.exit(2)

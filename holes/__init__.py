@@ -13,6 +13,6 @@ A frame is an (N, 3) float array; a sequence is a list of them. Nothing here dep
 - `holes.lazy`:      the lazy name -> "module:Attr" registry that holes and methods share.
 """
 
-from holes.regions import HoleRegion, regions_from_json, regions_to_json
+from dpcbench.holes.regions import HoleRegion, regions_from_json, regions_to_json
 
 __all__ = ["HoleRegion", "regions_from_json", "regions_to_json"]

@@ -18,9 +18,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from holes.regions import HoleRegion
-from metrics.errors import UserError
-from metrics.params import Parameterized
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.params import Parameterized
 
 #: a seed: an int, or a numpy Generator passed through
 Seed = int | np.random.Generator
@@ -97,7 +97,7 @@ def check_sequence_input(frames: Sequence[np.ndarray], colors: Colors = None,
                          what: str = "hole generator") -> tuple[list[np.ndarray], list | None]:
     """Validate a sequence for damage: a non-empty list of finite (N_f, 3) arrays with optional
     matching (N_f, 3) colours. Returns float64 frames and the colours (or None). ValueError otherwise."""
-    from holes.geometry import check_frame
+    from dpcbench.holes.geometry import check_frame
 
     if isinstance(frames, np.ndarray) and frames.ndim == 2:
         raise UserError(f"{what}: expected a list of frames (a sequence), got one (N, 3) array; wrap it in a list")

@@ -33,9 +33,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from holes.geometry import check_frame, estimate_normals, point_spacing, radius_components, tangent_basis
-from holes.regions import HoleRegion
-from metrics.errors import UserError
+from dpcbench.holes.geometry import check_frame, estimate_normals, point_spacing, radius_components, tangent_basis
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.metrics.errors import UserError
 
 #: Points handled per block in `boundary_points` (bounds the (block, k, 3) temporaries to ~50 MB at k = 32).
 _BLOCK = 1 << 16

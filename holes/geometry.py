@@ -26,11 +26,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion
-from metrics.errors import UserError
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.metrics.errors import UserError
 
 # the one point-spacing and normal estimator (metrics.neighbours), re-exported for holes' callers
-from metrics.neighbours import estimate_normals, point_spacing
+from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 
 __all__ = ["PAPER_CUBE_SIZE", "PAPER_GRID", "bounding_box_region", "check_frame", "components_to_regions",
            "cube_size", "estimate_normals", "point_spacing", "radius_components", "regions_mask", "tangent_basis"]

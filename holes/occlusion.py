@@ -59,9 +59,17 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from holes.base import Colors, DamageResult, HoleGenerator, Seed, as_generator, check_sequence_input, make_result
-from holes.geometry import components_to_regions, estimate_normals, point_spacing
-from metrics.errors import UserError
+from dpcbench.holes.base import (
+    Colors,
+    DamageResult,
+    HoleGenerator,
+    Seed,
+    as_generator,
+    check_sequence_input,
+    make_result,
+)
+from dpcbench.holes.geometry import components_to_regions, estimate_normals, point_spacing
+from dpcbench.metrics.errors import UserError
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from metrics.errors import UserError
+from dpcbench.metrics.errors import UserError
 
 HOLES_FORMAT = "dpcbench-holes"
 HOLES_VERSION = 1

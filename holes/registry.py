@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from holes.lazy import LazyRegistry
+from dpcbench.holes.lazy import LazyRegistry
 
 #: name -> "module:ClassName"
 GENERATORS = LazyRegistry("hole generator", {
-    "none": "holes.base:NoHoles",
-    "region": "holes.synthetic:RegionHoles",
-    "dropout": "holes.synthetic:DropoutHoles",
-    "occlusion": "holes.occlusion:OcclusionHoles",
+    "none": "dpcbench.holes.base:NoHoles",
+    "region": "dpcbench.holes.synthetic:RegionHoles",
+    "dropout": "dpcbench.holes.synthetic:DropoutHoles",
+    "occlusion": "dpcbench.holes.occlusion:OcclusionHoles",
 }, plural="generators")
 
 

@@ -28,10 +28,18 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.base import Colors, DamageResult, HoleGenerator, Seed, as_generator, check_sequence_input, make_result
-from holes.geometry import cube_size, regions_mask
-from holes.regions import HoleRegion
-from metrics.errors import UserError
+from dpcbench.holes.base import (
+    Colors,
+    DamageResult,
+    HoleGenerator,
+    Seed,
+    as_generator,
+    check_sequence_input,
+    make_result,
+)
+from dpcbench.holes.geometry import cube_size, regions_mask
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.metrics.errors import UserError
 
 #: preset -> (holes per frame, radius in units of M)
 REGION_PRESETS: dict[str, tuple[int, float]] = {

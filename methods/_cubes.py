@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from holes.regions import HoleRegion
+    from dpcbench.holes.regions import HoleRegion
 
 
 def block_sums(grid: np.ndarray, width: int) -> np.ndarray:

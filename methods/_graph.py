@@ -20,7 +20,7 @@ import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 if TYPE_CHECKING:
-    from holes.regions import HoleRegion
+    from dpcbench.holes.regions import HoleRegion
 
 
 def knn_laplacian(points: np.ndarray, k: int, sigma: float) -> sp.csr_matrix:

@@ -19,9 +19,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from holes.regions import HoleRegion
-from metrics.errors import UserError
-from metrics.params import Parameterized
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.params import Parameterized
 
 #: the hole regions of each frame (F lists), or None (blind: the method finds the holes itself)
 Regions = Sequence[Sequence[HoleRegion]] | None

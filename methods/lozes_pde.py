@@ -66,11 +66,11 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion
-from methods.base import PerFrameMethod, Regions
-from methods.reference import detect_regions
-from metrics.errors import UserError
-from metrics.neighbours import point_spacing
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.base import PerFrameMethod, Regions
+from dpcbench.methods.reference import detect_regions
+from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.neighbours import point_spacing
 
 
 class LozesPDE(PerFrameMethod):

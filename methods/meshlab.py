@@ -67,10 +67,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion
-from methods.base import PerFrameMethod, Regions
-from methods.lozes_pde import sampling_step
-from metrics.errors import UserError
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.base import PerFrameMethod, Regions
+from dpcbench.methods.lozes_pde import sampling_step
+from dpcbench.metrics.errors import UserError
 
 
 class MeshlabError(RuntimeError):

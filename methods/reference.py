@@ -13,12 +13,12 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion, check_regions_near
-from methods.base import InpaintingMethod, Regions
-from metrics.errors import UserError
+from dpcbench.holes.regions import HoleRegion, check_regions_near
+from dpcbench.methods.base import InpaintingMethod, Regions
+from dpcbench.metrics.errors import UserError
 
 # the one nearest-sample spacing estimator (re-exported: tests and callers import it from here)
-from metrics.neighbours import median_neighbour_distance
+from dpcbench.metrics.neighbours import median_neighbour_distance
 
 
 class NoFill(InpaintingMethod):
@@ -186,7 +186,7 @@ class TemporalCopy(InpaintingMethod):
 
 def detect_regions(frames: Sequence[np.ndarray], method: str) -> list[list[HoleRegion]]:
     """Blind protocol: hole regions of every frame from `holes.detection.detect_holes`."""
-    from holes.detection import detect_holes
+    from dpcbench.holes.detection import detect_holes
 
     return [list(detect_holes(frame)) for frame in frames]
 

@@ -5,20 +5,20 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from holes.lazy import LazyRegistry
+from dpcbench.holes.lazy import LazyRegistry
 
 if TYPE_CHECKING:  # the registry stays import-light: the base class is needed only for the hints
-    from methods.base import InpaintingMethod
+    from dpcbench.methods.base import InpaintingMethod
 
 #: name -> "module:ClassName"
 METHODS = LazyRegistry("method", {
-    "none": "methods.reference:NoFill",
-    "temporal-copy": "methods.reference:TemporalCopy",
-    "temporal-graph": "methods.temporal_graph:TemporalGraph",
-    "fu-nonlocal": "methods.temporal_graph:FuNonlocal",
-    "temporal-fusion": "methods.temporal_fusion:TemporalFusion",
-    "lozes-pde": "methods.lozes_pde:LozesPDE",
-    "meshlab": "methods.meshlab:MeshlabFill",
+    "none": "dpcbench.methods.reference:NoFill",
+    "temporal-copy": "dpcbench.methods.reference:TemporalCopy",
+    "temporal-graph": "dpcbench.methods.temporal_graph:TemporalGraph",
+    "fu-nonlocal": "dpcbench.methods.temporal_graph:FuNonlocal",
+    "temporal-fusion": "dpcbench.methods.temporal_fusion:TemporalFusion",
+    "lozes-pde": "dpcbench.methods.lozes_pde:LozesPDE",
+    "meshlab": "dpcbench.methods.meshlab:MeshlabFill",
 })
 
 

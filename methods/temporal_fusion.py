@@ -115,11 +115,11 @@ import warnings
 import numpy as np
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion
-from methods._registration import alignment_residual
-from methods.base import InpaintingMethod
-from methods.reference import icp_align
-from metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._registration import alignment_residual
+from dpcbench.methods.base import InpaintingMethod, Regions
+from dpcbench.methods.reference import icp_align
+from dpcbench.metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing
 
 #: most source points an ICP call pairs: a rigid motion has 6 unknowns, and 2000 evenly spread
 #: pairs pin it down as well as the 10-20k of a large hole's shell on an 800k-point frame (the
@@ -442,11 +442,11 @@ class TemporalFusion(InpaintingMethod):
             raise ValueError(f"{self.name}: snap must be 'auto', true or false, got {self.snap!r}")
 
     # -- sequence ------------------------------------------------------------------------------
-    def inpaint(self, frames: list[np.ndarray], regions: list[list[HoleRegion]] | None = None) -> list[np.ndarray]:
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         self._validate()
         frames, regions = self._check_inputs(frames, regions)
         if regions is None:
-            from methods.reference import detect_regions
+            from dpcbench.methods.reference import detect_regions
 
             regions = detect_regions(frames, self.name)
         if len(frames) == 1 and any(regions[0]):

@@ -96,7 +96,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from methods._cubes import (
+from dpcbench.methods._cubes import (
     CellGrid,
     TargetCubeOrder,
     best_window,
@@ -104,14 +104,14 @@ from methods._cubes import (
     in_box,
     region_groups,
 )
-from methods._graph import TemporalLinks, solve_cube, spatial_laplacian, temporal_links
-from methods._registration import RigidFit, align_best
-from methods.base import InpaintingMethod
-from metrics.errors import UserError
-from metrics.neighbours import estimate_normals, point_spacing
+from dpcbench.methods._graph import TemporalLinks, solve_cube, spatial_laplacian, temporal_links
+from dpcbench.methods._registration import RigidFit, align_best
+from dpcbench.methods.base import InpaintingMethod, Regions
+from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 
 if TYPE_CHECKING:
-    from holes.regions import HoleRegion
+    from dpcbench.holes.regions import HoleRegion
 
 _KNOWN_MODES = ("fixed", "free")
 _NEW_POINT_MODES = ("pending-cells", "empty-slots")
@@ -660,7 +660,7 @@ class _CubeGraphInpainting(InpaintingMethod):
     _voxelize = staticmethod(voxelize_fill)
 
     # -- sequence ---------------------------------------------------------------------------
-    def inpaint(self, frames: list[np.ndarray], regions: list | None = None) -> list[np.ndarray]:
+    def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         """Inpaint the sequence ``frames`` (list of (N_f, 3)) given the hole regions of each frame
         (a list of lists of `holes.regions.HoleRegion`), or blind (None: `holes.detection`).
         Returns a new list of (N'_f, 3) frames: each frame's points (moved with known_points="free"),
@@ -683,7 +683,7 @@ class _CubeGraphInpainting(InpaintingMethod):
         unit = cube_unit(frames[largest], tree_of(largest) if self.spacing == "points" else None, self.spacing,
                          integer, self.name)
         if regions is None:
-            from holes.detection import detect_holes  # lazily: blind protocol only
+            from dpcbench.holes.detection import detect_holes  # lazily: blind protocol only
 
             regions = [list(detect_holes(frame)) for frame in frames]
         for f in range(len(frames)):

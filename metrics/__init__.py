@@ -24,10 +24,10 @@ from typing import Any
 
 from numpy.typing import ArrayLike
 
-from metrics.geometry import psnr, resolve_peak
-from metrics.pairs import CloudPair, estimate_normals
-from metrics.registry import DEFAULT_METRICS, METRICS, Metric, get_metric
-from metrics.scoring import (
+from dpcbench.metrics.geometry import psnr, resolve_peak
+from dpcbench.metrics.pairs import CloudPair, estimate_normals
+from dpcbench.metrics.registry import DEFAULT_METRICS, METRICS, Metric, get_metric
+from dpcbench.metrics.scoring import (
     DEFAULT_MAX_PSNR,
     make_pair,
     pc_error,
@@ -36,8 +36,8 @@ from metrics.scoring import (
     score_pair,
     score_sequence,
 )
-from metrics.temporal import temporal_consistency, temporal_consistency_per_pair
-from metrics.types import Region
+from dpcbench.metrics.temporal import temporal_consistency, temporal_consistency_per_pair
+from dpcbench.metrics.types import Region
 
 
 def _single(name: str) -> Callable[..., float]:

@@ -43,9 +43,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from metrics.errors import UserError
-from metrics.pairs import CloudPair
-from metrics.types import Region
+from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.pairs import CloudPair
+from dpcbench.metrics.types import Region
 
 #: Default F-score threshold, in multiples of the reference's median nearest-neighbour spacing.
 FSCORE_SPACING_FACTOR = 2.0

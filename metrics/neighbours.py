@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from metrics.errors import UserError
+from dpcbench.metrics.errors import UserError
 
 #: neighbours of the normal estimate used by D2 when the reference has no normals (pc_error's golden
 #: normals are open3d's KNN 12 exactly: mean |cos| 1.0000 against 0.990-0.997 for k = 6..30)

@@ -49,11 +49,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from metrics.errors import UserError
+from dpcbench.metrics.errors import UserError
 
 # the one normal estimator and point check (re-exported: metrics.pairs.estimate_normals is public API)
-from metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
-from metrics.types import Region
+from dpcbench.metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
+from dpcbench.metrics.types import Region
 
 #: pc_error's ``similarPointThreshold``: consecutive neighbours whose squared distances differ by less
 #: than this are "at the same distance".

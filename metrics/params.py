@@ -13,7 +13,7 @@ import inspect
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar, cast
 
-from metrics.errors import UserError
+from dpcbench.metrics.errors import UserError
 
 _Self = TypeVar("_Self", bound="Parameterized")
 

@@ -22,8 +22,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from metrics import geometry
-from metrics.temporal import temporal_consistency
+from dpcbench.metrics import geometry
+from dpcbench.metrics.temporal import temporal_consistency
 
 
 @dataclass(frozen=True)
@@ -56,26 +56,82 @@ def _m(name: str, higher: bool | None, unit: str, description: str, fn: Callable
 METRICS: dict[str, Metric] = {
     m.name: m
     for m in [
-        _m("gpsnr_d1", True, "dB", "point-to-point geometry PSNR, pc_error 0.14 D1: 10 log10(3 p^2 / max(MSE A->B, MSE B->A))",
-           geometry.gpsnr_d1_value, uses_peak=True, is_psnr=True, change="delta"),
-        _m("gpsnr_d2", True, "dB", "point-to-plane geometry PSNR, pc_error 0.14 D2 (reference normals, given or estimated)",
-           geometry.gpsnr_d2_value, uses_peak=True, is_psnr=True, change="delta"),
+        _m(
+            "gpsnr_d1",
+            True,
+            "dB",
+            "point-to-point geometry PSNR, pc_error 0.14 D1: 10 log10(3 p^2 / max(MSE A->B, MSE B->A))",
+            geometry.gpsnr_d1_value,
+            uses_peak=True,
+            is_psnr=True,
+            change="delta",
+        ),
+        _m(
+            "gpsnr_d2",
+            True,
+            "dB",
+            "point-to-plane geometry PSNR, pc_error 0.14 D2 (reference normals, given or estimated)",
+            geometry.gpsnr_d2_value,
+            uses_peak=True,
+            is_psnr=True,
+            change="delta",
+        ),
         _m("d1_mse", False, "units^2", "symmetric point-to-point MSE (pc_error mseF p2point)", geometry.d1_mse),
         _m("d2_mse", False, "units^2", "symmetric point-to-plane MSE (pc_error mseF p2plane)", geometry.d2_mse),
-        _m("hausdorff", False, "units", "symmetric Hausdorff distance H = max(h(A,B), h(B,A))", geometry.hausdorff_value),
-        _m("hausdorff_sq", False, "units^2", "squared symmetric Hausdorff distance (pc_error d1 h. p2point)", geometry.hausdorff_sq),
-        _m("hausdorff_psnr", True, "dB", "pc_error's Hausdorff PSNR: 10 log10(3 p^2 / H^2)", geometry.hausdorff_psnr_value,
-           uses_peak=True, is_psnr=True, change="delta"),
-        _m("nshd", False, "1", "normalized symmetric Hausdorff distance H^2 / (D^2 N), D reference bbox diagonal, N reference points",
-           geometry.nshd_value),
-        _m("chamfer", False, "units^2",
-           "Chamfer distance: mean squared NN distance A->B plus mean squared NN distance B->A",
-           geometry.chamfer_value),
-        _m("fscore", True, "1", "F-score at distance tau (default 2 x median reference spacing)", geometry.fscore_value,
-           change="delta"),
-        _m("temporal_consistency", False, "units",
-           "mean frame-to-frame change of the normal error of the fill against the ground truth (hole regions)",
-           temporal_consistency, level="sequence"),
+        _m(
+            "hausdorff",
+            False,
+            "units",
+            "symmetric Hausdorff distance H = max(h(A,B), h(B,A))",
+            geometry.hausdorff_value,
+        ),
+        _m(
+            "hausdorff_sq",
+            False,
+            "units^2",
+            "squared symmetric Hausdorff distance (pc_error d1 h. p2point)",
+            geometry.hausdorff_sq,
+        ),
+        _m(
+            "hausdorff_psnr",
+            True,
+            "dB",
+            "pc_error's Hausdorff PSNR: 10 log10(3 p^2 / H^2)",
+            geometry.hausdorff_psnr_value,
+            uses_peak=True,
+            is_psnr=True,
+            change="delta",
+        ),
+        _m(
+            "nshd",
+            False,
+            "1",
+            "normalized symmetric Hausdorff distance H^2 / (D^2 N), D reference bbox diagonal, N reference points",
+            geometry.nshd_value,
+        ),
+        _m(
+            "chamfer",
+            False,
+            "units^2",
+            "Chamfer distance: mean squared NN distance A->B plus mean squared NN distance B->A",
+            geometry.chamfer_value,
+        ),
+        _m(
+            "fscore",
+            True,
+            "1",
+            "F-score at distance tau (default 2 x median reference spacing)",
+            geometry.fscore_value,
+            change="delta",
+        ),
+        _m(
+            "temporal_consistency",
+            False,
+            "units",
+            "mean frame-to-frame change of the normal error of the fill against the ground truth (hole regions)",
+            temporal_consistency,
+            level="sequence",
+        ),
     ]
 }
 

@@ -15,17 +15,17 @@ about 1e-19) and `score_sequence` lists the capped (frame, metric) pairs under `
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from metrics import geometry
-from metrics.geometry import Selection, Settings, psnr, resolve_peak
-from metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
-from metrics.registry import DEFAULT_METRICS, METRICS, get_metric
-from metrics.types import Frames, Region, RegionsPerFrame
+from dpcbench.metrics import geometry
+from dpcbench.metrics.geometry import Selection, Settings, psnr, resolve_peak
+from dpcbench.metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
+from dpcbench.metrics.registry import DEFAULT_METRICS, METRICS, get_metric
+from dpcbench.metrics.types import Frames, Region, RegionsPerFrame
 
 #: metric names: one name, several, or None for `DEFAULT_METRICS`
 MetricNames = str | Sequence[str] | None
@@ -70,6 +70,7 @@ def _evaluate(pair: CloudPair, names, selection: Selection, settings: Settings, 
     values, capped = {}, []
     for name in names:
         metric = METRICS[name]
+        assert metric.fn is not None  # every METRICS entry is computed (only resource metrics have no fn)
         value = float(metric.fn(pair, selection, settings))
         if metric.is_psnr and max_psnr is not None and value > max_psnr:
             value = float(max_psnr)
@@ -183,7 +184,7 @@ def score_sequence(references: Frames, results: Frames, metrics: MetricNames = N
     }
     if sequence_names:
         out["sequence"] = {
-            n: METRICS[n].fn(references, results, regions, region_margin=region_margin) for n in sequence_names
+            n: _sequence_fn(n)(references, results, regions, region_margin=region_margin) for n in sequence_names
         }
     return out
 
@@ -210,3 +211,10 @@ def pc_error(reference: ArrayLike, result: ArrayLike, reference_normals: ArrayLi
         "d1_hausdorff_psnr": psnr(h2, p),
         "peak": p,
     }
+
+
+def _sequence_fn(name: str) -> Callable[..., Any]:
+    """The function of a sequence metric (every METRICS entry has one; only resource metrics have none)."""
+    fn = METRICS[name].fn
+    assert fn is not None, name
+    return fn

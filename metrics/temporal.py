@@ -41,9 +41,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from metrics.neighbours import estimate_normals
-from metrics.pairs import build_tree, check_points
-from metrics.types import Frames, RegionsPerFrame
+from dpcbench.metrics.neighbours import estimate_normals
+from dpcbench.metrics.pairs import build_tree, check_points
+from dpcbench.metrics.types import Frames, RegionsPerFrame
 
 #: one (forward, backward) pair of index arrays per consecutive frame pair (module docstring)
 Correspondences = Sequence[tuple[np.ndarray, np.ndarray]]

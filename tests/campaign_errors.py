@@ -33,8 +33,8 @@ def load_test_module():
 def workspace(t, root: Path) -> Path:
     import numpy as np
 
-    from bench.plyio import PointCloud, write_ply
-    from holes.regions import HoleRegion, regions_to_json
+    from dpcbench.bench.plyio import PointCloud, write_ply
+    from dpcbench.holes.regions import HoleRegion, regions_to_json
 
     ws = root / "ws"
     frames = [t.sphere(800, f, shift=0.5 * f) for f in range(3)]
@@ -125,7 +125,7 @@ def main() -> int:
             import io
 
             cases = t.bad_input_family(ws)
-            from bench.cli import main as cli_main
+            from dpcbench.bench.cli import main as cli_main
 
             for argv, out in cases:
                 restore()
@@ -147,7 +147,7 @@ def main() -> int:
         for argv, out in subprocess_cases(ws, bad):
             restore()
             before = t.tree_hashes(ws, skip=Path(out) if out else None)
-            proc = subprocess.run([sys.executable, "-m", "bench.cli", *argv], capture_output=True, text=True, env=env)
+            proc = subprocess.run([sys.executable, "-m", "dpcbench.bench.cli", *argv], capture_output=True, text=True, env=env)
             tried += 1
             lines = proc.stderr.strip().splitlines()
             ok = (proc.returncode == 2 and len(lines) == 1 and lines[0].startswith(f"dpcbench {argv[0]}: error:")

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from holes.base import DamageResult, HoleGenerator, as_generator
-from holes.regions import HoleRegion
-from methods.base import PerFrameMethod
+from dpcbench.holes.base import DamageResult, HoleGenerator, as_generator
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.base import PerFrameMethod
 
 HERE = "tests.runner_fixtures"
 
@@ -106,7 +106,7 @@ def sphere_frames(n_frames: int = 3, n_points: int = 800, seed: int = 0) -> list
 
 
 def write_sequence(folder: Path, n_frames: int = 3, n_points: int = 800) -> Path:
-    from bench.sequences import save_sequence
+    from dpcbench.bench.sequences import save_sequence
 
     save_sequence(sphere_frames(n_frames, n_points), folder, prefix="sphere")
     return folder
@@ -114,8 +114,7 @@ def write_sequence(folder: Path, n_frames: int = 3, n_points: int = 800) -> Path
 
 def register(monkeypatch) -> None:
     """Make the test methods and generator known by name in this process."""
-    import holes.registry
-    import methods.registry
+    from dpcbench import holes, methods
 
     for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
         monkeypatch.setitem(methods.registry.METHODS, cls.name, f"{HERE}:{cls.__name__}")
@@ -124,8 +123,7 @@ def register(monkeypatch) -> None:
 
 def register_global() -> None:
     """`register` for a separate driver process (no monkeypatch there: the process ends with the test)."""
-    import holes.registry
-    import methods.registry
+    from dpcbench import holes, methods
 
     for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
         methods.registry.METHODS[cls.name] = f"{HERE}:{cls.__name__}"
@@ -135,7 +133,7 @@ def register_global() -> None:
 if __name__ == "__main__":  # a driver with the test entries registered: python -m tests.runner_fixtures run ...
     import sys
 
-    from bench.cli import main
+    from dpcbench.bench.cli import main
 
     register_global()
     sys.exit(main(sys.argv[1:]))

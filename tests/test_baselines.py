@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion
-from methods.lozes_pde import LozesPDE, sampling_step
-from methods.meshlab import MeshlabError, MeshlabFill, cluster_points, sample_triangles
-from methods.reference import NoFill, TemporalCopy, icp_align, median_neighbour_distance
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.lozes_pde import LozesPDE, sampling_step
+from dpcbench.methods.meshlab import MeshlabError, MeshlabFill, cluster_points, sample_triangles
+from dpcbench.methods.reference import NoFill, TemporalCopy, icp_align, median_neighbour_distance
 
 
 def rotation_about_z(angle: float) -> np.ndarray:

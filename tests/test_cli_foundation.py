@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli import main
-from bench.plyio import PointCloud, read_ply, write_ply
+from dpcbench.bench.cli import main
+from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
 
 
 @pytest.fixture(autouse=True)
@@ -47,8 +47,7 @@ def test_list_shows_every_section(capsys):
 
 
 def test_list_reports_a_broken_entry_instead_of_crashing(capsys, monkeypatch):
-    import holes.registry
-    import methods.registry
+    from dpcbench import holes, methods
 
     monkeypatch.setitem(holes.registry.GENERATORS, "broken-holes", "holes.no_such_module:Nothing")
     monkeypatch.setitem(methods.registry.METHODS, "broken-method", "methods.no_such_module:Nothing")

@@ -1,4 +1,4 @@
-"""bench.compare and `dpcbench compare`: summaries, tolerances, regression verdicts, exit codes."""
+"""dpcbench.bench.compare and `dpcbench compare`: summaries, tolerances, regression verdicts, exit codes."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench import compare
-from bench.cli import main as cli_main
-from bench.store import ResultsStore
+from dpcbench.bench import compare
+from dpcbench.bench.cli import main as cli_main
+from dpcbench.bench.store import ResultsStore
 
 
 def results_frame(cells, code_version="c1", created_at="2026-01-01T00:00:00", experiment="regression",
@@ -196,8 +196,8 @@ def test_nan_becoming_defined_is_flagged():
 
 
 def test_direction_and_change_kind_come_from_the_metric_registry_only():
-    from bench import tables
-    from metrics import registry
+    from dpcbench.bench import tables
+    from dpcbench.metrics import registry
 
     assert not hasattr(compare, "HIGHER_IS_BETTER") and not hasattr(compare, "CHANGE_KIND")
     assert not hasattr(tables, "LOWER_IS_BETTER")
@@ -218,15 +218,15 @@ def test_direction_and_change_kind_come_from_the_metric_registry_only():
 
 
 def test_peak_dependence_comes_from_the_registry():
-    from bench.worker import _uses_peak
-    from metrics import registry
+    from dpcbench.bench.worker import _uses_peak
+    from dpcbench.metrics import registry
 
     assert [n for n in registry.METRICS if _uses_peak(n)] == ["gpsnr_d1", "gpsnr_d2", "hausdorff_psnr"]
     assert not _uses_peak("time_s") and not _uses_peak("psnr_of_a_metric_nobody_registered")
 
 
 def test_a_metric_without_direction_has_no_best_cell():
-    from bench.tables import ComparisonTable
+    from dpcbench.bench.tables import ComparisonTable
 
     table = ComparisonTable("t", "removed_fraction", "frame", "", None, ["r"], ["a", "b"],
                             {("r", "a"): 0.1, ("r", "b"): 0.2}, {("r", "a"): 0.0, ("r", "b"): 0.0},
@@ -257,7 +257,7 @@ def test_tolerances_file(tmp_path):
 
 def test_committed_tolerances_and_baseline_are_valid():
     """results/tolerances.toml loads; the committed baseline (when present) is a readable summary."""
-    from bench.commands.compare import DEFAULT_BASELINE, TOLERANCES_FILE
+    from dpcbench.bench.commands.compare import DEFAULT_BASELINE, TOLERANCES_FILE
 
     tol = compare.load_tolerances(TOLERANCES_FILE)
     assert set(compare.DEFAULT_TOLERANCES) <= set(tol)
@@ -344,7 +344,7 @@ def test_cli_compare_errors(tmp_path, capsys):
 def score_into_store(store_path, code_version, frames, damage, method, seconds):
     """Score a method's output like the runner does (both scopes, intrinsic peak) into a store,
     under the regression preset's cell: temporal-graph with its default parameters."""
-    import metrics
+    import dpcbench.metrics as metrics
 
     names = ["gpsnr_d1", "gpsnr_d2", "nshd"]
     rows = []
@@ -370,9 +370,9 @@ def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
     change that degrades the method, fails with a readable table."""
     import time
 
-    from bench.datasets import load_dataset
-    from holes.registry import get_generator
-    from methods.registry import get_method
+    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.holes.registry import get_generator
+    from dpcbench.methods.registry import get_method
 
     # a ~7k-point figure (height 100 voxels) keeps the three method runs well under a second each
     frames = load_dataset("human", frames=2, size="tiny", height=100, progress=False).points

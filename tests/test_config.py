@@ -6,7 +6,7 @@ import copy
 
 import pytest
 
-from bench.config import ConfigError, canonical_json, load_config, parse_config, stable_hash
+from dpcbench.bench.config import ConfigError, canonical_json, load_config, parse_config, stable_hash
 from tests import runner_fixtures as helpers
 
 
@@ -183,7 +183,7 @@ def test_detection_parameters(seq_dir):
 @pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods"])
 def test_shipped_presets_expand(preset):
     """Every preset under bench/presets parses and expands into runs with distinct ids."""
-    from bench.paper import PRESETS_DIR
+    from dpcbench.bench.paper import PRESETS_DIR
 
     specs = load_config(PRESETS_DIR / f"{preset}.toml").expand()
     assert specs and len({s.run_id for s in specs}) == len(specs)

@@ -17,9 +17,9 @@ import warnings
 import numpy as np
 import pytest
 
-from holes.regions import HoleRegion
-from methods.base import InpaintingMethod
-from methods.registry import METHODS, method_class
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.base import InpaintingMethod
+from dpcbench.methods.registry import METHODS, method_class
 
 N_FRAMES = 3
 

@@ -11,9 +11,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from bench import benchsuite, dashboard
-from bench.cli import main as cli_main
-from bench.store import ResultsStore
+from dpcbench.bench import benchsuite, dashboard
+from dpcbench.bench.cli import main as cli_main
+from dpcbench.bench.store import ResultsStore
 
 METHODS = {"temporal-graph": (40.0, 1e-7, 2.0), "fu-nonlocal": (36.0, 3e-7, 1.5), "none": (12.0, 5e-6, 0.01)}
 VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"),
@@ -227,7 +227,7 @@ def test_history_is_cumulative_over_versions(tmp_path):
 def test_summary_files_join_the_history(tmp_path, capsys):
     """An older summary (e.g. a committed baseline) plus a store at a newer version: two versions,
     and the newer one's regression is flagged against the summary's values."""
-    from bench import compare
+    from dpcbench.bench import compare
 
     old = make_store(tmp_path / "old.sqlite", versions=(0,))
     summary = tmp_path / "old.csv"
@@ -257,7 +257,7 @@ def test_two_psnr_peaks_are_kept_apart(tmp_path):
 
 
 def test_comparison_against_a_baseline_summary(tmp_path):
-    from bench import compare
+    from dpcbench.bench import compare
 
     old = make_store(tmp_path / "old.sqlite", versions=(0,))
     baseline = (compare.summarize(old.results_frame()), {"code_version": VERSIONS[0][0], "date": "2026-01-01"})

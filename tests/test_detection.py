@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from holes.detection import boundary_points, detect_holes, detection_scores
-from holes.regions import HoleRegion
-from holes.registry import get_generator
+from dpcbench.holes.detection import boundary_points, detect_holes, detection_scores
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.holes.registry import get_generator
 
 
 def sphere(n=8000, radius=50.0, seed=0):
@@ -68,7 +68,7 @@ def test_detection_scores_closed_form():
 
 @pytest.fixture(scope="module")
 def human():
-    from bench.datasets import load_dataset
+    from dpcbench.bench.datasets import load_dataset
 
     return load_dataset("human", frames=3, size="tiny", progress=False).points
 
@@ -102,7 +102,7 @@ def test_detection_finds_synthetic_holes(human, preset):
 def test_real_capture_holes(shared_dir):
     """ricardo9 (MVUB, 9-bit, front-only capture of an upper body): its largest rims are the open
     outline of the scan (inward score < 0) and are excluded; a few hole regions remain."""
-    from bench.sequences import load_sequence
+    from dpcbench.bench.sequences import load_sequence
 
     points = load_sequence(shared_dir / "data" / "mvub_ricardo9").points[0]
     every_rim = detect_holes(points, min_inward=-1.0, max_radius=10.0)  # one run, filtered below

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli import main
-from bench.errors import UserError
-from bench.plyio import PointCloud, write_ply
-from holes.regions import HoleRegion, regions_to_json
+from dpcbench.bench.cli import main
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.plyio import PointCloud, write_ply
+from dpcbench.holes.regions import HoleRegion, regions_to_json
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -147,7 +147,7 @@ def test_output_paths_that_are_files_under_files_or_unwritable(work, capsys, mon
     assert a_file.read_text() == "x"
 
     # a folder that cannot be written (simulated: root ignores permission bits)
-    import bench.outputs
+    from dpcbench import bench
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
@@ -162,7 +162,7 @@ def test_output_paths_that_are_files_under_files_or_unwritable(work, capsys, mon
 
 
 def test_an_oserror_writing_a_claimed_output_is_one_line(work, capsys, monkeypatch):
-    import bench.sequences
+    from dpcbench import bench
 
     def disk_full(path, cloud, **kwargs):
         raise OSError(28, "No space left on device", str(path))
@@ -173,7 +173,7 @@ def test_an_oserror_writing_a_claimed_output_is_one_line(work, capsys, monkeypat
 
 
 def test_a_bug_keeps_its_traceback(work, monkeypatch):
-    import methods.reference
+    from dpcbench import methods
 
     def broken(self, frames, regions=None):
         raise ValueError("operands could not be broadcast together")  # what a numpy bug looks like
@@ -229,8 +229,8 @@ def test_param_of_the_wrong_type_is_named(work, capsys):
 
 
 def test_one_param_parser_for_every_command():
-    from bench.datasets import parse_params as dataset_params
-    from bench.params import parse_params
+    from dpcbench.bench.datasets import parse_params as dataset_params
+    from dpcbench.bench.params import parse_params
 
     assert dataset_params is parse_params  # generate/info/render use the same function as damage/inpaint
     parsed = parse_params(["a=yes", "b=No", "c=none", "d=20", "e=0.5", "f=1e-3", "g=[1, 2]", 'h="20"', "i=large",
@@ -250,8 +250,8 @@ def test_every_param_option_of_every_command_goes_through_the_one_parser():
     import ast
     from pathlib import Path
 
-    import bench.commands
-    from bench.params import parse_params
+    from dpcbench import bench
+    from dpcbench.bench.params import parse_params
 
     folder = Path(bench.commands.__file__).parent
     checked = {}
@@ -341,7 +341,7 @@ def test_regions_far_from_the_cloud_are_refused_by_both_temporal_methods(work, c
 
 
 def test_temporal_copy_still_fills_regions_on_the_cloud():
-    from methods.reference import TemporalCopy
+    from dpcbench.methods.reference import TemporalCopy
 
     frames = [sphere(2000, f) for f in range(3)]
     hole = HoleRegion.ball(frames[1][0], 8.0)
@@ -362,7 +362,7 @@ def test_ascii_ply_holding_more_rows_than_declared_is_refused(work, capsys):
 
 
 def test_binary_ply_with_bytes_beyond_the_declared_rows_is_refused(tmp_path):
-    from bench.plyio import read_ply
+    from dpcbench.bench.plyio import read_ply
 
     path = write_ply(tmp_path / "b.ply", sphere(50, 0))
     assert len(read_ply(path)) == 50
@@ -417,7 +417,7 @@ def test_a_folder_named_like_an_embedded_sequence_says_which_one_is_taken(work, 
 
 
 def test_config_sequence_names_never_read_a_folder_of_that_name(work):
-    from bench.datasets import load_run_sequence
+    from dpcbench.bench.datasets import load_run_sequence
 
     (work / "human").mkdir()
     (work / "human" / "f.ply").write_bytes((work / "seq" / "s_0000.ply").read_bytes())
@@ -429,7 +429,7 @@ def test_config_sequence_names_never_read_a_folder_of_that_name(work):
 def damaged_store(path: Path) -> Path:
     """A results store with 4000 results whose last data pages are overwritten by 8 KB of garbage
     (its schema still reads: only an integrity check finds the damage)."""
-    from bench.store import ResultsStore
+    from dpcbench.bench.store import ResultsStore
 
     for stale in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
         stale.unlink(missing_ok=True)
@@ -449,7 +449,7 @@ def damaged_store(path: Path) -> Path:
 
 
 def test_a_damaged_store_is_refused_before_run_or_report(work, capsys):
-    from bench.store import ResultsStore
+    from dpcbench.bench.store import ResultsStore
 
     bad = damaged_store(work / "bad.sqlite")
     assert ResultsStore(bad, readonly=True).experiments() == ["e"]  # opening alone does not notice
@@ -466,10 +466,10 @@ def test_a_damaged_store_is_refused_before_run_or_report(work, capsys):
 # -- end to end, as a user runs it ---------------------------------------------------------------
 def test_subprocess_error_is_one_line_and_exit_2(work):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    proc = subprocess.run([sys.executable, "-m", "bench.cli", "damage", "seq", "--holes", "region",
+    proc = subprocess.run([sys.executable, "-m", "dpcbench.bench.cli", "damage", "seq", "--holes", "region",
                            "--param", "cube_size=abc", "--out", "d"], capture_output=True, text=True, env=env)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
-    proc = subprocess.run([sys.executable, "-m", "bench.cli", "render", "seq", "--out", "r.png", "--bogus"],
+    proc = subprocess.run([sys.executable, "-m", "dpcbench.bench.cli", "render", "seq", "--out", "r.png", "--bogus"],
                           capture_output=True, text=True, env=env)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "unrecognized arguments: --bogus" in proc.stderr
 

@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from holes.base import DamageResult
-from holes.geometry import components_to_regions, cube_size, point_spacing, regions_mask
-from holes.regions import HoleRegion, union_mask
-from holes.registry import GENERATORS, get_generator
-from holes.synthetic import REGION_PRESETS, hole_overlap, track_point
+from dpcbench.holes.base import DamageResult
+from dpcbench.holes.geometry import components_to_regions, cube_size, point_spacing, regions_mask
+from dpcbench.holes.regions import HoleRegion, union_mask
+from dpcbench.holes.registry import GENERATORS, get_generator
+from dpcbench.holes.synthetic import REGION_PRESETS, hole_overlap, track_point
 
 
 @pytest.fixture(scope="module")
 def human():
     """3 frames of the embedded human, tiny (~24k points a frame, voxelized 10-bit, 186 tall)."""
-    from bench.datasets import load_dataset
+    from dpcbench.bench.datasets import load_dataset
 
     seq = load_dataset("human", frames=3, size="tiny", progress=False)
     return seq.points, seq.colors

@@ -7,15 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from bench.cli import main
-from bench.plyio import read_ply
-from holes.regions import regions_from_json
-from holes.registry import get_generator
+from dpcbench.bench.cli import main
+from dpcbench.bench.plyio import read_ply
+from dpcbench.holes.regions import regions_from_json
+from dpcbench.holes.registry import get_generator
 
 
 @pytest.fixture(scope="module")
 def human():
-    from bench.datasets import load_dataset
+    from dpcbench.bench.datasets import load_dataset
 
     return load_dataset("human", frames=2, size="tiny", progress=False)
 
@@ -93,7 +93,7 @@ def test_detect_holes_bad_parameter(tmp_path, capsys):
 def _red_pixels(png) -> int:
     import matplotlib.image
 
-    from bench.render import HIGHLIGHT_COLOR
+    from dpcbench.bench.render import HIGHLIGHT_COLOR
 
     rgb = (matplotlib.image.imread(png)[..., :3] * 255).round().astype(int)
     return int((np.abs(rgb - np.asarray(HIGHLIGHT_COLOR)).sum(-1) <= 3).sum())

@@ -6,19 +6,19 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from holes.geometry import estimate_normals, point_spacing
-from holes.occlusion import (
+from dpcbench.holes.geometry import estimate_normals, point_spacing
+from dpcbench.holes.occlusion import (
     sphere_cameras,
     stage_cameras,
     visible_mask,
     zbuffer_visible_mask,
 )
-from holes.registry import get_generator
+from dpcbench.holes.registry import get_generator
 
 
 @pytest.fixture(scope="module")
 def human_frame():
-    from bench.datasets import load_dataset
+    from dpcbench.bench.datasets import load_dataset
 
     return load_dataset("human", frames=1, size="tiny", progress=False).points[0]
 

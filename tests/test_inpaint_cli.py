@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from bench.cli import main
-from bench.plyio import PointCloud, read_ply
-from bench.sequences import load_sequence, save_sequence
-from holes.regions import HoleRegion, regions_to_json
+from dpcbench.bench.cli import main
+from dpcbench.bench.plyio import PointCloud, read_ply
+from dpcbench.bench.sequences import load_sequence, save_sequence
+from dpcbench.holes.regions import HoleRegion, regions_to_json
 
 
 def voxel_plane(shift):

@@ -10,9 +10,9 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from bench.datasets import load_dataset
-from bench.errors import UserError
-from bench.meshseq import (
+from dpcbench.bench.datasets import load_dataset
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.meshseq import (
     face_areas_normals,
     list_mesh_files,
     load_mesh_sequence,
@@ -20,9 +20,9 @@ from bench.meshseq import (
     sample_barycentric,
     voxelize_samples,
 )
-from bench.plyio import read_ply
-from bench.sequences import save_sequence
-from metrics.temporal import temporal_consistency
+from dpcbench.bench.plyio import read_ply
+from dpcbench.bench.sequences import save_sequence
+from dpcbench.metrics.temporal import temporal_consistency
 
 
 def rotation(axis: np.ndarray, degrees: float) -> np.ndarray:
@@ -322,8 +322,8 @@ def test_temporal_consistency_follows_true_correspondences():
 
 # -- configs, presets, the samba data ----------------------------------------------------------------------
 def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch, capsys):
-    import bench.sources.meshes as meshes
-    from bench.config import ConfigError, parse_config
+    import dpcbench.bench.sources.meshes as meshes
+    from dpcbench.bench.config import ConfigError, parse_config
 
     monkeypatch.setattr(meshes, "default_data_dirs", lambda: [tmp_path / "nothing"])
     monkeypatch.delenv("DPCBENCH_DATA_DIR", raising=False)
@@ -342,8 +342,8 @@ def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch
 
 
 def test_mesh_folder_as_config_path(tmp_path):
-    from bench.config import parse_config
-    from bench.datasets import load_run_sequence
+    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.datasets import load_run_sequence
 
     rigid_frames(tmp_path / "m", count=3)
     data = {"experiment": {"name": "x"},
@@ -372,7 +372,7 @@ def test_samba(shared_dir):
 
 
 def test_reproduce_paper_has_a_real_motion_row(shared_dir, monkeypatch):
-    from bench import paper
+    from dpcbench.bench import paper
 
     monkeypatch.setenv("DPCBENCH_DATA_DIR", str(shared_dir / "data"))
     proto = paper.paper_protocol(quick=True, frames=2)

@@ -11,8 +11,8 @@ import dataclasses
 
 import pytest
 
-from methods import versions
-from methods.registry import METHODS
+from dpcbench.methods import versions
+from dpcbench.methods.registry import METHODS
 
 
 def test_recorded_versions_and_hashes_match_the_sources():
@@ -57,7 +57,7 @@ def test_a_changed_source_without_a_bump_fails_with_the_command_to_run():
     stored["lozes-pde"] = dataclasses.replace(old, sha256="0" * 64)
     (message,) = versions.problems(now, stored)
     assert message.startswith("lozes-pde: the source") and f"version is still {old.version}" in message
-    assert "bump version and update the hash with `python -m methods.versions --update`" in message
+    assert "bump version and update the hash with `python -m dpcbench.methods.versions --update`" in message
 
     stored["lozes-pde"] = dataclasses.replace(old, sha256="0" * 64, version="0")  # bumped, hash not updated
     (message,) = versions.problems(now, stored)
@@ -67,8 +67,8 @@ def test_a_changed_source_without_a_bump_fails_with_the_command_to_run():
     stored["gone"] = old
     assert versions.problems(now, stored) == [
         "gone: recorded in methods/VERSIONS.toml but no longer registered; drop it with "
-        "`python -m methods.versions --update`",
-        "meshlab: not recorded in methods/VERSIONS.toml; record it with `python -m methods.versions --update`",
+        "`python -m dpcbench.methods.versions --update`",
+        "meshlab: not recorded in methods/VERSIONS.toml; record it with `python -m dpcbench.methods.versions --update`",
     ]
 
 

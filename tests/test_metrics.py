@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-import metrics
-from holes.regions import HoleRegion
-from metrics.pairs import SIMILAR_SQ_DISTANCE, CloudPair
+import dpcbench.metrics as metrics
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.metrics.pairs import SIMILAR_SQ_DISTANCE, CloudPair
 
 # -- a brute-force pc_error, written from its description (all pairs, python loops) --------------------
 
@@ -346,7 +346,7 @@ def test_registry_facts():
 
 def test_one_pair_serves_all_metrics_and_scopes(monkeypatch):
     """score_frame builds each KD-tree once and queries each direction once, whatever the metrics."""
-    import metrics.pairs as pairs_module
+    import dpcbench.metrics.pairs as pairs_module
 
     built = []
     original = pairs_module.cKDTree
@@ -397,7 +397,7 @@ def test_exact_match_shortcut_matches_brute_force(seed):
 def test_hash_collisions_change_no_value(monkeypatch, kind):
     """With a hash that collides everywhere (2 bits), deduplication and exact matching must fall back
     on coordinates and KD-tree queries and give the same figures."""
-    import metrics.pairs as pairs_module
+    import dpcbench.metrics.pairs as pairs_module
 
     rng = np.random.default_rng(3)
     if kind == "float":
@@ -415,7 +415,7 @@ def test_hash_collisions_change_no_value(monkeypatch, kind):
 
 
 def test_first_occurrences_against_numpy_unique():
-    from metrics.pairs import first_occurrences
+    from dpcbench.metrics.pairs import first_occurrences
 
     rng = np.random.default_rng(4)
     points = _voxel_cloud(rng, 2000, 9)  # many duplicates
@@ -426,7 +426,7 @@ def test_first_occurrences_against_numpy_unique():
 
 
 def test_face_neighbour_mask_against_brute_force():
-    from metrics.pairs import face_neighbour_mask
+    from dpcbench.metrics.pairs import face_neighbour_mask
 
     rng = np.random.default_rng(5)
     points = np.unique(_voxel_cloud(rng, 600, 12), axis=0) - 3  # distinct, negative coordinates too

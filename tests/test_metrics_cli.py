@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-import metrics
-from bench.cli import main
-from bench.plyio import PointCloud, write_ply
-from bench.sequences import load_sequence, save_sequence
-from holes.regions import HoleRegion, regions_to_json
+import dpcbench.metrics as metrics
+from dpcbench.bench.cli import main
+from dpcbench.bench.plyio import PointCloud, write_ply
+from dpcbench.bench.sequences import load_sequence, save_sequence
+from dpcbench.holes.regions import HoleRegion, regions_to_json
 
 
 def _grid(n=20):

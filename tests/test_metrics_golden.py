@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-import metrics
-from bench.cli import main
-from bench.plyio import read_ply
+import dpcbench.metrics as metrics
+from dpcbench.bench.cli import main
+from dpcbench.bench.plyio import read_ply
 
 RELATIVE = 1e-4
 PEAKS = {"r0": "intrinsic", "r1023": 1023}

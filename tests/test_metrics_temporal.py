@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-import metrics
-from holes.regions import HoleRegion
+import dpcbench.metrics as metrics
+from dpcbench.holes.regions import HoleRegion
 
 RADIUS = 10.0
 MOTION = np.array([0.6, 0.0, 0.0])  # per frame, along the normal at the hole centre

@@ -1,11 +1,11 @@
-"""metrics.neighbours: the one normal estimator and the point-spacing estimators."""
+"""dpcbench.metrics.neighbours: the one normal estimator and the point-spacing estimators."""
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from bench.errors import UserError
-from metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing, probe
+from dpcbench.bench.errors import UserError
+from dpcbench.metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing, probe
 
 
 def _sphere(n: int, seed: int = 0) -> np.ndarray:

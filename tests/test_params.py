@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from holes.base import HoleGenerator
-from methods.base import InpaintingMethod
-from metrics.errors import UserError
-from metrics.params import Parameterized, check_param_types, signature_params
+from dpcbench.holes.base import HoleGenerator
+from dpcbench.methods.base import InpaintingMethod
+from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.params import Parameterized, check_param_types, signature_params
 
 
 class _Toy(Parameterized):

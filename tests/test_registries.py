@@ -14,9 +14,9 @@ REPO = Path(__file__).resolve().parents[1]
 
 # -- lazy registries ------------------------------------------------------------------------------
 def test_lazy_registry_loads_on_demand_and_names_the_known_entries():
-    from holes.lazy import LazyRegistry, import_entry
-    from holes.registry import GENERATORS
-    from methods.registry import METHODS
+    from dpcbench.holes.lazy import LazyRegistry, import_entry
+    from dpcbench.holes.registry import GENERATORS
+    from dpcbench.methods.registry import METHODS
 
     registry = LazyRegistry("widget", {"path": "pathlib:PurePosixPath", "gone": "no_such_module_xyz:Thing"})
     assert registry.load("path") is __import__("pathlib").PurePosixPath
@@ -35,7 +35,7 @@ def test_lazy_registry_loads_on_demand_and_names_the_known_entries():
 
 # -- "no holes" ----------------------------------------------------------------------------------
 def test_no_holes_is_a_registered_generator_that_removes_nothing():
-    from holes.registry import generator_class, get_generator
+    from dpcbench.holes.registry import generator_class, get_generator
 
     frames = [np.random.default_rng(1).random((30, 3)), np.random.default_rng(2).random((20, 3))]
     colors = [np.zeros((30, 3), np.uint8), np.ones((20, 3), np.uint8)]
@@ -49,22 +49,22 @@ def test_no_holes_is_a_registered_generator_that_removes_nothing():
 
 def test_no_holes_in_a_config_keeps_its_run_identity():
     """The same identity (so the same run ids and stored results) as when "none" was a special case."""
-    from bench.config import parse_config
+    from dpcbench.bench.config import parse_config
 
     cfg = {"experiment": {"name": "real"}, "sequences": [{"name": "human", "params": {"size": "tiny"}, "frames": 1}],
            "holes": [{"generator": "none", "seeds": [3, 4]}], "methods": [{"name": "none"}]}
     specs = parse_config(cfg).expand()
     assert len(specs) == 1  # the seed plays no part: one run
     assert specs[0].identity()["holes"] == {"generator": "none", "params": {}, "seed": 0}
-    assert specs[0].versions["generator"] == "1" and specs[0].holes["entry"] == "holes.base:NoHoles"
+    assert specs[0].versions["generator"] == "1" and specs[0].holes["entry"] == "dpcbench.holes.base:NoHoles"
     # the ids the special-cased "none" gave at 1a064a3 (run folders and stored runs stay valid)
     assert (specs[0].run_id, specs[0].inpaint_key) == ("828a587a394c3200", "02c0df3394862278")
 
 
 def test_a_run_without_holes_stores_no_quality_score(tmp_path, monkeypatch):
-    from bench.config import parse_config
-    from bench.runner import run_experiment
-    from bench.store import ResultsStore
+    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.runner import run_experiment
+    from dpcbench.bench.store import ResultsStore
     from tests import runner_fixtures as helpers
 
     helpers.register(monkeypatch)

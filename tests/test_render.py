@@ -1,4 +1,4 @@
-"""bench.render: projection, z-buffer, shading, zoom box, highlight, figure layout."""
+"""dpcbench.bench.render: projection, z-buffer, shading, zoom box, highlight, figure layout."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from bench.plyio import PointCloud
-from bench.render import (
+from dpcbench.bench.plyio import PointCloud
+from dpcbench.bench.render import (
     HIGHLIGHT_COLOR,
     panel_colours,
     rasterize,
@@ -130,7 +130,7 @@ def test_zoom_grid_layout_magnification_and_depth_window(tmp_path):
     """Rows x columns of (cloud, zoom beside it): the hole's tinted fill covers many times more pixels
     in the zoom than in the cloud panel, a blob far in front of the hole (an occluding limb) hides it
     in the cloud panel but not in the zoom, and a column without a hole gets a plain "no hole" zoom."""
-    from bench.render import render_zoom_grid
+    from dpcbench.bench.render import render_zoom_grid
 
     full = sphere(n=20000, seed=3)
     hole = np.linalg.norm(full - [0.0, 0.0, 50.0], axis=1) < 10

@@ -10,11 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench import paper
-from bench.cli import main as cli_main
-from bench.reports import paper_tables, write_comparison_report, write_paper_report
-from bench.store import ResultsStore
-from bench.tables import comparison_table
+from dpcbench.bench import paper
+from dpcbench.bench.cli import main as cli_main
+from dpcbench.bench.reports import paper_tables, write_comparison_report, write_paper_report
+from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.tables import comparison_table
 
 METHODS = ["meshlab", "lozes-pde", "fu-nonlocal", "temporal-graph"]
 #: each of the paper's columns as reproduce-paper runs it (the paper configurations)
@@ -83,7 +83,7 @@ def test_paper_values_and_headline():
 
 def test_the_paper_facts_have_one_source():
     """config, datasets, paper and the dashboard read bench.paper_facts; none keeps its own copy."""
-    from bench import config, dashboard, datasets, paper_facts
+    from dpcbench.bench import config, dashboard, datasets, paper_facts
 
     assert config.PAPER_SEQUENCES is paper_facts.PAPER_SEQUENCES
     assert paper.PAPER_SEQUENCES is paper_facts.PAPER_SEQUENCES and paper.TABLE1_GPSNR is paper_facts.TABLE1_GPSNR
@@ -155,7 +155,7 @@ def test_paper_report_labels_stand_ins_everywhere(tmp_path):
 
 
 def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
-    import bench.sources.meshes
+    from dpcbench import bench
 
     monkeypatch.setattr(bench.sources.meshes, "default_data_dirs", lambda: [])  # no real-motion row (samba) here
     proto = paper.paper_protocol(quick=True, size="tiny", frames=2)
@@ -176,7 +176,7 @@ def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
     # a data folder with the paper's layout: the paper's sequences replace the stand-ins
     ply = tmp_path / "data" / "longdress" / "Ply"
     ply.mkdir(parents=True)
-    from bench.plyio import write_ply
+    from dpcbench.bench.plyio import write_ply
 
     for i in range(2):
         write_ply(ply / f"longdress_vox10_{1051 + i:04d}.ply",
@@ -190,8 +190,8 @@ def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
 
 
 def test_subjective_grid_renders(tmp_path):
-    from bench.figures import subjective_grid
-    from holes.regions import HoleRegion
+    from dpcbench.bench.figures import subjective_grid
+    from dpcbench.holes.regions import HoleRegion
 
     rng = np.random.default_rng(0)
     base = rng.normal(size=(500, 3))
@@ -212,8 +212,8 @@ def test_subjective_grid_renders(tmp_path):
 
 def test_flattest_region_prefers_a_hole_in_an_open_surface():
     """A ball through a thin cylinder (a limb) against one on a plane (a torso): the plane's."""
-    from bench.figures import flattest_region
-    from holes.regions import HoleRegion
+    from dpcbench.bench.figures import flattest_region
+    from dpcbench.holes.regions import HoleRegion
 
     rng = np.random.default_rng(1)
     angle, height = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(0, 40, 4000)
@@ -270,7 +270,7 @@ def test_report_keeps_hole_configurations_apart_and_uses_config_labels(tmp_path)
 
 
 def test_a_label_given_to_a_grid_keeps_its_configurations_apart():
-    from bench.tables import config_labels
+    from dpcbench.bench.tables import config_labels
 
     names = pd.Series(["tg", "tg", "tg", "fu"])
     params = pd.Series(['{"beta":0.25}', '{"beta":0.5}', '{"beta":0.25}', "{}"])
@@ -290,7 +290,7 @@ def test_a_single_value_cell_shows_no_spread():
 
 
 def test_facing_view_looks_at_the_hole_from_outside():
-    from bench.figures import facing_view
+    from dpcbench.bench.figures import facing_view
 
     body = np.array([[0.0, 0.0, 0.0], [0.0, 100.0, 0.0]])  # centroid (0, 50, 0)
     assert facing_view(body, [0.0, 50.0, 30.0]) == pytest.approx((0.0, 0.0))      # in front: front view
@@ -300,7 +300,7 @@ def test_facing_view_looks_at_the_hole_from_outside():
 
 
 def test_paper_presets_list_the_table_columns():
-    from bench.config import tomllib
+    from dpcbench.bench.config import tomllib
 
     for preset in ("paper-quick", "paper"):
         data = tomllib.loads((paper.PRESETS_DIR / f"{preset}.toml").read_text())
@@ -357,7 +357,7 @@ def test_paper_configuration_and_ours_are_separate_columns(tmp_path):
 def test_d2_tables_say_which_normals_d2_used(tmp_path):
     """The D2 table captions (Markdown, LaTeX) and REPORT.md name the normals the runs' D2 used, as
     the runner records them: from file for both sequences here, then mixed per sequence."""
-    from bench.tables import d2_normals_note
+    from dpcbench.bench.tables import d2_normals_note
 
     store = _store_with_results(tmp_path / "s.sqlite")
     for seq in ("Human (stand-in)", "Bunny (stand-in)"):

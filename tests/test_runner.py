@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from bench.config import parse_config
-from bench.provenance import read_run_folder
-from bench.runner import run_experiment
-from bench.store import ResultsStore
+from dpcbench.bench.config import parse_config
+from dpcbench.bench.provenance import read_run_folder
+from dpcbench.bench.runner import run_experiment
+from dpcbench.bench.store import ResultsStore
 from tests import runner_fixtures as helpers
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,8 +76,8 @@ def test_failures_are_recorded_while_others_finish(env):
     assert len(content["inpainted"]) == 3 and len(content["regions"]) == 3
     assert all(len(d) < 600 for d in content["damaged"])
     # the stored scores are metrics.score_frame of the frames as written, against the ground truth
-    import metrics
-    from bench.sequences import load_sequence
+    import dpcbench.metrics as metrics
+    from dpcbench.bench.sequences import load_sequence
 
     truth = load_sequence(env["seq"]).points
     run_id = done[done.status == "done"].iloc[0].run_id
@@ -221,19 +221,19 @@ def test_cli_dry_run_and_bad_config(env, tmp_path):
     text = config.read_text().replace('"test-identity"', '"none"').replace('"test-ball"', '"region"').replace(
         "radius = 0.3", 'preset = "small"')
     config.write_text(text)
-    out = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(env["store"].path),
+    out = subprocess.run([sys.executable, "-m", "dpcbench.bench.cli", "run", str(config), "--store", str(env["store"].path),
                           "--dry-run"], cwd=REPO, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert "1 runs in experiment 't': 1 to do" in out.stdout
     config.write_text(text.replace('name = "none"', 'name = "no-such-method"'))
-    bad = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(env["store"].path)],
+    bad = subprocess.run([sys.executable, "-m", "dpcbench.bench.cli", "run", str(config), "--store", str(env["store"].path)],
                          cwd=REPO, capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "methods[0].name: unknown method 'no-such-method'" in bad.stderr
     assert "Traceback" not in bad.stderr
     junk = tmp_path / "junk.sqlite"
     junk.write_bytes(b"\0garbage" * 200)
     config.write_text(text)
-    corrupt = subprocess.run([sys.executable, "-m", "bench.cli", "run", str(config), "--store", str(junk)],
+    corrupt = subprocess.run([sys.executable, "-m", "dpcbench.bench.cli", "run", str(config), "--store", str(junk)],
                              cwd=REPO, capture_output=True, text=True, timeout=60)
     assert corrupt.returncode == 2 and "move it aside" in corrupt.stderr
 
@@ -243,10 +243,10 @@ def test_stand_in_d2_uses_the_ground_truth_normals_as_pc_error_would(tmp_path, m
     `dpcbench generate` writes it (with the stand-in's exact normals as float nx ny nz) against the
     run's inpainted PLY. The run records that D2 used the normals from file; estimated normals would
     give another value."""
-    import metrics
-    from bench.cli import main as cli_main
-    from bench.plyio import read_ply
-    from bench.sequences import list_frame_files
+    import dpcbench.metrics as metrics
+    from dpcbench.bench.cli import main as cli_main
+    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.sequences import list_frame_files
 
     monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
     monkeypatch.chdir(REPO)

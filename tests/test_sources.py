@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import bench.datasets as datasets
-from bench.datasets import load_dataset, load_run_sequence, resolve_source
-from bench.errors import UserError
-from bench.plyio import PointCloud, write_ply
-from bench.sequences import Sequence
-from bench.sources import SequenceSource, frame_indices
-from bench.sources.embedded import EmbeddedSource
-from bench.sources.meshes import MeshDatasetSource, MeshFolderSource
-from bench.sources.paper import PaperSource
-from bench.sources.points import PointCloudSource
+import dpcbench.bench.datasets as datasets
+from dpcbench.bench.datasets import load_dataset, load_run_sequence, resolve_source
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.plyio import PointCloud, write_ply
+from dpcbench.bench.sequences import Sequence
+from dpcbench.bench.sources import SequenceSource, frame_indices
+from dpcbench.bench.sources.embedded import EmbeddedSource
+from dpcbench.bench.sources.meshes import MeshDatasetSource, MeshFolderSource
+from dpcbench.bench.sources.paper import PaperSource
+from dpcbench.bench.sources.points import PointCloudSource
 
 
 @pytest.fixture(autouse=True)

@@ -10,8 +10,8 @@ import pytest
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from holes.regions import HoleRegion
-from methods.temporal_fusion import (
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.temporal_fusion import (
     TemporalFusion,
     disagreeing,
     fit_height_field,

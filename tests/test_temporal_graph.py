@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from holes.regions import HoleRegion
-from methods._cubes import CellGrid, best_window, block_sums, in_box
-from methods._graph import knn_laplacian, solve_cube, temporal_links
-from methods._registration import align_to_partial, kabsch
-from methods.registry import get_method
-from methods.temporal_graph import FuNonlocal, TemporalGraph
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._cubes import CellGrid, best_window, block_sums, in_box
+from dpcbench.methods._graph import knn_laplacian, solve_cube, temporal_links
+from dpcbench.methods._registration import align_to_partial, kabsch
+from dpcbench.methods.registry import get_method
+from dpcbench.methods.temporal_graph import FuNonlocal, TemporalGraph
 
 # -- synthetic surfaces -------------------------------------------------------------------------
 

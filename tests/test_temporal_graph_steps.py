@@ -12,17 +12,17 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from holes.regions import HoleRegion
-from methods._cubes import (
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._cubes import (
     CellGrid,
     TargetCubeOrder,
     block_sums,
     hole_cells,
     region_groups,
 )
-from methods._graph import knn_laplacian, solve_cube, spatial_laplacian, temporal_links
-from methods._registration import align_best
-from methods.temporal_graph import (
+from dpcbench.methods._graph import knn_laplacian, solve_cube, spatial_laplacian, temporal_links
+from dpcbench.methods._registration import align_best
+from dpcbench.methods.temporal_graph import (
     CandidateCubes,
     CubeFill,
     FrameContext,
@@ -356,7 +356,7 @@ def test_solve_reproduces_closed_form_minimisers():
 # -- post-processing --------------------------------------------------------------------------------
 
 def test_drop_contradicted_keeps_rows_supported_somewhere_or_contradicted_nowhere():
-    from methods._graph import TemporalLinks
+    from dpcbench.methods._graph import TemporalLinks
 
     def links(contradicted, supported):
         n = len(contradicted) + 1  # one known row first

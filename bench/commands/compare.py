@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_BASELINE = REPO_ROOT / "results" / "regression-baseline.csv"
@@ -49,8 +49,8 @@ def register(subparsers) -> None:
 
 def current_from_store(store_path, experiment: str | None):
     """(summary, meta) of the latest runs of `experiment` in a results store."""
-    from bench import compare
-    from bench.store import ResultsStore
+    from dpcbench.bench import compare
+    from dpcbench.bench.store import ResultsStore
 
     store = ResultsStore(store_path, readonly=True, verify=True)
     results = store.results_frame()
@@ -95,7 +95,7 @@ def _run_environment(runs, run_ids) -> dict | None:
 
 
 def load_side(path: str | None, *, store: str | None, experiment: str | None, role: str):
-    from bench import compare
+    from dpcbench.bench import compare
 
     if path is not None and Path(path).suffix.lower() in SUMMARY_SUFFIXES:
         return compare.read_summary(path)
@@ -105,8 +105,8 @@ def load_side(path: str | None, *, store: str | None, experiment: str | None, ro
 
 
 def run(args) -> int:
-    from bench import compare
-    from bench.outputs import Outputs, record_written
+    from dpcbench.bench import compare
+    from dpcbench.bench.outputs import Outputs, record_written
 
     baseline_path = args.baseline or str(DEFAULT_BASELINE)
     if Path(baseline_path).suffix.lower() not in SUMMARY_SUFFIXES:

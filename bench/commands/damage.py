@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import UserError
-from bench.params import parse_params
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.params import parse_params
 
 
 def load_input(source: str, frames=None, data_dir=None, dataset_params=None):
@@ -27,7 +27,7 @@ def load_input(source: str, frames=None, data_dir=None, dataset_params=None):
 
     frames: the text of --frames (a count "10", a list "0,5,9" or a range "0-9"; None: all).
     """
-    from bench.datasets import load_dataset, parse_frames
+    from dpcbench.bench.datasets import load_dataset, parse_frames
 
     return load_dataset(source, frames=parse_frames(frames), data_dir=data_dir, **(dataset_params or {}))
 
@@ -42,7 +42,7 @@ def add_input_options(parser) -> None:
 
 
 def register(subparsers) -> None:
-    from holes.registry import GENERATORS
+    from dpcbench.holes.registry import GENERATORS
 
     parser = subparsers.add_parser(
         "damage",
@@ -65,11 +65,11 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bench.atomic import atomic_write_text
-    from bench.outputs import Outputs, record_written
-    from bench.sequences import Sequence, save_sequence, sequence_file_names
-    from holes.regions import regions_to_json
-    from holes.registry import GENERATORS, generator_class
+    from dpcbench.bench.atomic import atomic_write_text
+    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.sequences import Sequence, save_sequence, sequence_file_names
+    from dpcbench.holes.regions import regions_to_json
+    from dpcbench.holes.registry import GENERATORS, generator_class
 
     if args.holes not in GENERATORS:
         raise UserError(f"--holes: unknown hole generator {args.holes!r}; known: {', '.join(sorted(GENERATORS))} "
@@ -104,7 +104,7 @@ def run(args) -> int:
             for m, frac, p in zip(result.removed, fractions, files)
         ],
     )
-    from bench.errors import RECORDED
+    from dpcbench.bench.errors import RECORDED
 
     if RECORDED:
         record["warnings"] = list(RECORDED)  # the notes printed while it was made (e.g. which input was taken)
@@ -118,7 +118,7 @@ def run(args) -> int:
 
 def _known_params(cls, params: dict, who: str) -> dict:
     """``params`` when every name is a parameter of ``cls``; UserError listing the valid ones otherwise."""
-    from bench.params import check_param_types
+    from dpcbench.bench.params import check_param_types
 
     check_param_types(cls, params, who)
     return params

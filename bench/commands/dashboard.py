@@ -38,7 +38,7 @@ def load_stores(paths, experiment):
     """(results, runs) of one or several stores, concatenated."""
     import pandas as pd
 
-    from bench.store import ResultsStore
+    from dpcbench.bench.store import ResultsStore
 
     results, runs = [], []
     paths = paths or [None]
@@ -59,10 +59,10 @@ def load_stores(paths, experiment):
 def run(args) -> int:
     import pandas as pd
 
-    from bench import benchsuite, compare, dashboard
-    from bench.commands.compare import TOLERANCES_FILE
-    from bench.outputs import Outputs, record_written
-    from bench.store import RESULT_COLUMNS
+    from dpcbench.bench import benchsuite, compare, dashboard
+    from dpcbench.bench.commands.compare import TOLERANCES_FILE
+    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.store import RESULT_COLUMNS
 
     guard = Outputs(args.overwrite, inputs=(args.store or []) + (args.summary or []) + (args.benchmarks or []))
     out = guard.file(args.out, "--out", suffixes=(".html", ".htm"))

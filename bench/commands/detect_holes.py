@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import json
 
-from bench.commands.damage import add_input_options, load_input
-from bench.errors import UserError
-from bench.params import parse_params
+from dpcbench.bench.commands.damage import add_input_options, load_input
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.params import parse_params
 
 
 def register(subparsers) -> None:
@@ -32,12 +32,12 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bench.atomic import atomic_write_text
-    from bench.outputs import Outputs, record_written
-    from bench.params import check_param_types
-    from bench.progress import progress_bar
-    from holes.detection import detect_holes
-    from holes.regions import regions_to_json
+    from dpcbench.bench.atomic import atomic_write_text
+    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.params import check_param_types
+    from dpcbench.bench.progress import progress_bar
+    from dpcbench.holes.detection import detect_holes
+    from dpcbench.holes.regions import regions_to_json
 
     params = parse_params(args.param)
     if "points" in params:  # the first argument of detect_holes, not a parameter
@@ -51,12 +51,12 @@ def run(args) -> int:
         regions.append(detect_holes(points, **params))
     record = regions_to_json(
         regions,
-        detector="holes.detection.detect_holes",
+        detector="dpcbench.holes.detection.detect_holes",
         params=params,
         source=str(args.input),
         per_frame=[{"points": int(len(p)), "region_count": len(r)} for p, r in zip(seq.points, regions)],
     )
-    from bench.errors import RECORDED
+    from dpcbench.bench.errors import RECORDED
 
     if RECORDED:
         record["warnings"] = list(RECORDED)  # the notes printed while it was made

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -29,11 +29,11 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bench.datasets import EMBEDDED, MESHES, PAPER, load_dataset
-    from bench.meshseq import list_mesh_files
-    from bench.outputs import Outputs, record_written
-    from bench.params import parse_params
-    from bench.sequences import save_sequence, sequence_file_names
+    from dpcbench.bench.datasets import EMBEDDED, MESHES, PAPER, load_dataset
+    from dpcbench.bench.meshseq import list_mesh_files
+    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.params import parse_params
+    from dpcbench.bench.sequences import save_sequence, sequence_file_names
 
     name = args.name.lower()
     mesh = name in MESHES or (not Path(args.name).is_file() and list_mesh_files(args.name) is not None)

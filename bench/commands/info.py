@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -54,8 +54,8 @@ def describe(seq) -> dict:
 
 
 def run(args) -> int:
-    from bench.datasets import load_dataset, parse_frames
-    from bench.params import parse_params
+    from dpcbench.bench.datasets import load_dataset, parse_frames
+    from dpcbench.bench.params import parse_params
 
     seq = load_dataset(args.source, frames=parse_frames(args.frames), data_dir=args.data_dir,
                        **parse_params(args.param))

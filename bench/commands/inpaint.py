@@ -17,13 +17,13 @@ import time
 
 import numpy as np
 
-from bench.commands.damage import add_input_options, load_input
-from bench.errors import RECORDED, UserError
-from bench.params import parse_params
+from dpcbench.bench.commands.damage import add_input_options, load_input
+from dpcbench.bench.errors import RECORDED, UserError
+from dpcbench.bench.params import parse_params
 
 
 def register(subparsers) -> None:
-    from methods.registry import METHODS
+    from dpcbench.methods.registry import METHODS
 
     parser = subparsers.add_parser(
         "inpaint",
@@ -47,8 +47,8 @@ def register(subparsers) -> None:
 def make_method(name: str, params: dict):
     """The configured method, its parameters checked (`validate_params`); UserError for an unknown
     name or a bad parameter."""
-    from bench.params import check_param_types
-    from methods.registry import METHODS, method_class
+    from dpcbench.bench.params import check_param_types
+    from dpcbench.methods.registry import METHODS, method_class
 
     if name not in METHODS:
         raise UserError(f"--method: unknown method {name!r}; known methods: {', '.join(sorted(METHODS))} "
@@ -62,12 +62,12 @@ def make_method(name: str, params: dict):
 
 
 def run(args) -> int:
-    from bench.atomic import atomic_write_text
-    from bench.outputs import Outputs, record_written
-    from bench.plyio import PointCloud
-    from bench.sequences import Sequence, save_sequence, sequence_file_names
-    from holes.regions import regions_from_json
-    from methods.base import check_sequence
+    from dpcbench.bench.atomic import atomic_write_text
+    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.plyio import PointCloud
+    from dpcbench.bench.sequences import Sequence, save_sequence, sequence_file_names
+    from dpcbench.holes.regions import regions_from_json
+    from dpcbench.methods.base import check_sequence
 
     method = make_method(args.method, parse_params(args.param))
     seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param, "--dataset-param"))

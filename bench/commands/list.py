@@ -20,7 +20,7 @@ def _reason(err: BaseException) -> str:
 
 
 def sequences(data_dir) -> list[dict]:
-    from bench.datasets import describe_datasets
+    from dpcbench.bench.datasets import describe_datasets
 
     rows = describe_datasets(data_dir)
     for row in rows:
@@ -31,7 +31,7 @@ def sequences(data_dir) -> list[dict]:
 
 
 def hole_generators() -> list[dict]:
-    from holes.registry import GENERATORS, generator_class
+    from dpcbench.holes.registry import GENERATORS, generator_class
 
     rows = []
     for name in sorted(GENERATORS):
@@ -45,7 +45,7 @@ def hole_generators() -> list[dict]:
 
 
 def methods() -> list[dict]:
-    from methods.registry import available_methods, method_class
+    from dpcbench.methods.registry import available_methods, method_class
 
     status = available_methods()
     rows = []
@@ -58,7 +58,7 @@ def methods() -> list[dict]:
 
 
 def metrics() -> list[dict]:
-    from metrics.registry import METRICS
+    from dpcbench.metrics.registry import METRICS
 
     rows = []
     for name, metric in METRICS.items():

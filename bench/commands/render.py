@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -43,8 +43,8 @@ DEFAULT_FRAMES = 4
 
 def _frame_count(source: str) -> int:
     """Frames available (for the default selection): dataset names have at least DEFAULT_FRAMES."""
-    from bench.datasets import EMBEDDED, PAPER
-    from bench.sequences import list_frame_files
+    from dpcbench.bench.datasets import EMBEDDED, PAPER
+    from dpcbench.bench.sequences import list_frame_files
 
     if source.lower() in EMBEDDED or source.lower() in PAPER:
         return DEFAULT_FRAMES
@@ -64,10 +64,10 @@ def _numbers(text: str, count: int | None, option: str) -> list[float]:
 
 
 def run(args) -> int:
-    from bench.datasets import load_dataset, parse_frames
-    from bench.outputs import Outputs, record_written
-    from bench.params import parse_params
-    from bench.render import VIEWS, render_clouds
+    from dpcbench.bench.datasets import load_dataset, parse_frames
+    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.params import parse_params
+    from dpcbench.bench.render import VIEWS, render_clouds
 
     frames = parse_frames(args.frames)
     if isinstance(frames, int):
@@ -100,7 +100,7 @@ def _hole_masks(source: str, points: list, indices: list[int]) -> list:
     """Per rendered frame the mask of the points to paint red, from a damage folder / masks.npz
     (the removed points: the rendered frames must be the ground truth) or a holes.json (the
     points inside the regions)."""
-    from holes.regions import regions_from_json, union_mask
+    from dpcbench.holes.regions import regions_from_json, union_mask
 
     path = Path(source)
     if path.is_dir():

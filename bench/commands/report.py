@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -39,9 +39,9 @@ def resolve_store(text: str) -> Path:
 
 
 def main(args) -> int:
-    from bench.outputs import Outputs
-    from bench.reports import write_comparison_report
-    from bench.store import ResultsStore
+    from dpcbench.bench.outputs import Outputs
+    from dpcbench.bench.reports import write_comparison_report
+    from dpcbench.bench.store import ResultsStore
 
     store = ResultsStore(resolve_store(args.results), readonly=True, verify=True)
     experiments = store.experiments()

@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -64,10 +64,10 @@ def _parse_seeds(text: str | None) -> list[int] | None:
 
 
 def main(args) -> int:
-    from bench import paper
-    from bench.outputs import Outputs
-    from bench.runner import run_experiment
-    from bench.store import ResultsStore
+    from dpcbench.bench import paper
+    from dpcbench.bench.outputs import Outputs
+    from dpcbench.bench.runner import run_experiment
+    from dpcbench.bench.store import ResultsStore
 
     t0 = time.perf_counter()
     if args.jobs is not None and args.jobs < 1:
@@ -105,8 +105,8 @@ def main(args) -> int:
 
 
 def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0) -> None:
-    from bench import paper
-    from bench.reports import write_paper_report
+    from dpcbench.bench import paper
+    from dpcbench.bench.reports import write_paper_report
 
     figure_notes = paper.paper_figures(protocol, store, out / "figures")
     command = "dpcbench reproduce-paper" + "".join(

@@ -6,7 +6,7 @@ import argparse
 import os
 from pathlib import Path
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
@@ -51,9 +51,9 @@ def resolve_config_path(text: str) -> Path:
 
 
 def main(args) -> int:
-    from bench.config import load_config
-    from bench.runner import run_experiment
-    from bench.store import ResultsStore, default_store_path
+    from dpcbench.bench.config import load_config
+    from dpcbench.bench.runner import run_experiment
+    from dpcbench.bench.store import ResultsStore, default_store_path
 
     if args.jobs is not None and args.jobs < 1:
         raise UserError("--jobs: must be at least 1")

@@ -14,11 +14,11 @@ import json
 import math
 import sys
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 
 def register(subparsers) -> None:
-    from metrics.registry import DEFAULT_METRICS, METRICS
+    from dpcbench.metrics.registry import DEFAULT_METRICS, METRICS
 
     parser = subparsers.add_parser(
         "score",
@@ -52,11 +52,11 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import numpy as np
 
-    import metrics
-    from bench.errors import RECORDED, warn
-    from bench.sequences import load_sequence
-    from metrics.geometry import resolve_peak
-    from metrics.scoring import DEFAULT_MAX_PSNR
+    import dpcbench.metrics as metrics
+    from dpcbench.bench.errors import RECORDED, warn
+    from dpcbench.bench.sequences import load_sequence
+    from dpcbench.metrics.geometry import resolve_peak
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
 
     if not (args.jobs >= 1 or args.jobs == -1):
         raise UserError(f"--jobs {args.jobs}: give a positive number of threads, or -1 for all cores")
@@ -92,7 +92,7 @@ def run(args) -> int:
             raise UserError(f"--peak {peak}: {err}") from None
     regions = None
     if args.region:
-        from holes.regions import regions_from_json, union_mask
+        from dpcbench.holes.regions import regions_from_json, union_mask
 
         regions = regions_from_json(args.region, frame_count=len(reference), label=f"--region {args.region}")
         empty = [i for i, (frame, regs) in enumerate(zip(reference.frames, regions))

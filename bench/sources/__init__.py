@@ -30,7 +30,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from bench.errors import UserError
+from dpcbench.bench.errors import UserError
 
 DATA_DIR_ENV = "DPCBENCH_DATA_DIR"
 

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.errors import UserError
-from bench.plyio import PointCloud
-from bench.sequences import Sequence
-from bench.sources import SequenceSource, frame_indices
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.plyio import PointCloud
+from dpcbench.bench.sequences import Sequence
+from dpcbench.bench.sources import SequenceSource, frame_indices
 
 
 @dataclass(frozen=True)
@@ -52,8 +52,8 @@ class EmbeddedSource(SequenceSource):
 def generate_embedded(info: EmbeddedDataset, frames=None, *, cache: bool = True, progress: bool = True,
                       **params) -> Sequence:
     """Generate (or read from the cache) frames of an embedded sequence."""
-    from bench.params import check_param_types
-    from bench.standins.cache import cache_key, load_cached, store_cached
+    from dpcbench.bench.params import check_param_types
+    from dpcbench.bench.standins.cache import cache_key, load_cached, store_cached
 
     name = info.name
     known = info.parameters()
@@ -68,7 +68,7 @@ def generate_embedded(info: EmbeddedDataset, frames=None, *, cache: bool = True,
     out: list[PointCloud] = []
     iterator: Iterable[int] = indices
     if progress and len(indices) > 1:
-        from bench.progress import progress_bar
+        from dpcbench.bench.progress import progress_bar
 
         iterator = progress_bar(indices, desc=f"generating {name}", unit="frame")
     for index in iterator:

@@ -10,9 +10,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.errors import UserError
-from bench.sequences import Sequence
-from bench.sources import (
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.sequences import Sequence
+from dpcbench.bench.sources import (
     DATA_DIR_ENV,
     SequenceSource,
     data_dir_from,
@@ -51,7 +51,7 @@ def find_mesh_folder(info: MeshDataset, data_dir=None) -> Path | None:
 
 def sample_mesh_files(files: list[Path], indices, name: str, progress: bool, params: dict) -> Sequence:
     """`bench.meshseq.load_mesh_sequence` of ``files`` after checking the parameter names."""
-    from bench.meshseq import load_mesh_sequence
+    from dpcbench.bench.meshseq import load_mesh_sequence
 
     known = [n for n, p in inspect.signature(load_mesh_sequence).parameters.items()
              if p.kind is inspect.Parameter.KEYWORD_ONLY and n not in ("name", "progress")]

@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.errors import UserError
-from bench.sequences import Sequence, list_frame_files, load_sequence
-from bench.sources import (
+from dpcbench.bench.errors import UserError
+from dpcbench.bench.sequences import Sequence, list_frame_files, load_sequence
+from dpcbench.bench.sources import (
     DATA_DIR_ENV,
     SequenceSource,
     data_dir_from,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from bench.sequences import Sequence, list_frame_files, load_sequence
-from bench.sources import SequenceSource, frame_indices, refuse_params
+from dpcbench.bench.sequences import Sequence, list_frame_files, load_sequence
+from dpcbench.bench.sources import SequenceSource, frame_indices, refuse_params
 
 
 class PointCloudSource(SequenceSource):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.atomic import atomic_path
+from dpcbench.bench.atomic import atomic_path
 
 
 def cache_dir() -> Path:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, surface_voxels
+from dpcbench.bench.standins.sdf import Ellipsoid, RoundCone, SmoothUnion, surface_voxels
 
 #: bump when the output for the same parameters changes (part of the cache key); 5: frames carry normals
 GENERATOR_VERSION = 5

@@ -46,7 +46,7 @@ def bench_sequence(size: str):
     if size not in SIZES:
         raise KeyError(f"unknown benchmark size {size!r}; choose one of {', '.join(SIZES)}")
     if size not in _sequences:
-        from bench.datasets import load_dataset
+        from dpcbench.bench.datasets import load_dataset
 
         _sequences[size] = load_dataset("human", frames=N_FRAMES, seed=SEED, **SIZES[size])
     return _sequences[size]
@@ -54,7 +54,7 @@ def bench_sequence(size: str):
 
 def damage(frames, seed: int = SEED):
     """Region holes (HOLES) on the frames with a fixed seed."""
-    from holes.registry import get_generator
+    from dpcbench.holes.registry import get_generator
 
     return get_generator("region", **HOLES).damage(frames, seed=seed)
 

@@ -66,9 +66,9 @@ def load_average() -> str:
 
 def _sweep(cfg: dict, executor: str, jobs: int, scheduler: str | None, workdir: Path) -> tuple[float, object]:
     """Wall time of one sweep of ``cfg`` into a fresh store and run folder; returns (seconds, store)."""
-    from bench.config import parse_config
-    from bench.runner import run_experiment
-    from bench.store import ResultsStore
+    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.runner import run_experiment
+    from dpcbench.bench.store import ResultsStore
 
     if workdir.exists():
         shutil.rmtree(workdir)
@@ -159,7 +159,7 @@ def cmd_grid(args) -> dict:
     for name in setups:
         if name not in EXECUTOR_SETUPS:
             raise SystemExit(f"unknown setup {name!r}; choose from {', '.join(EXECUTOR_SETUPS)}")
-    from bench.config import parse_config
+    from dpcbench.bench.config import parse_config
 
     n_runs = len(parse_config(THROUGHPUT_GRID).expand())
     root = Path(tempfile.mkdtemp(prefix="dpcbench-throughput-"))
@@ -222,7 +222,7 @@ def cmd_grid(args) -> dict:
 
 class WorkerCpuPoller:
     """Samples, once a second, the CPU time (user + system, /proc/PID/stat) of every run worker process
-    (``python -m bench.runner --worker``) whose command line names ``runs_dir``; keeps the last sample
+    (``python -m dpcbench.bench.runner --worker``) whose command line names ``runs_dir``; keeps the last sample
     per run id. On a shared machine a run's wall time measures the load, its CPU time the run (Linux only)."""
 
     def __init__(self, runs_dir: Path):
@@ -258,8 +258,8 @@ class WorkerCpuPoller:
 
 
 def cmd_paper_costs(args) -> dict:
-    from bench.config import parse_config
-    from bench.paper import table_methods
+    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.paper import table_methods
 
     seqs = args.sequences.split(",")
     cfg = {
@@ -273,7 +273,7 @@ def cmd_paper_costs(args) -> dict:
     if args.columns:
         wanted = set(args.columns.split(","))
         cfg["methods"] = [m for m in cfg["methods"] if m["label"] in wanted or m["name"] in wanted]
-    from bench.datasets import load_dataset
+    from dpcbench.bench.datasets import load_dataset
 
     load_before = load_average()
     gen = {}
@@ -288,7 +288,7 @@ def cmd_paper_costs(args) -> dict:
     res = store.results_frame()
     times = res[(res.metric == "time_s") & (res.scope == "frame")]
     specs = {s.run_id: s for s in parse_config(cfg).expand()}
-    from bench.paper import column_label
+    from dpcbench.bench.paper import column_label
 
     rows = []
     for _, run in runs.iterrows():
@@ -348,7 +348,7 @@ def cmd_project(args) -> dict:
     n_seq_configs = args.sequences
     hole_configs, seeds = 2, 3  # bench/presets/paper.toml: independent and coherent holes, seeds 0-2
     durations = []
-    for col, by_seq in per_frame.items():
+    for by_seq in per_frame.values():
         for i in range(n_seq_configs):
             per = by_seq[seqs[i % len(seqs)]]  # further sequences cost like the measured stand-ins, in turn
             durations += [args.frames * per + process_overhead + task_overhead] * (hole_configs * seeds)

@@ -41,16 +41,16 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--skip-hpr", action="store_true", help="time the z-buffer only")
     args = parser.parse_args(argv)
-    from holes.occlusion import OcclusionHoles
+    from dpcbench.holes.occlusion import OcclusionHoles
 
     frames: list[tuple[str, np.ndarray]] = []
     if args.ply:
-        from bench.plyio import read_ply
+        from dpcbench.bench.plyio import read_ply
 
         for path in args.ply:
             frames.append((Path(path).stem, np.asarray(read_ply(path, colors=False).points, dtype=np.float64)))
     else:
-        from bench.datasets import load_dataset
+        from dpcbench.bench.datasets import load_dataset
 
         for name in args.sequences.split(","):
             seq = load_dataset(name, frames=args.frames, size=args.size)

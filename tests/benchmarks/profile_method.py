@@ -30,7 +30,7 @@ def main() -> int:
     parser.add_argument("--top", type=int, default=25, help="rows of the profile to print")
     args = parser.parse_args()
 
-    from methods.registry import get_method
+    from dpcbench.methods.registry import get_method
 
     damaged = damage(bench_sequence(args.size).points)
     method = get_method(args.method)

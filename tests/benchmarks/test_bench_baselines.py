@@ -24,7 +24,7 @@ import os
 
 import pytest
 
-from methods.registry import get_method
+from dpcbench.methods.registry import get_method
 
 CASES = {
     "none": ("none", {}),
@@ -48,8 +48,8 @@ def damaged_frames(size: str):
     importlib.import_module("open3d")
     importlib.import_module("pymeshlab")
 
-    from bench.datasets import load_dataset
-    from holes.registry import get_generator
+    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.holes.registry import get_generator
 
     if size not in _damaged:
         seq = load_dataset("human", frames=[0, 1, 2], progress=False, **SIZES[size])

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import pytest
 
-from holes.detection import detect_holes
-from holes.registry import get_generator
+from dpcbench.holes.detection import detect_holes
+from dpcbench.holes.registry import get_generator
 
 CASES = {
     "region-medium-ball": ("region", {"preset": "medium"}, 3),

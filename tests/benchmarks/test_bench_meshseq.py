@@ -15,7 +15,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from bench.meshseq import (
+from dpcbench.bench.meshseq import (
     face_areas_normals,
     fit_placement,
     frame_from_samples,

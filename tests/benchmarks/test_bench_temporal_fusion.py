@@ -26,8 +26,8 @@ WINDOW = 3
 
 
 def _case(size: str, holes: int):
-    from bench.datasets import load_dataset
-    from holes.registry import get_generator
+    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.holes.registry import get_generator
 
     seq = load_dataset("human", frames=2 * WINDOW + 1, progress=False, **SIZES[size])
     truth = seq.points
@@ -40,7 +40,7 @@ def _case(size: str, holes: int):
 
 
 def _run(benchmark, size, holes):
-    from methods.registry import get_method
+    from dpcbench.methods.registry import get_method
 
     frames, regions = _case(size, holes)
     method = get_method("temporal-fusion", window=WINDOW)

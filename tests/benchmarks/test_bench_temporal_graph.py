@@ -26,8 +26,8 @@ SIZES = {
 
 
 def _case(size: str, holes: int):
-    from bench.datasets import load_dataset
-    from holes.registry import get_generator
+    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.holes.registry import get_generator
 
     seq = load_dataset("human", frames=3, progress=False, **SIZES[size])
     truth = seq.points
@@ -38,7 +38,7 @@ def _case(size: str, holes: int):
 
 
 def _run(benchmark, method_name, size, holes):
-    from methods.registry import get_method
+    from dpcbench.methods.registry import get_method
 
     frames, regions = _case(size, holes)
     method = get_method(method_name)
