@@ -25,7 +25,7 @@ becomes its hole region. Every removed point lies inside a region. Unseen points
 ``seen_within`` point spacings of a seen point are kept: they are the inner layer of a surface
 that is more than one sample thick (voxelized data), not a hole.
 
-Choices, by measurement (scratch scripts; timings noisy on the shared 2-core machine):
+Choices, by measurement (one-off scripts, not kept; timings noisy on the shared 2-core machine):
 
 - HPR radius = 1000 x the camera's distance to the farthest point (``hpr_factor``). On a sampled
   sphere seen from 3 radii, factors 1-100 match the true visible cap exactly and 1000 lets 0.6 %

@@ -82,7 +82,7 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     ring of a few samples constrains only a translation) and narrow enough to move
                     with the hole's own part of the body (`temporal-copy`'s measured choice).
   icp_iterations    30: per ICP call (open3d stops earlier at convergence), as temporal-copy.
-  refine            True: point-to-plane refinement (step 2a). Measured (scratch, human tiny and
+  refine            True: point-to-plane refinement (step 2a). Measured (one-off script, human tiny and
                     dfaust, 4 frames, medium independent holes seed 0, copies from f-1/f+1): RMS
                     distance from the true hidden points to the copy 0.54 -> 0.45 voxel (after
                     rounding) and 1.30 -> 1.10 units; pairs within 2 s, not the shell width: the

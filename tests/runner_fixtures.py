@@ -2,7 +2,7 @@
 (``tests.runner_fixtures:Class``), plus tiny synthetic sequences. Fixtures only: the name does not
 start with ``test_``, so pytest does not collect it; the runner tests exercise every class here.
 
-Registering them: tests monkeypatch ``methods.registry.METHODS`` / ``holes.registry.GENERATORS`` in
+Registering them: tests monkeypatch ``method_registry.METHODS`` / ``hole_registry.GENERATORS`` in
 the driver; the run spec carries the import string, so spawned workers (which never see the
 monkeypatch) load the same classes.
 """
@@ -114,20 +114,22 @@ def write_sequence(folder: Path, n_frames: int = 3, n_points: int = 800) -> Path
 
 def register(monkeypatch) -> None:
     """Make the test methods and generator known by name in this process."""
-    from dpcbench import holes, methods
+    from dpcbench.holes import registry as hole_registry
+    from dpcbench.methods import registry as method_registry
 
     for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
-        monkeypatch.setitem(methods.registry.METHODS, cls.name, f"{HERE}:{cls.__name__}")
-    monkeypatch.setitem(holes.registry.GENERATORS, BallHoles.name, f"{HERE}:BallHoles")
+        monkeypatch.setitem(method_registry.METHODS, cls.name, f"{HERE}:{cls.__name__}")
+    monkeypatch.setitem(hole_registry.GENERATORS, BallHoles.name, f"{HERE}:BallHoles")
 
 
 def register_global() -> None:
     """`register` for a separate driver process (no monkeypatch there: the process ends with the test)."""
-    from dpcbench import holes, methods
+    from dpcbench.holes import registry as hole_registry
+    from dpcbench.methods import registry as method_registry
 
     for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
-        methods.registry.METHODS[cls.name] = f"{HERE}:{cls.__name__}"
-    holes.registry.GENERATORS[BallHoles.name] = f"{HERE}:BallHoles"
+        method_registry.METHODS[cls.name] = f"{HERE}:{cls.__name__}"
+    hole_registry.GENERATORS[BallHoles.name] = f"{HERE}:BallHoles"
 
 
 if __name__ == "__main__":  # a driver with the test entries registered: python -m tests.runner_fixtures run ...

@@ -47,10 +47,11 @@ def test_list_shows_every_section(capsys):
 
 
 def test_list_reports_a_broken_entry_instead_of_crashing(capsys, monkeypatch):
-    from dpcbench import holes, methods
+    from dpcbench.holes import registry as hole_registry
+    from dpcbench.methods import registry as method_registry
 
-    monkeypatch.setitem(holes.registry.GENERATORS, "broken-holes", "holes.no_such_module:Nothing")
-    monkeypatch.setitem(methods.registry.METHODS, "broken-method", "methods.no_such_module:Nothing")
+    monkeypatch.setitem(hole_registry.GENERATORS, "broken-holes", "holes.no_such_module:Nothing")
+    monkeypatch.setitem(method_registry.METHODS, "broken-method", "methods.no_such_module:Nothing")
     code, out, _ = run_cli(["list"], capsys)
     assert code == 0
     lines = {line.split()[0]: line for line in out.splitlines() if line.startswith("  ")}

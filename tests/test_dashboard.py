@@ -122,7 +122,7 @@ def test_css_is_package_data_inlined_and_each_section_is_one_function(tmp_path):
     assert dashboard.stylesheet() == css and ":root" in css and "tr.regressed td" in css
     assert not hasattr(dashboard, "CSS")  # no second copy in the code
     pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
-    assert "static/*.css" in pyproject["tool"]["setuptools"]["package-data"]["bench"]  # shipped in the wheel
+    assert "*.css" in pyproject["tool"]["setuptools"]["package-data"]["dpcbench.bench.static"]  # shipped in the wheel
     store = make_store(tmp_path / "s.sqlite")
     page = dashboard.render_dashboard(store.results_frame(), runs=store.runs_frame())
     assert f"<style>\n{css}</style>" in page

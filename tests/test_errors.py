@@ -147,12 +147,12 @@ def test_output_paths_that_are_files_under_files_or_unwritable(work, capsys, mon
     assert a_file.read_text() == "x"
 
     # a folder that cannot be written (simulated: root ignores permission bits)
-    from dpcbench import bench
+    from dpcbench.bench import outputs
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(bench.outputs.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(outputs.tempfile, "mkstemp", refuse)
     for argv in (["damage", "seq", "--holes", "dropout", "--out", work / "ro"],
                  ["detect-holes", "seq", "--out", work / "ro.json"],
                  ["run", "paper-quick", "--dry-run", "--store", work / "ro" / "r.sqlite"]):
@@ -162,23 +162,23 @@ def test_output_paths_that_are_files_under_files_or_unwritable(work, capsys, mon
 
 
 def test_an_oserror_writing_a_claimed_output_is_one_line(work, capsys, monkeypatch):
-    from dpcbench import bench
+    from dpcbench.bench import sequences
 
     def disk_full(path, cloud, **kwargs):
         raise OSError(28, "No space left on device", str(path))
 
-    monkeypatch.setattr(bench.sequences, "write_ply", disk_full)
+    monkeypatch.setattr(sequences, "write_ply", disk_full)
     code, _, err = run_cli(["inpaint", "seq", "--method", "none", "--regions", "holes.json", "--out", "o"], capsys)
     assert_refused(code, err, "inpaint", "No space left on device")
 
 
 def test_a_bug_keeps_its_traceback(work, monkeypatch):
-    from dpcbench import methods
+    from dpcbench.methods import reference
 
     def broken(self, frames, regions=None):
         raise ValueError("operands could not be broadcast together")  # what a numpy bug looks like
 
-    monkeypatch.setattr(methods.reference.NoFill, "inpaint", broken)
+    monkeypatch.setattr(reference.NoFill, "inpaint", broken)
     with pytest.raises(ValueError, match="broadcast"):
         main(["inpaint", "seq", "--method", "none", "--regions", "holes.json", "--out", "o"])
 
@@ -250,10 +250,10 @@ def test_every_param_option_of_every_command_goes_through_the_one_parser():
     import ast
     from pathlib import Path
 
-    from dpcbench import bench
+    import dpcbench.bench.commands as commands_pkg
     from dpcbench.bench.params import parse_params
 
-    folder = Path(bench.commands.__file__).parent
+    folder = Path(commands_pkg.__file__).parent
     checked = {}
     for path in sorted(folder.glob("*.py")):
         tree = ast.parse(path.read_text())

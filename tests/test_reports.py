@@ -155,9 +155,9 @@ def test_paper_report_labels_stand_ins_everywhere(tmp_path):
 
 
 def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
-    from dpcbench import bench
+    from dpcbench.bench.sources import meshes
 
-    monkeypatch.setattr(bench.sources.meshes, "default_data_dirs", lambda: [])  # no real-motion row (samba) here
+    monkeypatch.setattr(meshes, "default_data_dirs", lambda: [])  # no real-motion row (samba) here
     proto = paper.paper_protocol(quick=True, size="tiny", frames=2)
     assert proto.standins
     columns = [(s.method["name"], s.method["params"]) for s in proto.synthetic[:len(paper.TABLE_COLUMNS)]]

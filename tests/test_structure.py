@@ -43,11 +43,11 @@ def test_the_run_modules_import_one_way():
     """runner (sweep) -> executors -> worker -> provenance; paper and tables read run folders
     through provenance, never through the sweep driver."""
     graph = import_graph.import_graph()
-    assert "dpcbench.bench.runner" not in graph["dpcbench.bench.executors"]
-    assert "dpcbench.bench.executors" in graph["dpcbench.bench.runner"] and "dpcbench.bench.worker" in graph["dpcbench.bench.executors"]
-    for module in ("dpcbench.bench.paper", "dpcbench.bench.tables", "dpcbench.bench.worker", "dpcbench.bench.provenance"):
-        assert "dpcbench.bench.runner" not in graph[module], module
-    assert not graph["dpcbench.bench.provenance"] & {"dpcbench.bench.worker", "dpcbench.bench.executors", "dpcbench.bench.runner"}
+    assert "bench.runner" not in graph["bench.executors"]
+    assert "bench.executors" in graph["bench.runner"] and "bench.worker" in graph["bench.executors"]
+    for module in ("bench.paper", "bench.tables", "bench.worker", "bench.provenance"):
+        assert "bench.runner" not in graph[module], module
+    assert not graph["bench.provenance"] & {"bench.worker", "bench.executors", "bench.runner"}
 
 
 def test_lower_layers_import_nothing_from_a_higher_layer():
@@ -57,7 +57,7 @@ def test_lower_layers_import_nothing_from_a_higher_layer():
     graph = import_graph.import_graph()
     assert import_graph.layer_violations(graph) == []
     # the checker does see an upward import when there is one
-    assert import_graph.layer_violations({"dpcbench.metrics.pairs": {"dpcbench.bench.errors"}}) == [("dpcbench.metrics.pairs", "dpcbench.bench.errors")]
+    assert import_graph.layer_violations({"metrics.pairs": {"bench.errors"}}) == [("metrics.pairs", "bench.errors")]
 
 
 # -- atomic writes -------------------------------------------------------------------------------
