@@ -92,10 +92,11 @@ def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, t
     points only.
 
     The k-nearest-neighbour query is made block by block (`_BLOCK` points) in the KD-tree's leaf
-    order (``tree.indices``): consecutive queries then walk the same tree nodes and touch nearby
-    points, which measured 4.6 -> 3.1 s for k = 32 on a 1M-point frame (2 cores), and only a block's
-    (block, k) neighbour table is alive at a time instead of the (N, k) distances and indices
-    (0.5 GB at 1M points). Each point's neighbours do not depend on the query order or batching, so
+    order (``tree.indices``): only a block's (block, k) neighbour table is alive at a time instead of
+    the (N, k) distances and indices of all points (0.5 GB at 1M points and k = 32), and consecutive
+    queries walk the same tree nodes (k = 32, min of 3 on a shared 2-core machine at load ~6: CPU
+    4.57 -> 3.98 s on Longdress 858k, 4.83 -> 4.47 s on the 1M human, whose points are already
+    stored in grid order). Each point's neighbours do not depend on the query order or batching, so
     the results are the same as one query of all points in input order.
     """
     tree = tree if tree is not None else cKDTree(points)
