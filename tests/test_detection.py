@@ -146,3 +146,45 @@ def test_octant_prefilter_changes_no_boundary_decision(seed):
     assert np.array_equal(fast_gap[computed], full_gap[computed])
     assert np.array_equal(fast_dir[computed], full_dir[computed])
     assert (full_gap[~computed] <= np.pi / 2).all()
+
+
+def reference_boundary_points(points, k=32, gap=0.6 * np.pi):
+    """The plain computation: one k-NN query of all points in input order, angles of every point."""
+    from scipy.spatial import cKDTree
+
+    from holes.geometry import estimate_normals, tangent_basis
+
+    _, nbr = cKDTree(points).query(points, k=k)
+    tangent = tangent_basis(estimate_normals(points, k))
+    offsets = points[nbr[:, 1:]] - points[:, None, :]
+    u = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 0])
+    v = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 1])
+    angles = np.sort(np.arctan2(v, u), axis=1)
+    gaps = np.diff(angles, axis=1, append=angles[:, :1] + 2 * np.pi)
+    widest = gaps.argmax(axis=1)
+    rows = np.arange(len(points))
+    largest = gaps[rows, widest]
+    middle = angles[rows, widest] + largest / 2
+    direction = np.cos(middle)[:, None] * tangent[:, :, 0] + np.sin(middle)[:, None] * tangent[:, :, 1]
+    return largest > gap, largest, direction
+
+
+@pytest.mark.parametrize("block", [997, 1 << 16])
+def test_blocked_leaf_order_query_matches_plain_computation(human, monkeypatch, block):
+    """boundary_points queries the neighbours block by block in KD-tree leaf order and tests the sectors
+    of the nearest neighbours first; on a voxelized frame with holes (ties among neighbour distances,
+    offsets exactly on sector borders) and with many small blocks, its mask, gaps and directions are
+    exactly those of the plain computation (all gaps) and of the prefiltered one (boundary points)."""
+    import holes.detection as detection
+
+    monkeypatch.setattr(detection, "_BLOCK", block)
+    frame = get_generator("region", preset="large").damage([human[0]], 0).frames[0]
+    ref_mask, ref_gap, ref_dir = reference_boundary_points(frame)
+    mask, gaps, direction = boundary_points(frame)
+    assert 0 < ref_mask.sum() < len(frame) * 0.2
+    assert np.array_equal(mask, ref_mask) and np.array_equal(gaps, ref_gap) and np.array_equal(direction, ref_dir)
+    fast_mask, fast_gap, fast_dir = boundary_points(frame, interior_values=False)
+    computed = ~np.isnan(fast_gap)
+    assert np.array_equal(fast_mask, ref_mask) and computed[ref_mask].all() and computed.mean() < 0.2
+    assert np.array_equal(fast_gap[computed], ref_gap[computed])
+    assert np.array_equal(fast_dir[computed], ref_dir[computed])

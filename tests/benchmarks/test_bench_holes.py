@@ -17,6 +17,16 @@ hand), occlusion sphere rig 8 cameras 71.5, occlusion stage 12 cameras 146.3 (op
 frame 13.2 s before, 10.0 s after the octant prefilter (Longdress 858k: 15.0 -> 10.7 s, same regions);
 what remains is the k=32 KD query (~45 %) and open3d's normals (~35 %). Occlusion (stage, 12 cameras)
 on Longdress: 26.8 s, unchanged: 12 open3d HPR convex hulls of the whole frame are ~90 % of it.
+
+2026-11-23, detect_holes after the leaf-order blocked k-NN query and the nearest-first sector prefilter
+(identical boundary masks and regions, checked by ``tests/benchmarks/detect_holes_agreement.py``),
+min of 3 at load average 4.8-5.6 on the 2 cores: process CPU 12.23 -> 10.50 s on the 1M human
+(981,278 points after medium holes), 9.72 -> 9.24 s on Longdress 858k; wall times at that load (14.7 ->
+10.3 s, 11.0 -> 13.9 s) are dominated by the other jobs. cProfile (1M human): the k = 32 cKDTree query
+~45 % and open3d's k = 32 normals ~35 % of the time; both are needed as they are for identical output
+(computing the normals from the cKDTree neighbours instead changes the neighbour sets where distances
+tie: 74 % of the normals of a 65,536-point block of Longdress, by up to 49 degrees), so 3 s on 1M is
+out of reach without changing the detected regions.
 """
 
 from __future__ import annotations
