@@ -152,7 +152,7 @@ def reference_boundary_points(points, k=32, gap=0.6 * np.pi):
     """The plain computation: one k-NN query of all points in input order, angles of every point."""
     from scipy.spatial import cKDTree
 
-    from holes.geometry import estimate_normals, tangent_basis
+    from dpcbench.holes.geometry import estimate_normals, tangent_basis
 
     _, nbr = cKDTree(points).query(points, k=k)
     tangent = tangent_basis(estimate_normals(points, k))
@@ -175,7 +175,7 @@ def test_blocked_leaf_order_query_matches_plain_computation(human, monkeypatch, 
     of the nearest neighbours first; on a voxelized frame with holes (ties among neighbour distances,
     offsets exactly on sector borders) and with many small blocks, its mask, gaps and directions are
     exactly those of the plain computation (all gaps) and of the prefiltered one (boundary points)."""
-    import holes.detection as detection
+    import dpcbench.holes.detection as detection
 
     monkeypatch.setattr(detection, "_BLOCK", block)
     frame = get_generator("region", preset="large").damage([human[0]], 0).frames[0]

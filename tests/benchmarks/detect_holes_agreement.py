@@ -52,8 +52,8 @@ def load_before(revision: str):
 def frames(standins: list[str], plys: list[str]):
     """(label, (N, 3) frame) for each requested stand-in and PLY file."""
     for item in standins:
-        from bench.datasets import load_dataset
-        from holes.registry import get_generator
+        from dpcbench.bench.datasets import load_dataset
+        from dpcbench.holes.registry import get_generator
 
         name, _, size = item.partition(":")
         kwargs = dict(ONE_MILLION) if size == "1m" else {"size": size or "small"}
@@ -61,7 +61,7 @@ def frames(standins: list[str], plys: list[str]):
         damaged = get_generator("region", preset="medium").damage([seq[0]], 0).frames[0]
         yield f"{name}:{size} + medium holes", damaged
     for path in plys:
-        from bench.plyio import read_ply
+        from dpcbench.bench.plyio import read_ply
 
         yield os.path.basename(path), np.asarray(read_ply(path).points, dtype=np.float64)
 
@@ -89,7 +89,7 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args(argv)
 
-    from holes import detection as after
+    from dpcbench.holes import detection as after
 
     before = load_before(args.before)
     warm = np.random.default_rng(0).normal(size=(2000, 3))
