@@ -17,6 +17,8 @@ from dpcbench.methods.temporal_fusion import (
     fit_height_field,
     interpolate_displacement,
     mls_project,
+    plane_target,
+    refine_point_to_plane,
     rim_displacement,
     rim_surface_fill,
     snap_to_voxels,
@@ -275,6 +277,36 @@ def test_rim_surface_fill_recovers_a_paraboloid_inside_the_hole_only():
     # starts one spacing from the kept points; its grid is turned against the data's)
     kept = surface[~region.contains(surface)]
     assert cKDTree(np.vstack([fill, kept])).query(hidden)[0].max() < 1.2
+
+
+def test_rim_surface_fill_covers_a_box_region():
+    """A box hole (its corners reach the bounding radius): the fill covers all of it, checked
+    point by point against the hidden surface (the grid is cut to the region's bounding disc and the
+    support's convex hull before the spline is evaluated)."""
+    surface = paraboloid_patch()
+    rotation = Rotation.from_rotvec([0.0, 0.0, 0.4]).as_matrix()
+    region = HoleRegion.box([2.0, 1.0, 0.0], [9.0, 4.0, 6.0], rotation=rotation)
+    kept = surface[~region.contains(surface)]
+    rim = kept[region.contains(kept, margin=8.0)]
+    fill = rim_surface_fill(rim, region, cKDTree(kept), 1.0, voxelized=False, ring=4.0)
+    hidden = surface[region.contains(surface)]
+    assert region.contains(fill).all()
+    assert np.abs(fill[:, 2] - 0.01 * (fill[:, 0] ** 2 + 0.5 * fill[:, 1] ** 2)).max() < 0.05
+    assert cKDTree(np.vstack([fill, kept])).query(hidden)[0].max() < 1.2
+
+
+def test_refine_point_to_plane_with_a_reused_target_cloud_is_the_same_refinement():
+    surface = paraboloid_patch(curvature=0.02)
+    rotation = Rotation.from_rotvec([0.01, -0.02, 0.015]).as_matrix()
+    source = (surface[::3] - [0.3, 0.2, 0.4]) @ rotation
+    init = (np.eye(3), np.zeros(3))
+    fresh = refine_point_to_plane(source, surface, 3.0, init, 30)
+    reused = refine_point_to_plane(source, surface, 3.0, init, 30, target_cloud=plane_target(surface))
+    np.testing.assert_allclose(reused[0], fresh[0], atol=1e-12)
+    np.testing.assert_allclose(reused[1], fresh[1], atol=1e-12)
+    # and it is a refinement: the moved source lies on the target's surface
+    moved = source @ fresh[0].T + fresh[1]
+    assert np.abs(moved[:, 2] - 0.02 * (moved[:, 0] ** 2 + 0.5 * moved[:, 1] ** 2)).max() < 0.05
 
 
 def test_rim_surface_fill_leaves_a_hole_open_when_the_rim_is_not_one_surface():
