@@ -178,10 +178,13 @@ def zbuffer_visible_mask(points: np.ndarray, normals: np.ndarray, cameras: np.nd
     (open3d's raycasting needs a mesh, and a reconstruction per frame costs more than HPR did).
     """
     # float32 throughout: coordinates of captured data are far below 2^24, and the depth test's slack
-    # is a point spacing, so float32 rounding (1e-7 relative) cannot flip it; it halves the memory traffic
-    points = np.asarray(points, dtype=np.float32)
-    normals = np.asarray(normals, dtype=np.float32)
-    seen = np.zeros(len(points), dtype=bool)
+    # is a point spacing, so float32 rounding (1e-7 relative) cannot flip it; it halves the memory traffic.
+    # Coordinates are kept as rows (3, N) so that every per-axis step runs over contiguous memory.
+    coords_t = np.ascontiguousarray(np.asarray(points, dtype=np.float32).T)
+    normals_t = np.ascontiguousarray(np.asarray(normals, dtype=np.float32).T)
+    # n . (p - c) = n . p - n . c: the first term once for all cameras
+    n_dot_p = np.einsum("in,in->n", normals_t, coords_t)
+    seen = np.zeros(coords_t.shape[1], dtype=bool)
     radius = round(splat * pixels_per_spacing)
     world_up = np.array([0.0, 1.0, 0.0])
     for cam in np.asarray(cameras, dtype=np.float64):
@@ -191,33 +194,41 @@ def zbuffer_visible_mask(points: np.ndarray, normals: np.ndarray, cameras: np.nd
         right = np.cross(forward, helper)
         right /= np.linalg.norm(right)
         up = np.cross(right, forward)
-        rel = points - cam.astype(np.float32)
-        cam_xyz = rel @ np.column_stack([right, up, forward]).astype(np.float32)  # (N, 3): x, y, depth
-        depth = cam_xyz[:, 2]
+        rel_t = coords_t - cam.astype(np.float32)[:, None]
+        x, y, depth = np.vstack([right, up, forward]).astype(np.float32) @ rel_t  # camera frame
         nearest = float(depth.min())
         if nearest <= 0:
             raise UserError(f"occlusion holes: camera {cam.tolist()} has points behind or beside it; place the "
                             "cameras around the subject, looking at it")
         pixel = spacing / nearest / pixels_per_spacing
-        image = cam_xyz[:, :2] / (depth * pixel)[:, None]
-        image -= image.min(axis=0)
-        pix = image.astype(np.int64) + radius
-        width = int(pix[:, 0].max()) + radius + 1
-        height = int(pix[:, 1].max()) + radius + 1
-        flat = pix[:, 1] * width + pix[:, 0]
+        scale = depth * np.float32(pixel)
+        x /= scale
+        y /= scale
+        x -= x.min()
+        y -= y.min()
+        col = x.astype(np.int64)
+        col += radius
+        row = y.astype(np.int64)
+        row += radius
+        width = int(col.max()) + radius + 1
+        height = int(row.max()) + radius + 1
+        flat = row * width + col
         zbuf = np.full(height * width, np.inf, dtype=np.float32)
         np.minimum.at(zbuf, flat, depth)
         if radius > 0:
             zbuf = ndimage.minimum_filter(zbuf.reshape(height, width), size=2 * radius + 1, mode="nearest").ravel()
-        # only points not yet seen, facing the camera at a non-grazing angle, can become seen here
+        # only points not yet seen, facing the camera at a non-grazing angle, can become seen here;
+        # |p - c| is the length of the camera-frame coordinates (a rotation keeps it)
         idx = np.flatnonzero(~seen)
-        r = rel[idx]
-        cos = np.abs(np.einsum("ij,ij->i", r, normals[idx])) / np.sqrt(np.einsum("ij,ij->i", r, r))
+        rel = rel_t[:, idx]
+        cos = np.abs(n_dot_p[idx] - cam.astype(np.float32) @ normals_t[:, idx])
+        cos /= np.sqrt(np.einsum("in,in->n", rel, rel))
         keep = cos >= min_cos
         idx, cos = idx[keep], cos[keep]
         tan = np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / cos
-        slack = spacing * depth_tolerance + radius * pixel * depth[idx] * tan
-        seen[idx[depth[idx] <= zbuf[flat[idx]] + slack]] = True
+        depth_idx = depth[idx]
+        slack = spacing * depth_tolerance + radius * pixel * depth_idx * tan
+        seen[idx[depth_idx <= zbuf[flat[idx]] + slack]] = True
     return seen
 
 
@@ -249,14 +260,33 @@ def raycast_visible_mask(vertices: np.ndarray, triangles: np.ndarray, points: np
     return seen
 
 
-def unseen_after_cover(points: np.ndarray, seen: np.ndarray, within: float) -> np.ndarray:
+def unseen_after_cover(points: np.ndarray, seen: np.ndarray, within: float, tree: cKDTree | None = None) -> np.ndarray:
     """Mask (N,) of the points not ``seen`` (N,) and farther than ``within`` (a length; 0: off) from every
     seen point. A voxelized surface is 1-2 voxels thick: its inner layer is hidden behind the outer one
-    but is no hole, so an unseen point next to a seen one counts as covered (a splat of about one spacing)."""
-    mask = ~np.asarray(seen, dtype=bool)
-    if within > 0 and seen.any() and mask.any():
+    but is no hole, so an unseen point next to a seen one counts as covered (a splat of about one spacing).
+
+    tree: a cKDTree of ``points`` to reuse: then the unseen points query their k nearest of all points
+    within ``within`` (k = 16, x4 for the few whose k nearest all lie within and are all unseen), which
+    costs less than a tree of the seen points; the result is the same.
+    """
+    seen = np.asarray(seen, dtype=bool)
+    mask = ~seen
+    if not (within > 0 and seen.any() and mask.any()):
+        return mask
+    if tree is None:
         near, _ = cKDTree(points[seen]).query(points[mask], distance_upper_bound=within)
         mask[np.flatnonzero(mask)[np.isfinite(near)]] = False
+        return mask
+    undecided, k = np.flatnonzero(mask), 16
+    while len(undecided):
+        k = min(k, len(points))
+        dist, nbr = tree.query(points[undecided], k=k, distance_upper_bound=within)
+        inside = np.isfinite(dist)
+        covered = (inside & seen[np.where(inside, nbr, 0)]).any(axis=1)
+        mask[undecided[covered]] = False
+        if k == len(points):
+            break
+        undecided, k = undecided[~covered & inside[:, -1]], 4 * k
     return mask
 
 
@@ -366,14 +396,17 @@ class OcclusionHoles(HoleGenerator):
             return sphere_cameras(points, int(self.count), self.distance)
         return stage_cameras(points, tuple(self.rings), int(self.per_ring), self.distance, self.up, azimuth)
 
-    def occluded_mask(self, points: np.ndarray, azimuth: float = 0.0, spacing: float | None = None) -> np.ndarray:
+    def occluded_mask(self, points: np.ndarray, azimuth: float = 0.0, spacing: float | None = None,
+                      tree: cKDTree | None = None) -> np.ndarray:
         """Mask (N,) of the points of one frame (N, 3) that the rig does not see (what `damage` removes):
         PCA normals, the cameras (stage rig turned by ``azimuth`` radians), the visibility operator, then
-        `unseen_after_cover` with ``seen_within``. spacing: `point_spacing` of ``points`` (computed if None)."""
+        `unseen_after_cover` with ``seen_within``. spacing: `point_spacing` of ``points`` (computed if None);
+        tree: a cKDTree of ``points`` to reuse (built if None)."""
         self._check()
         pts = np.asarray(points, dtype=np.float64)
+        tree = cKDTree(pts) if tree is None else tree
         if spacing is None:
-            spacing = point_spacing(pts, cKDTree(pts))
+            spacing = point_spacing(pts, tree)
         normals = estimate_normals(pts, int(self.normal_k))
         cams = self._cameras(pts, azimuth)
         if self.visibility == "hpr":
@@ -382,7 +415,7 @@ class OcclusionHoles(HoleGenerator):
             center = (pts.min(axis=0) + pts.max(axis=0)) / 2
             seen = zbuffer_visible_mask(pts, normals, cams, self.min_cos, spacing, center,
                                         float(self.depth_tolerance), float(self.splat))
-        return unseen_after_cover(pts, seen, float(self.seen_within) * spacing)
+        return unseen_after_cover(pts, seen, float(self.seen_within) * spacing, tree)
 
     def damage(self, frames: list[np.ndarray], seed: Seed, colors: Colors = None) -> DamageResult:
         frames, colors = check_sequence_input(frames, colors, "occlusion holes")
@@ -394,8 +427,9 @@ class OcclusionHoles(HoleGenerator):
             if len(pts) < self.normal_k:
                 raise ValueError(
                     f"occlusion holes: frame {f} has {len(pts)} points, fewer than normal_k={self.normal_k}")
-            spacing = point_spacing(pts, cKDTree(pts))
-            mask = self.occluded_mask(pts, azimuth, spacing)
+            tree = cKDTree(pts)
+            spacing = point_spacing(pts, tree)
+            mask = self.occluded_mask(pts, azimuth, spacing, tree)
             frame_regions, _ = (components_to_regions(pts[mask], 3 * spacing, margin=spacing)
                                 if mask.any() else ([], None))
             regions.append(frame_regions)

@@ -280,3 +280,24 @@ def test_raycast_reference_on_one_sphere():
     clear = np.abs(cos_to_cam - 1 / d) > 0.02  # facets move the horizon by about their size
     assert clear.sum() > 0.95 * len(pts)
     np.testing.assert_array_equal(seen[clear], cos_to_cam[clear] > 0.25)
+
+
+def test_cover_rule_with_a_tree_matches_brute_force():
+    """`unseen_after_cover` with the frame's tree (k nearest, k raised where all k are unseen and
+    within reach) against the plain definition: unseen and no seen point closer than ``within``.
+    A dense unseen clump (60 points in a ball of radius 0.3) makes the first k = 16 fall short."""
+    from scipy.spatial import cKDTree
+    from scipy.spatial.distance import cdist
+
+    from dpcbench.holes.occlusion import unseen_after_cover
+
+    rng = np.random.default_rng(3)
+    pts = np.vstack([rng.uniform(0, 10, size=(1500, 3)), 5 + 0.3 * rng.normal(size=(60, 3))])
+    seen = rng.random(len(pts)) < 0.6
+    seen[1500:] = False
+    seen[1500] = True  # one seen point inside the clump: only a deep search finds it for the far ones
+    within = 0.9
+    brute = ~seen & ~(cdist(pts, pts[seen]) < within).any(axis=1)
+    np.testing.assert_array_equal(unseen_after_cover(pts, seen, within, cKDTree(pts)), brute)
+    np.testing.assert_array_equal(unseen_after_cover(pts, seen, within), brute)
+    assert brute.any() and (~seen & ~brute).any()
