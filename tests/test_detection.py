@@ -132,8 +132,9 @@ def test_bad_input_refused(points, params, match):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_octant_prefilter_changes_no_boundary_decision(seed):
-    """detect_holes skips the angle sort where all 8 sectors hold a neighbour; the boundary mask and the
-    gap directions of the boundary points must equal the full computation's."""
+    """detect_holes skips the angle sort where all 8 sectors hold a neighbour (and the test at k where
+    the screen fails); the boundary mask and the gap directions of the boundary points must equal the
+    full computation's."""
     pts = sphere(6000, seed=seed)
     rng = np.random.default_rng(seed)
     pts = pts[np.linalg.norm(pts - pts[rng.integers(len(pts))], axis=1) > 20]  # a hole
@@ -145,7 +146,9 @@ def test_octant_prefilter_changes_no_boundary_decision(seed):
     assert computed[full_mask].all() and computed.mean() < 0.5
     assert np.array_equal(fast_gap[computed], full_gap[computed])
     assert np.array_equal(fast_dir[computed], full_dir[computed])
-    assert (full_gap[~computed] <= np.pi / 2).all()
+    passed_screen = boundary_points(pts, 16, screen=None)[0]
+    assert ((full_gap[~computed] <= np.pi / 2) | ~passed_screen[~computed]).all()
+    assert (~passed_screen[~computed]).any()  # the screen did spare work
 
 
 def reference_boundary_points(points, k=16, gap=0.6 * np.pi):
@@ -175,31 +178,48 @@ def reference_boundary_points(points, k=16, gap=0.6 * np.pi):
 
 
 @pytest.mark.parametrize("block", [997, 1 << 16])
-@pytest.mark.parametrize("k", [16, 32])
-def test_boundary_points_match_plain_computation(human, monkeypatch, block, k):
-    """boundary_points (one leaf-order k-NN query per block, closed-form normals from the same k points,
-    sector prefilter) against the plain computation (one query, eigh normals, all angles) on a voxelized
-    frame with holes (ties among neighbour distances, offsets exactly on sector borders), with many small
-    blocks: the same mask and, up to rounding of the two eigen-solvers, the same gaps and directions (the
-    normals' signs may differ: that mirrors the tangent axes, not the gap or its middle direction)."""
+@pytest.mark.parametrize("k,screen", [(16, None), (32, None), (32, 16)])
+def test_boundary_points_match_plain_computation(human, monkeypatch, block, k, screen):
+    """boundary_points (one leaf-order k-NN query per block and test, closed-form normals from the same
+    points, sector prefilter, optional screen) against the plain computation (one query, eigh normals,
+    all angles; mask = test at k and test at screen) on a voxelized frame with holes (ties among
+    neighbour distances, offsets exactly on sector borders), with many small blocks: the same mask and,
+    up to rounding of the two eigen-solvers, the same gaps and directions (the normals' signs may
+    differ: that mirrors the tangent axes, not the gap or its middle direction)."""
     import dpcbench.holes.detection as detection
 
     monkeypatch.setattr(detection, "_BLOCK", block)
     frame = get_generator("region", preset="large").damage([human[0]], 0).frames[0]
     ref_mask, ref_gap, ref_dir, ref_margin = reference_boundary_points(frame, k)
-    mask, gaps, direction = boundary_points(frame, k)
-    assert 0 < ref_mask.sum() < len(frame) * 0.2
     near_threshold = np.abs(ref_gap - 0.6 * np.pi) < 1e-9
+    if screen is not None:
+        screen_mask, screen_gap = reference_boundary_points(frame, screen)[:2]
+        ref_mask = ref_mask & screen_mask
+        near_threshold |= np.abs(screen_gap - 0.6 * np.pi) < 1e-9
+    mask, gaps, direction = boundary_points(frame, k, screen=screen)
+    assert 0 < ref_mask.sum() < len(frame) * 0.2
     assert np.array_equal(mask[~near_threshold], ref_mask[~near_threshold])
     np.testing.assert_allclose(gaps, ref_gap, rtol=0, atol=1e-8)
-    # the middle of the widest gap; where two gaps are equally widest either middle is right
     agree = np.einsum("ij,ij->i", direction, ref_dir) > 1 - 1e-8
-    assert agree[ref_margin > 1e-8].all() and agree.mean() > 0.9
-    fast_mask, fast_gap, fast_dir = boundary_points(frame, k, interior_values=False)
+    assert agree[ref_margin > 1e-8].all() and agree.mean() > 0.8
+    fast_mask, fast_gap, fast_dir = boundary_points(frame, k, interior_values=False, screen=screen)
     computed = ~np.isnan(fast_gap)
     assert np.array_equal(fast_mask, mask) and computed[mask].all() and computed.mean() < 0.6
     assert np.array_equal(fast_gap[computed], gaps[computed])
     assert np.array_equal(fast_dir[computed], direction[computed])
+
+
+def test_screen_keeps_randomly_sampled_surfaces_clean():
+    """The screen at 16 neighbours alone flags ~10 % of a randomly sampled sphere (measured 743-902 of
+    8000 points, seeds 0-2) and makes spurious holes; behind it the test at k = 32 flags what k = 32
+    alone flags (2-10 points), so the sphere has no hole."""
+    pts = sphere(8000, seed=1)
+    screen_only = boundary_points(pts, 16)[0]
+    both = boundary_points(pts, 32, screen=16)[0]
+    alone = boundary_points(pts, 32, screen=None)[0]
+    assert screen_only.sum() > 400 and both.sum() < 30
+    assert np.array_equal(both, alone & screen_only)
+    assert detect_holes(pts) == [] and len(detect_holes(pts, k=16, screen=None)) > 0
 
 
 def test_smallest_eigenvectors_match_eigh():
