@@ -33,7 +33,9 @@ Scores, per damaged frame (``detect_holes`` with ``--param`` keyword arguments, 
 Totals are pooled (sums of counts over frames, not means of ratios). ``--json`` writes every
 per-frame record and the totals, so that two runs (before / after a change) can be compared with
 ``--compare A.json B.json``, which prints the totals side by side and the frames whose detected
-regions differ (count of regions per frame, and how many regions of A have no identical region in B).
+regions differ: count of regions per frame, how many regions of A have no identical region in B
+(centre and radius equal to 1e-9), and how many are *gone* (no region of B centred within half the
+A region's radius).
 """
 
 from __future__ import annotations
@@ -201,18 +203,23 @@ def compare(a_path: str, b_path: str) -> None:
     a, b = (json.loads(Path(p).read_text()) for p in (a_path, b_path))
     print(line("A " + str(a["revision"] or "current") + str(a["params"] or ""), a["totals"]))
     print(line("B " + str(b["revision"] or "current") + str(b["params"] or ""), b["totals"]))
-    changed = 0
-    total = 0
+    changed = total = gone = 0
     for ra, rb in zip(a["records"], b["records"]):
         assert (ra["frame"], ra["preset"], ra["seed"]) == (rb["frame"], rb["preset"], rb["seed"])
         same = sum(any(np.allclose(x, y, rtol=0, atol=1e-9) for y in rb["regions"]) for x in ra["regions"])
+        # a region of A "gone" from B: no region of B has its centre within half A's radius
+        missing = sum(not any(np.linalg.norm(np.subtract(x[:3], y[:3])) <= x[3] / 2 for y in rb["regions"])
+                      for x in ra["regions"])
         total += len(ra["regions"])
+        gone += missing
         if same != len(ra["regions"]) or len(ra["regions"]) != len(rb["regions"]):
             changed += 1
             print(f"  {ra['frame']} {ra['preset']} seed {ra['seed']}: regions {len(ra['regions'])} -> "
-                  f"{len(rb['regions'])}, {len(ra['regions']) - same} of A's not in B; found {ra['found']} -> "
-                  f"{rb['found']}, spurious {ra['spurious']} -> {rb['spurious']}")
-    print(f"{changed} of {len(a['records'])} damaged frames have different regions ({total} regions in A)")
+                  f"{len(rb['regions'])}, {len(ra['regions']) - same} of A's not identical in B, {missing} gone "
+                  f"(no B centre within half its radius); found {ra['found']} -> {rb['found']}, spurious "
+                  f"{ra['spurious']} -> {rb['spurious']}")
+    print(f"{changed} of {len(a['records'])} damaged frames have different regions; of A's {total} regions, "
+          f"{gone} have no B region near (centre within half the radius)")
 
 
 def main(argv=None) -> int:
