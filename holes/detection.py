@@ -198,9 +198,10 @@ def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, t
     tree = tree if tree is not None else cKDTree(points)
     n = len(points)
     prefilter = not interior_values and gap >= np.pi / 2
-    screened = screen is not None and screen < k
-    if screened and (int(screen) != screen or screen < 5):
+    screen_k = k if screen is None else screen  # a screen of k or more neighbours would test nothing new
+    if screen_k < k and (int(screen_k) != screen_k or screen_k < 5):
         raise UserError(f"boundary_points: screen must be None or an integer >= 5, got {screen!r}")
+    screened = screen_k < k
     largest = np.full(n, np.nan)
     direction = np.full((n, 3), np.nan)
     passed_screen = np.ones(n, dtype=bool)
@@ -210,7 +211,7 @@ def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, t
         rows = leaf_order[start:start + _BLOCK]
         if screened:
             passed_screen[rows] = False
-            done, widest, _ = _widest_gaps(points, columns, tree, rows, int(screen), prefilter)
+            done, widest, _ = _widest_gaps(points, columns, tree, rows, int(screen_k), prefilter)
             passed_screen[done[widest > gap]] = True
             if not interior_values:
                 rows = done[widest > gap]
