@@ -81,20 +81,23 @@ def test_intact_human_has_no_detected_holes(human):
 
 @pytest.mark.parametrize("preset", ["small", "medium"])
 def test_detection_finds_synthetic_holes(human, preset):
-    """Recall and precision of detection on region holes of the tiny embedded human, 3 frames.
+    """Recall and precision of detection on region holes of the tiny embedded human, 3 frames x seeds 0-2.
 
-    Measured (a one-off script, not kept; 4 frames x seeds 0-2, default parameters): tiny
-    human, small preset recall 1.00 / precision 1.00, medium 0.98 / 1.00, large 0.87 / 0.97;
-    small human: small and medium 1.00 / 1.00, large 0.77 / 1.00 (large holes that sever a limb
-    leave two open rims that look like the end of an open scan and are not reported). Thresholds
-    below leave room for other seeds: mean recall >= 0.9 and mean precision >= 0.9.
+    Measured with default parameters (3 frames x seeds 0-2), recall / precision: small preset
+    1.00 / 1.00, medium 0.944 / 1.00, large 0.844 / 0.959 (the detector before the shared-query
+    change: 1.00 / 1.00, 0.972 / 1.00, 0.889 / 0.959; the holes it lost have a rim inward score
+    just under min_inward = 0.1, where the neighbours chosen among equal distances decide). Earlier,
+    on the small human: small and medium 1.00 / 1.00, large 0.77 / 1.00 (large holes that sever a
+    limb leave two open rims that look like the end of an open scan and are not reported). The
+    thresholds leave room: mean recall >= 0.9 and mean precision >= 0.9 over the 9 frames.
     """
-    res = get_generator("region", preset=preset).damage(human, 0)
     recall, precision = [], []
-    for f, original in enumerate(human):
-        scores = detection_scores(detect_holes(res.frames[f]), res.regions[f], original[res.removed[f]])
-        recall.append(scores["recall"])
-        precision.append(scores["precision"])
+    for seed in range(3):
+        res = get_generator("region", preset=preset).damage(human, seed)
+        for f, original in enumerate(human):
+            scores = detection_scores(detect_holes(res.frames[f]), res.regions[f], original[res.removed[f]])
+            recall.append(scores["recall"])
+            precision.append(scores["precision"])
     assert np.mean(recall) >= 0.9
     assert np.mean(precision) >= 0.9
 
