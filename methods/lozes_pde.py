@@ -79,7 +79,7 @@ class LozesPDE(PerFrameMethod):
 
     name = "lozes-pde"
     summary = "graph p-Laplacian (p=2 or 1) evolution of seeded hole points, frame by frame (Lozes et al. 2014/2015)"
-    version = "2"  # 2: blind mode's regions from holes.detection with the 16-neighbour screen
+    version = "1"
     detects_holes = True
 
     def __init__(self, p: float = 2.0, k_neighbours: int = 10, sigma_spacings: float = 1.0,

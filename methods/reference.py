@@ -106,7 +106,7 @@ class TemporalCopy(InpaintingMethod):
 
     name = "temporal-copy"
     summary = "copies the hole region from the neighbouring frame (f-1 or f+1) after ICP alignment of its surroundings"
-    version = "2"  # 2: blind mode's regions from holes.detection with the 16-neighbour screen
+    version = "1"
     uses_neighbour_frames = True
     detects_holes = True
 

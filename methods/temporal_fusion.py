@@ -411,7 +411,7 @@ class TemporalFusion(InpaintingMethod):
     summary = ("fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface where no frame saw it and the fit is trusted")
-    version = "4"  # 4: blind mode's regions from holes.detection with the 16-neighbour screen
+    version = "3"
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

@@ -81,23 +81,20 @@ def test_intact_human_has_no_detected_holes(human):
 
 @pytest.mark.parametrize("preset", ["small", "medium"])
 def test_detection_finds_synthetic_holes(human, preset):
-    """Recall and precision of detection on region holes of the tiny embedded human, 3 frames x seeds 0-2.
+    """Recall and precision of detection on region holes of the tiny embedded human, 3 frames.
 
-    Measured with default parameters (3 frames x seeds 0-2), recall / precision: small preset
-    1.00 / 1.00, medium 0.944 / 1.00, large 0.844 / 0.959 (the detector before the shared-query
-    change: 1.00 / 1.00, 0.972 / 1.00, 0.889 / 0.959; the holes it lost have a rim inward score
-    just under min_inward = 0.1, where the neighbours chosen among equal distances decide). Earlier,
-    on the small human: small and medium 1.00 / 1.00, large 0.77 / 1.00 (large holes that sever a
-    limb leave two open rims that look like the end of an open scan and are not reported). The
-    thresholds leave room: mean recall >= 0.9 and mean precision >= 0.9 over the 9 frames.
+    Measured (a one-off script, not kept; 4 frames x seeds 0-2, default parameters): tiny
+    human, small preset recall 1.00 / precision 1.00, medium 0.98 / 1.00, large 0.87 / 0.97;
+    small human: small and medium 1.00 / 1.00, large 0.77 / 1.00 (large holes that sever a limb
+    leave two open rims that look like the end of an open scan and are not reported). Thresholds
+    below leave room for other seeds: mean recall >= 0.9 and mean precision >= 0.9.
     """
+    res = get_generator("region", preset=preset).damage(human, 0)
     recall, precision = [], []
-    for seed in range(3):
-        res = get_generator("region", preset=preset).damage(human, seed)
-        for f, original in enumerate(human):
-            scores = detection_scores(detect_holes(res.frames[f]), res.regions[f], original[res.removed[f]])
-            recall.append(scores["recall"])
-            precision.append(scores["precision"])
+    for f, original in enumerate(human):
+        scores = detection_scores(detect_holes(res.frames[f]), res.regions[f], original[res.removed[f]])
+        recall.append(scores["recall"])
+        precision.append(scores["precision"])
     assert np.mean(recall) >= 0.9
     assert np.mean(precision) >= 0.9
 
@@ -135,9 +132,8 @@ def test_bad_input_refused(points, params, match):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_octant_prefilter_changes_no_boundary_decision(seed):
-    """detect_holes skips the angle sort where all 8 sectors hold a neighbour (and the test at k where
-    the screen fails); the boundary mask and the gap directions of the boundary points must equal the
-    full computation's."""
+    """detect_holes skips the angle sort where all 8 sectors hold a neighbour; the boundary mask and the
+    gap directions of the boundary points must equal the full computation's."""
     pts = sphere(6000, seed=seed)
     rng = np.random.default_rng(seed)
     pts = pts[np.linalg.norm(pts - pts[rng.integers(len(pts))], axis=1) > 20]  # a hole
@@ -149,23 +145,17 @@ def test_octant_prefilter_changes_no_boundary_decision(seed):
     assert computed[full_mask].all() and computed.mean() < 0.5
     assert np.array_equal(fast_gap[computed], full_gap[computed])
     assert np.array_equal(fast_dir[computed], full_dir[computed])
-    passed_screen = boundary_points(pts, 16, screen=None)[0]
-    assert ((full_gap[~computed] <= np.pi / 2) | ~passed_screen[~computed]).all()
-    assert (~passed_screen[~computed]).any()  # the screen did spare work
+    assert (full_gap[~computed] <= np.pi / 2).all()
 
 
-def reference_boundary_points(points, k=16, gap=0.6 * np.pi):
-    """The plain computation: one k-NN query of all points in input order, each normal by
-    ``numpy.linalg.eigh`` of the covariance of the same k points, the angles of every point.
-    Returns (mask, largest gap, its middle direction, largest minus second largest gap)."""
+def reference_boundary_points(points, k=32, gap=0.6 * np.pi):
+    """The plain computation: one k-NN query of all points in input order, angles of every point."""
     from scipy.spatial import cKDTree
 
-    from dpcbench.holes.geometry import tangent_basis
+    from dpcbench.holes.geometry import estimate_normals, tangent_basis
 
     _, nbr = cKDTree(points).query(points, k=k)
-    hood = points[nbr] - points[nbr].mean(axis=1, keepdims=True)
-    normals = np.linalg.eigh(np.einsum("nki,nkj->nij", hood, hood))[1][:, :, 0]
-    tangent = tangent_basis(normals)
+    tangent = tangent_basis(estimate_normals(points, k))
     offsets = points[nbr[:, 1:]] - points[:, None, :]
     u = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 0])
     v = np.einsum("nkd,nd->nk", offsets, tangent[:, :, 1])
@@ -176,78 +166,25 @@ def reference_boundary_points(points, k=16, gap=0.6 * np.pi):
     largest = gaps[rows, widest]
     middle = angles[rows, widest] + largest / 2
     direction = np.cos(middle)[:, None] * tangent[:, :, 0] + np.sin(middle)[:, None] * tangent[:, :, 1]
-    margin = largest - np.sort(gaps, axis=1)[:, -2]  # over the second widest: 0 where two gaps tie
-    return largest > gap, largest, direction, margin
+    return largest > gap, largest, direction
 
 
 @pytest.mark.parametrize("block", [997, 1 << 16])
-@pytest.mark.parametrize("k,screen", [(16, None), (32, None), (32, 16)])
-def test_boundary_points_match_plain_computation(human, monkeypatch, block, k, screen):
-    """boundary_points (one leaf-order k-NN query per block and test, closed-form normals from the same
-    points, sector prefilter, optional screen) against the plain computation (one query, eigh normals,
-    all angles; mask = test at k and test at screen) on a voxelized frame with holes (ties among
-    neighbour distances, offsets exactly on sector borders), with many small blocks: the same mask and,
-    up to rounding of the two eigen-solvers, the same gaps and directions (the normals' signs may
-    differ: that mirrors the tangent axes, not the gap or its middle direction)."""
+def test_blocked_leaf_order_query_matches_plain_computation(human, monkeypatch, block):
+    """boundary_points queries the neighbours block by block in KD-tree leaf order and tests the sectors
+    of the nearest neighbours first; on a voxelized frame with holes (ties among neighbour distances,
+    offsets exactly on sector borders) and with many small blocks, its mask, gaps and directions are
+    exactly those of the plain computation (all gaps) and of the prefiltered one (boundary points)."""
     import dpcbench.holes.detection as detection
 
     monkeypatch.setattr(detection, "_BLOCK", block)
     frame = get_generator("region", preset="large").damage([human[0]], 0).frames[0]
-    ref_mask, ref_gap, ref_dir, ref_margin = reference_boundary_points(frame, k)
-    near_threshold = np.abs(ref_gap - 0.6 * np.pi) < 1e-9
-    if screen is not None:
-        screen_mask, screen_gap = reference_boundary_points(frame, screen)[:2]
-        ref_mask = ref_mask & screen_mask
-        near_threshold |= np.abs(screen_gap - 0.6 * np.pi) < 1e-9
-    mask, gaps, direction = boundary_points(frame, k, screen=screen)
+    ref_mask, ref_gap, ref_dir = reference_boundary_points(frame)
+    mask, gaps, direction = boundary_points(frame)
     assert 0 < ref_mask.sum() < len(frame) * 0.2
-    assert np.array_equal(mask[~near_threshold], ref_mask[~near_threshold])
-    np.testing.assert_allclose(gaps, ref_gap, rtol=0, atol=1e-8)
-    agree = np.einsum("ij,ij->i", direction, ref_dir) > 1 - 1e-8
-    assert agree[ref_margin > 1e-8].all() and agree.mean() > 0.8
-    fast_mask, fast_gap, fast_dir = boundary_points(frame, k, interior_values=False, screen=screen)
+    assert np.array_equal(mask, ref_mask) and np.array_equal(gaps, ref_gap) and np.array_equal(direction, ref_dir)
+    fast_mask, fast_gap, fast_dir = boundary_points(frame, interior_values=False)
     computed = ~np.isnan(fast_gap)
-    assert np.array_equal(fast_mask, mask) and computed[mask].all() and computed.mean() < 0.6
-    assert np.array_equal(fast_gap[computed], gaps[computed])
-    assert np.array_equal(fast_dir[computed], direction[computed])
-
-
-def test_screen_keeps_randomly_sampled_surfaces_clean():
-    """The screen at 16 neighbours alone flags ~10 % of a randomly sampled sphere (measured 743-902 of
-    8000 points, seeds 0-2) and makes spurious holes; behind it the test at k = 32 flags what k = 32
-    alone flags (2-10 points), so the sphere has no hole."""
-    pts = sphere(8000, seed=1)
-    screen_only = boundary_points(pts, 16)[0]
-    both = boundary_points(pts, 32, screen=16)[0]
-    alone = boundary_points(pts, 32, screen=None)[0]
-    assert screen_only.sum() > 400 and both.sum() < 30
-    assert np.array_equal(both, alone & screen_only)
-    assert detect_holes(pts) == [] and len(detect_holes(pts, k=16, screen=None)) > 0
-
-
-def test_smallest_eigenvectors_match_eigh():
-    """The closed-form solver against numpy.linalg.eigh on random symmetric positive semi-definite
-    matrices and on the degenerate cases: repeated smallest or largest eigenvalue, multiples of I, rank 1,
-    zero, planar covariances with an eigenvalue ~1e-9 of the others, far-off-axis planes."""
-    from dpcbench.holes.detection import smallest_eigenvectors
-
-    rng = np.random.default_rng(0)
-    a = rng.normal(size=(5000, 3, 4))
-    mats = [a @ a.transpose(0, 2, 1)]
-    rot = np.linalg.qr(rng.normal(size=(600, 3, 3)))[0]
-    spectra = np.array([[1, 1, 1e-3], [1, 1e-3, 1e-3], [2, 2, 2], [1, 0, 0], [0, 0, 0], [5, 3, 1e-9]] * 100, float)
-    mats.append(np.einsum("nij,nj,nkj->nik", rot, spectra, rot))
-    mats = np.concatenate(mats)
-    vx, vy, vz = smallest_eigenvectors(mats[:, 0, 0], mats[:, 1, 1], mats[:, 2, 2], mats[:, 0, 1], mats[:, 0, 2],
-                                       mats[:, 1, 2])
-    vectors = np.stack([vx, vy, vz], axis=1)
-    np.testing.assert_allclose(np.linalg.norm(vectors, axis=1), 1.0, atol=1e-12)
-    values = np.linalg.eigvalsh(mats)
-    scale = np.abs(values).max(axis=1) + 1e-300
-    residual = np.linalg.norm(np.einsum("nij,nj->ni", mats, vectors) - values[:, :1] * vectors, axis=1)
-    assert (residual <= 1e-9 * scale + 1e-300).all()
-    # where the smallest eigenvalue is simple the vector is eigh's up to sign
-    simple = (values[:, 1] - values[:, 0]) > 1e-6 * scale
-    reference = np.linalg.eigh(mats)[1][:, :, 0]
-    assert simple.sum() > 4000
-    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", vectors, reference))[simple], 1.0, atol=1e-9)
+    assert np.array_equal(fast_mask, ref_mask) and computed[ref_mask].all() and computed.mean() < 0.2
+    assert np.array_equal(fast_gap[computed], ref_gap[computed])
+    assert np.array_equal(fast_dir[computed], ref_dir[computed])
