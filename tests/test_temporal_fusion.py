@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods.temporal_fusion import (
     TemporalFusion,
+    crossed_voxels,
     disagreeing,
     fit_height_field,
     interpolate_displacement,
@@ -362,3 +363,84 @@ def test_a_frame_with_its_own_hole_there_is_no_source():
     copied = quiet(TemporalFusion(fallback=False, reuse_previous=False), holed, partly)
     new = copied[1][len(holed[1]):]
     assert len(new) > 0.5 * len(hidden)
+
+
+# -- version 4: thin gaps filled from the rim by the voxelization rule ------------------------------
+
+def crossed_sphere_voxels(radius: float, centre: np.ndarray) -> np.ndarray:
+    """Brute force: the integer points c whose unit cube [c - 1/2, c + 1/2]^3 the sphere |x - centre| =
+    radius crosses (nearest cube point inside, farthest outside): the rule voxelized captures follow."""
+    r = int(np.ceil(radius)) + 2
+    g = np.arange(-r, r + 1)
+    cubes = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3) + np.round(centre)
+    offset = np.abs(cubes - centre)
+    nearest = np.linalg.norm(np.maximum(offset - 0.5, 0.0), axis=1)
+    farthest = np.linalg.norm(offset + 0.5, axis=1)
+    return cubes[(nearest <= radius) & (farthest >= radius)]
+
+
+def test_crossed_voxels_restores_a_thin_gap_exactly_and_says_it_closed():
+    """A sphere of radius 40 voxelized by the cube-crossing rule; the voxels in a ball of radius 3 on
+    it are removed: the growth from the rim gives back exactly those voxels and reports a closed gap."""
+    centre = np.array([0.3, -0.2, 0.1])
+    voxels = crossed_sphere_voxels(40.0, centre)
+    region = HoleRegion.ball(centre + 40.0 * np.array([0.6, 0.0, 0.8]), 3.0)
+    hidden = voxels[region.contains(voxels)]
+    kept = voxels[~region.contains(voxels)]
+    fill, closed = crossed_voxels(region, kept, cKDTree(kept), with_closed=True)
+    assert closed and len(hidden) > 20
+    restored, on_truth = overlap(fill, hidden)
+    # measured 34 of 40 both ways: the misses are cubes the sphere only clips at a corner, where a
+    # fitted surface and the true one disagree by hundredths of a voxel
+    assert restored > 0.8 and on_truth > 0.8, (restored, on_truth)
+    assert cKDTree(hidden).query(fill)[0].max() <= 1.0
+    # on the axis-aligned cap the fit is exact
+    top = HoleRegion.ball(centre + [0.0, 0.0, 40.0], 3.0)
+    fill, closed = crossed_voxels(top, voxels[~top.contains(voxels)], cKDTree(voxels[~top.contains(voxels)]),
+                                  with_closed=True)
+    assert closed and overlap(fill, voxels[top.contains(voxels)]) == (1.0, 1.0)
+
+
+def overlap(fill: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """(fraction of ``truth`` voxels in ``fill``, fraction of ``fill`` voxels in ``truth``)."""
+    a, b = {tuple(p) for p in fill.astype(int)}, {tuple(p) for p in truth.astype(int)}
+    return len(a & b) / max(len(b), 1), len(a & b) / max(len(a), 1)
+
+
+def test_a_wide_voxel_hole_is_not_closed_by_the_rim_fill_and_is_filled_as_before():
+    """A hole of radius 12 cannot be crossed in the method's 3 one-voxel rounds: the growth says it did
+    not close, and the method's output is exactly that of ``rim_fill=False`` (copies and the spline)."""
+    voxels = crossed_sphere_voxels(40.0, np.zeros(3))
+    region = HoleRegion.ball(np.array([0.0, 0.0, 40.0]), 12.0)
+    kept = voxels[~region.contains(voxels)]
+    fill, closed = crossed_voxels(region, kept, cKDTree(kept), max_rounds=3, with_closed=True)
+    assert not closed and len(fill) > 0
+    frames = [voxels, kept, voxels]
+    regions = [[], [region], []]
+    with_rim = quiet(TemporalFusion(), frames, regions)
+    without = quiet(TemporalFusion(rim_fill=False), frames, regions)
+    assert len(with_rim[1]) > len(kept)
+    np.testing.assert_array_equal(with_rim[1], without[1])
+
+
+def test_thin_voxel_gaps_are_filled_from_the_rim_and_not_copied():
+    """Occlusion-like damage on voxels: a thin gap (radius 3) in frame 1 of a sphere that breathes
+    (radius 39.6, 40, 40.4: the neighbours' voxels lie up to half a voxel off frame 1's surface). With
+    the rim fill (default) the gap gets frame 1's own voxels (measured 0.76 / 0.84 restored / on the
+    truth, against 0.71 / 0.75 for the non-rigidly corrected copy of ``rim_fill=False``). Measured, not
+    asserted: with radii 39.4 / 40.6 the two neighbours' corrections average out and the copy scores
+    0.98 / 1.0 on this smooth sphere; on the human stand-in's occlusion holes the rim fill wins (NOTES)."""
+    centre = np.array([0.3, -0.2, 0.1])
+    frames = [crossed_sphere_voxels(radius, centre) for radius in (39.6, 40.0, 40.4)]
+    region = HoleRegion.ball(centre + 40.0 * np.array([0.0, 0.6, 0.8]), 3.0)
+    hidden = frames[1][region.contains(frames[1])]
+    frames[1] = frames[1][~region.contains(frames[1])]
+    regions = [[], [region], []]
+    out = quiet(TemporalFusion(), frames, regions)
+    new = out[1][len(frames[1]):]
+    restored, on_truth = overlap(new, hidden)
+    copied = quiet(TemporalFusion(rim_fill=False), frames, regions)
+    copy_restored, copy_on_truth = overlap(copied[1][len(frames[1]):], hidden)
+    assert restored > 0.75 and on_truth > 0.8
+    assert restored > copy_restored and on_truth > copy_on_truth
+    assert cKDTree(hidden).query(new)[0].max() <= 1.0
