@@ -115,8 +115,15 @@ class CellGrid:
 
 def in_box(points: np.ndarray, lower: np.ndarray, size: float) -> np.ndarray:
     """Mask (N,) of points with lower <= p < lower + size on every axis."""
-    rel = np.asarray(points) - lower
-    return ((rel >= 0) & (rel < size)).all(axis=1)
+    points, lower = np.asarray(points), np.asarray(lower)
+    # axis by axis: the same test as ((rel >= 0) & (rel < size)).all(axis=1) without (N, 3) temporaries and the
+    # slow reduction over a length-3 axis (this runs once per target cube on the group's points)
+    mask = np.ones(len(points), dtype=bool)
+    for axis in range(3):
+        rel = points[:, axis] - lower[axis]
+        mask &= rel >= 0
+        mask &= rel < size
+    return mask
 
 
 def best_window(points: np.ndarray, box_lower: np.ndarray, box_size: float, window: float, unit: float

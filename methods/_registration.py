@@ -27,13 +27,20 @@ def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """
     source = np.asarray(source, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
-    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    # called ~10^4 times a frame on a few hundred rows, so numpy's per-call overheads are the cost: the sum
+    # divided by the count is what ndarray.mean computes (same reduction, same division) without its wrapper
+    mu_s = np.add.reduce(source, axis=0) / len(source)
+    mu_t = np.add.reduce(target, axis=0) / len(target)
     if len(source) < 3:
         return np.eye(3), mu_t - mu_s
     h = (source - mu_s).T @ (target - mu_t)
     u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    # det(V U^T) is +-1 (a product of orthogonal matrices), so its sign by cofactors is the sign LU gives
+    (a, b, c), (e, f, g), (i, j, k) = (vt.T @ u.T).tolist()
+    d = -1.0 if a * (f * k - g * j) - b * (e * k - g * i) + c * (e * j - f * i) < 0 else 1.0
+    v = vt.T.copy()  # V diag(1, 1, d), C-ordered as the product V @ diag(1, 1, d) was
+    v[:, 2] *= d
+    rotation = v @ u.T
     return rotation, mu_t - rotation @ mu_s
 
 

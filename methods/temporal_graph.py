@@ -204,16 +204,21 @@ class CandidateCubes:
         all usable candidates are ranked by brute force (stable order)."""
         if self.tree is None:
             return np.empty(0, dtype=np.int64)
-        usable = self.count >= m
-        if not hole_free:
-            usable &= (np.abs(self.lower - target_lower) >= cube - 0.5 * cell).any(axis=1)
+
+        def usable(index: np.ndarray | slice) -> np.ndarray:
+            # tested on the k nearest only: on a whole frame C is 10^5 cubes, k a few hundred
+            ok = self.count[index] >= m
+            if not hole_free:
+                ok &= (np.abs(self.lower[index] - target_lower) >= cube - 0.5 * cell).any(axis=1)
+            return ok
+
         k = min(len(self.count), 64 if hole_free else 64 + (2 * cells_per_cube - 1) ** 3)
         _, order = self.tree.query(query, k=k)
         order = np.atleast_1d(order)
-        order = order[usable[order]]
+        order = order[usable(order)]
         if len(order) < want:
             # rare: few big-enough cubes among the nearest features; rank all of them
-            big = np.flatnonzero(usable)
+            big = np.flatnonzero(usable(slice(None)))
             if not len(big):
                 return big
             feats = np.column_stack([self.dc[big], agtv_weight * self.agtv[big]])
@@ -347,7 +352,7 @@ def normal_features(points: np.ndarray, tree: cKDTree, sigma: float, feature_fra
     The sample is a fixed-seed ``feature_fraction`` of the points (all of them at 1.0). Normal of a
     sampled point: the eigenvector of the smallest eigenvalue of the covariance of its 10 nearest
     points in the whole frame, oriented away from the frame centroid (`metrics.neighbours.estimate_normals`
-    at the sampled positions, reusing the frame's k-d tree). AGTV of a sampled point:
+    at the sampled positions, reusing ``tree``, the k-d tree of ``points``). AGTV of a sampled point:
     a_i = sum_{j in 8-NN of i in the sample} exp(-||p_i - p_j||^2 / 2 sigma_s^2) ||n_i - s_ij n_j||_1,
     s_ij = sign(n_i . n_j), sigma_s = sigma / sqrt(feature_fraction) (the sample's spacing grows
     as 1 / sqrt(fraction) on a surface).
@@ -358,7 +363,10 @@ def normal_features(points: np.ndarray, tree: cKDTree, sigma: float, feature_fra
     sampled = points[sample]
     sample_normals = estimate_normals(points, 10, queries=sampled, tree=tree, orient_from=points.mean(axis=0))
     k = min(9, count)
-    dist, nbr = cKDTree(sampled).query(sampled, k=k, workers=-1)
+    # the whole frame sampled (feature_fraction 1, the paper's): the frame's own tree is a tree of the same rows
+    # in the same order, so it answers the same query with the same neighbours; no second tree of N points
+    sample_tree = tree if count == n and tree.n == n else cKDTree(sampled)
+    dist, nbr = sample_tree.query(sampled, k=k, workers=-1)
     dist, nbr = dist[:, 1:], nbr[:, 1:]
     neighbour_normals = sample_normals[nbr]
     sign = np.sign(np.einsum("ij,ikj->ik", sample_normals, neighbour_normals))

@@ -28,6 +28,7 @@ import argparse
 import heapq
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -301,21 +302,105 @@ def cmd_paper_costs(args) -> dict:
                      "rest_per_frame_s": (float(run.wall_time_s) - method_total) / args.frames,
                      # the whole worker process (load, damage, method, write, score), sampled each second
                      "run_cpu_s": poller.cpu_s.get(run.run_id)})
+    # the parts of a run other than the method, timed again in this process in CPU time: the stand-in's
+    # frames read from the cache, the damage, the scoring of the run's frames as written (every metric
+    # x peak x scope + temporal consistency), and a worker process's start (interpreter + imports)
+    parts = _run_part_costs(specs, runs, workdir / "runs")
+    for r, run_id in zip(rows, runs.run_id):
+        part = parts[run_id]
+        r.update({k: part[k] for k in ("load_cpu_s", "damage_cpu_s", "score_cpu_s", "start_cpu_s")})
+        r["score_cpu_per_frame_s"] = part["score_cpu_s"] / args.frames
+        if r["run_cpu_s"] is not None:
+            rest = part["load_cpu_s"] + part["damage_cpu_s"] + part["score_cpu_s"] + part["start_cpu_s"]
+            r["method_cpu_per_frame_s"] = (r["run_cpu_s"] - rest) / args.frames
+            # a run of F frames: the process start once, then F x (load, damage, method, write, scoring)
+            r["cpu_per_frame_s"] = (r["run_cpu_s"] - part["start_cpu_s"]) / args.frames
     out = {"size": args.size, "frames": args.frames, "sweep_wall_s": wall, "generation": gen, "runs": rows,
            "load_before": load_before, "load_after": load_average()}
+    out["paper_preset"] = project_paper_preset(rows)
     print(f"\nper-frame cost at size={args.size}, {args.frames} frames a run, serial, 1 run each "
           f"(load before {load_before}, after {out['load_after']})")
     for s, g in gen.items():
         print(f"  {s}: {g['points']} points; load/generate {g['load_s']:.1f} s")
+    print("wall times (inflated by other load); CPU times (user + system): the run's worker process, sampled each "
+          "second, and its scoring, re-timed here")
     print(f"{'sequence':8s} {'column':32s} {'method s/frame':>14s} {'rest s/frame':>12s} {'run wall s':>10s} "
-          f"{'run CPU s':>9s}")
+          f"{'run CPU s':>9s} {'method CPU/frame':>16s} {'score CPU/frame':>15s}")
     for r in rows:
         cpu = f"{r['run_cpu_s']:9.1f}" if r["run_cpu_s"] is not None else f"{'-':>9s}"
+        mcpu = f"{r['method_cpu_per_frame_s']:16.2f}" if "method_cpu_per_frame_s" in r else f"{'-':>16s}"
         print(f"{r['sequence']:8s} {r['column']:32s} {r['method_per_frame_s']:14.2f} {r['rest_per_frame_s']:12.2f} "
-              f"{r['run_wall_s']:10.1f} {cpu}")
+              f"{r['run_wall_s']:10.1f} {cpu} {mcpu} {r['score_cpu_per_frame_s']:15.2f}")
+    for s, g in parts["_sequences"].items():
+        print(f"  {s}: per run, CPU s: load {g['load_cpu_s']:.2f}, damage {g['damage_cpu_s']:.2f}, worker start "
+              f"{g['start_cpu_s']:.2f}")
+    proj = out["paper_preset"]
+    if proj:
+        print(f"\npaper preset projection from these CPU times (not a run): {proj['runs']} runs of {proj['frames']} "
+              f"frames, {proj['total_cpu_h']:.2f} CPU-h; on {proj['slots']} cores {proj['makespan_h']:.2f} h "
+              f"(longest-first schedule of whole runs; assumes two runs at once each keep a core)")
+        for col, v in proj["per_column_cpu_h"].items():
+            print(f"  {col:32s} {v:6.2f} CPU-h")
     if not args.workdir:
         shutil.rmtree(workdir, ignore_errors=True)
     return out
+
+
+def _cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _run_part_costs(specs: dict, runs, runs_dir: Path) -> dict:
+    """CPU seconds of the parts of each run besides its method, timed in this process: per sequence the
+    frames' load (`load_run_sequence`, from the disk cache), the damage, and a worker process's start
+    (``python -c 'import dpcbench.bench.worker'``, child CPU); per run the scoring of its folder
+    (`bench.worker.score_run`, as the worker does it)."""
+    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.provenance import read_run_folder
+    from dpcbench.bench.worker import score_run
+    from dpcbench.holes.lazy import import_entry
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", "import dpcbench.bench.worker, dpcbench.metrics"], check=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    truths: dict[str, tuple] = {}
+    out: dict = {"_sequences": {}}
+    for run_id in runs.run_id:
+        spec = specs[run_id]
+        key = spec.sequence_label
+        if key not in truths:
+            c0 = _cpu_s()
+            truth = load_run_sequence(spec.sequence)
+            c1 = _cpu_s()
+            import_entry(spec.holes["entry"])(**spec.holes["params"]).damage(truth.points, spec.holes["seed"])
+            c2 = _cpu_s()
+            truths[key] = (truth, c1 - c0, c2 - c1)
+            out["_sequences"][key] = {"load_cpu_s": c1 - c0, "damage_cpu_s": c2 - c1, "start_cpu_s": start}
+        truth, load, dmg = truths[key]
+        folder = read_run_folder(runs_dir / spec.inpaint_key)
+        c0 = _cpu_s()
+        score_run(spec, truth, folder["inpainted"], folder["regions"])
+        out[run_id] = {"load_cpu_s": load, "damage_cpu_s": dmg, "score_cpu_s": _cpu_s() - c0, "start_cpu_s": start}
+    return out
+
+
+def project_paper_preset(rows: list[dict], frames: int = 10, hole_configs: int = 2, seeds: int = 3,
+                         cores: int = 2) -> dict | None:
+    """The full `paper` preset (bench/presets/paper.toml: each measured sequence x ``hole_configs`` x
+    ``seeds`` x each column, ``frames`` frames a run) from the measured CPU per frame: a run costs
+    start + frames x cpu_per_frame. Wall time on ``cores`` cores: `makespan` of the runs (two runs at
+    once, each on its own core: the ideal, which a loaded machine does not reach). None without CPU samples."""
+    if not rows or any("cpu_per_frame_s" not in r for r in rows):
+        return None
+    durations, per_column = [], {}
+    for r in rows:
+        run = r["start_cpu_s"] + frames * r["cpu_per_frame_s"]
+        durations += [run] * (hole_configs * seeds)
+        per_column[r["column"]] = per_column.get(r["column"], 0.0) + run * hole_configs * seeds / 3600
+    return {"frames": frames, "runs": len(durations), "total_cpu_h": sum(durations) / 3600, "slots": cores,
+            "makespan_h": makespan(durations, cores) / 3600, "per_column_cpu_h": per_column}
 
 
 def makespan(durations: list[float], slots: int) -> float:
