@@ -452,11 +452,16 @@ class PlaneTarget:
 
 def plane_target(target: np.ndarray) -> PlaneTarget:
     """The `PlaneTarget` of ``target`` (T, 3) that `refine_point_to_plane` pairs against: built once and
-    reused for every source aligned to the same target. Normals by `estimate_normals` (numpy path:
-    a batched eigh, deterministic; open3d's multi-threaded estimate gives the same PCA normals)."""
+    reused for every source aligned to the same target. Normals by open3d's KNN estimate (each point's
+    normal computed on its own, so it is repeatable; its neighbour choice among equidistant voxels is
+    the one version 4 was tuned with: with `estimate_normals`' cKDTree neighbours instead, human 290k, 3
+    medium holes, W = 3 measured D1 / D2 29.94 / 33.30 dB against 30.68 / 33.89 dB)."""
+    import open3d as o3d
+
     points = np.asarray(target, dtype=np.float64)
-    tree = cKDTree(points)
-    return PlaneTarget(points, estimate_normals(points, 16, queries=points, tree=tree), tree)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
+    return PlaneTarget(points, np.asarray(cloud.normals).copy(), cKDTree(points))
 
 
 def refine_point_to_plane(source: np.ndarray, target: np.ndarray, max_distance: float,

@@ -427,8 +427,7 @@ def test_thin_voxel_gaps_are_filled_from_the_rim_and_not_copied():
     """Occlusion-like damage on voxels: a thin gap (radius 3) in frame 1 of a sphere that breathes
     (radius 39.6, 40, 40.4: the neighbours' voxels lie up to half a voxel off frame 1's surface). With
     the rim fill (default) the gap gets frame 1's own voxels (measured 0.76 / 0.84 restored / on the
-    truth, against 0.76 / 0.76 for the non-rigidly corrected copy of ``rim_fill=False``; 0.71 / 0.75 in
-    version 4, whose open3d point-to-plane refinement varied from run to run). Measured, not
+    truth, against 0.71 / 0.75 for the non-rigidly corrected copy of ``rim_fill=False``). Measured, not
     asserted: with radii 39.4 / 40.6 the two neighbours' corrections average out and the copy scores
     0.98 / 1.0 on this smooth sphere; on the human stand-in's occlusion holes the rim fill wins (NOTES)."""
     centre = np.array([0.3, -0.2, 0.1])
@@ -443,7 +442,7 @@ def test_thin_voxel_gaps_are_filled_from_the_rim_and_not_copied():
     copied = quiet(TemporalFusion(rim_fill=False), frames, regions)
     copy_restored, copy_on_truth = overlap(copied[1][len(frames[1]):], hidden)
     assert restored > 0.75 and on_truth > 0.8
-    assert restored >= copy_restored and on_truth > copy_on_truth
+    assert restored > copy_restored and on_truth > copy_on_truth
     assert cKDTree(hidden).query(new)[0].max() <= 1.0
 
 
@@ -473,8 +472,8 @@ def test_point_to_plane_refinement_is_bitwise_repeatable_and_recovers_a_known_mo
 
 def test_two_runs_on_the_human_figure_give_byte_identical_output():
     """The case where version 4 was not deterministic: the human stand-in (~100k points a frame), 3 medium
-    region holes in the middle frame of 7, window 3 (frame 3 got 1982 / 1983 / 1988 new points in three runs
-    of one process, before the point-to-plane refinement was our own deterministic code)."""
+    region holes in the middle frame of 7, window 3 (frame 3 got between 1982 and 1993 new points in repeated
+    runs in one process, before the point-to-plane refinement was our own deterministic code)."""
     from dpcbench.bench.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
 
