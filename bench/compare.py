@@ -12,8 +12,9 @@ a store holding several code versions summarizes the newest unless `code_version
 Frame-level values (frame >= 0) and sequence-level values (frame = -1) of the same metric are not
 mixed: a (run, metric, scope, peak) with frame-level values uses only those; one without uses its
 sequence-level value (e.g. temporal_consistency). Time is "time per frame": the runner stores
-``time_s`` per frame for per-frame methods, but only the sequence total at frame -1 for methods
-that use neighbouring frames; such a total is divided by the run's frame count.
+``time_s`` (wall) and ``cpu_time_s`` (CPU, user + system) per frame for per-frame methods, but only
+the sequence total at frame -1 for methods that use neighbouring frames; such a total is divided by
+the run's frame count.
 
 A summary is saved as CSV (a ``# key: value`` header block, then the rows) or JSON
 (``{"format": "dpcbench-summary", "meta": {...}, "rows": [...]}``); both carry ``meta`` with the
@@ -27,8 +28,12 @@ documents the format.
 A row REGRESSED when the change passes its tolerance in the bad direction (direction and change
 kind from ``metrics.registry.describe(name)``, the one source of metric facts); improved when it
 passes it in the good direction. Resource metrics
-(time_s, peak_mem_mb) are compared and shown; time fails the gate only with ``gate_time=True``,
-memory (the worker's peak RSS, interpreter included) never.
+(time_s, cpu_time_s, peak_mem_mb) are compared and shown; time fails the gate only with
+``gate_time=True``, memory (the worker's peak RSS, interpreter included) never.
+**Which time is judged**: where a row's key has ``cpu_time_s`` on both sides, the CPU time is the
+speed check (it barely moves with the machine's load, the wall time mostly measures the load) and
+that key's ``time_s`` row is shown but never gated; elsewhere (a baseline or a store from before
+CPU time was recorded) ``time_s`` is judged as before.
 A row present in the baseline and absent from the current summary is MISSING and fails the gate
 (a method that started crashing must not pass silently). Metrics without a tolerance, and
 INFO_METRICS (facts about the damaged input, such as removed_fraction), are shown as "changed" or
@@ -70,8 +75,10 @@ RESOURCE_METRICS = tuple(_registry.RESOURCE_METRICS)
 DEFAULT_TOLERANCES = {
     "gpsnr_d1": 0.1, "gpsnr_d2": 0.1, "fscore": 0.01,
     "nshd": 1.10, "hausdorff": 1.10, "chamfer": 1.10, "temporal_consistency": 1.10,
-    "time_s": 1.5, "peak_mem_mb": 1.5,
+    "time_s": 1.5, "cpu_time_s": 1.5, "peak_mem_mb": 1.5,
 }
+#: the time metrics (slower / faster, gated with --gate-time); the CPU time is preferred where both sides have it
+TIME_METRICS = ("time_s", "cpu_time_s")
 #: facts about the input, not the method (e.g. the share of points the holes removed): compared and
 #: shown, never gated; a change means the data or the damage changed, which the table should show
 INFO_METRICS = tuple(_registry.INPUT_METRICS)
@@ -154,8 +161,9 @@ def _frame_level_values(df: pd.DataFrame) -> pd.DataFrame:
     sequence_level = df[~has_frames].merge(covered, on=cell, how="left", indicator="side")
     sequence_level = sequence_level[sequence_level["side"] == "left_only"].drop(columns="side")
     frame_counts = df.loc[has_frames].groupby("run_id")["frame"].nunique()
-    is_total_time = sequence_level["metric"] == "time_s"
-    counts = sequence_level.loc[is_total_time, "run_id"].map(frame_counts).fillna(1).clip(lower=1)
+    is_total_time = sequence_level["metric"].isin(TIME_METRICS)
+    # float even when empty (an empty map is of dtype object, which a float column refuses)
+    counts = sequence_level.loc[is_total_time, "run_id"].map(frame_counts).astype(float).fillna(1).clip(lower=1)
     sequence_level.loc[is_total_time, "value"] = sequence_level.loc[is_total_time, "value"] / counts
     return pd.concat([df[has_frames], sequence_level], ignore_index=True)
 
@@ -333,7 +341,7 @@ def _status(metric: str, kind: str, change: float, tolerance: float, baseline: f
     else:
         worse, better = (change < 1 / tolerance, change > tolerance) if better_high else (change > tolerance,
                                                                                          change < 1 / tolerance)
-    if metric == "time_s":
+    if metric in TIME_METRICS:
         if abs(baseline) < TIME_FLOOR_S:
             return STATUS_OK
         return STATUS_SLOWER if worse else STATUS_FASTER if better else STATUS_OK
@@ -387,6 +395,9 @@ def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances:
             raise UserError(f"the {name} summary repeats {int(duplicated.sum())} key(s); "
                              "summaries have one row per (sequence, holes, method, params, metric, scope, peak)")
     merged = base.merge(cur, on=KEY_COLUMNS, how="outer", indicator="side")
+    # keys (all but the metric) whose CPU time is known on both sides: there the CPU time is judged
+    cpu = merged[(merged["metric"] == "cpu_time_s") & merged["baseline"].notna() & merged["current"].notna()]
+    judged_by_cpu = set(map(tuple, cpu[[c for c in KEY_COLUMNS if c != "metric"]].itertuples(index=False)))
     rows = []
     for row in merged.itertuples(index=False):
         record = {c: getattr(row, c) for c in KEY_COLUMNS}
@@ -407,8 +418,16 @@ def compare_summaries(baseline: pd.DataFrame, current: pd.DataFrame, tolerances:
         else:
             change = _change(kind, b, c)
             status = _status(metric, kind, change, tolerance, b)
-        # time fails the comparison only on request; memory (process RSS, interpreter included) never
-        gated = not informative and (metric not in RESOURCE_METRICS or (gate_time and metric == "time_s"))
+        # time fails the comparison only on request, judged on the CPU time where both sides have it
+        # (a missing CPU time falls back to the wall time, it does not fail); memory (process RSS,
+        # interpreter included) never
+        if metric == "time_s":
+            key = tuple(record[c] for c in KEY_COLUMNS if c != "metric")
+            gated = not informative and gate_time and key not in judged_by_cpu
+        elif metric == "cpu_time_s":
+            gated = not informative and gate_time and status != STATUS_MISSING
+        else:
+            gated = not informative and metric not in RESOURCE_METRICS
         record.update(baseline=b, current=c, kind=kind, change=change, tolerance=tolerance,
                       status=status, gated=gated)
         rows.append(record)
@@ -509,6 +528,11 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
     verdict = (f"FAILED: {len(failures)} regression(s) beyond tolerance" if comparison.failed
                else "PASSED: no quality metric regressed beyond tolerance")
     summary = ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
-    time_note = "" if comparison.gate_time else " (time compared, not gated: use --gate-time)"
+    time_rows = comparison.table[comparison.table["metric"].isin(TIME_METRICS)]
+    by_cpu = int(((time_rows["metric"] == "cpu_time_s") & time_rows["baseline"].notna()
+                  & time_rows["current"].notna()).sum())
+    judged = (f"; speed judged on CPU time for {by_cpu} of {int((time_rows['metric'] == 'time_s').sum())} "
+              "time rows, on wall time for the others" if by_cpu else "")
+    time_note = (judged if comparison.gate_time else f" (time compared, not gated: use --gate-time{judged})")
     lines.append(f"{verdict}; {len(comparison.table)} rows: {summary}{time_note}")
     return "\n".join(lines)

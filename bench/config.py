@@ -44,12 +44,20 @@ Every list in ``params`` (of sequences, holes and methods) is an axis of a grid;
 cartesian product sequences x holes (params x seeds) x methods (params).
 
 Run ids. ``inpaint_key = H(sequence spec, data fingerprint, holes spec + seed + generator version,
-method spec + method version, protocol)`` names the inpainted frames on disk;
+method spec + method version, protocol [+ detector version])`` names the inpainted frames on disk;
 ``run_id = H(inpaint_key, metrics spec + metric versions)``. H is the first 16 hex digits of the
 SHA-256 of canonical JSON (sorted keys, floats that are whole numbers written as ints, so 1 and 1.0
 give the same id). Labels and descriptions are presentation only and never change an id. The data
 fingerprint is the dataset's name and parameters (embedded data, generated deterministically) or
 the name, size and modification time of every frame file (folders).
+
+Detected regions. With ``regions = "detected"`` what a method gets depends on the detector too, so
+those runs' ids also hash every parameter of `holes.detection.detect_holes` as it will be called
+(its defaults overlaid with ``experiment.detection``: ``protocol["detection"]``) and the detector's
+output version (``versions["detector"]`` = `holes.detection.DETECT_HOLES_VERSION`). A changed
+default or a version bump thus gives new ids, and the runner redoes those runs (frames included)
+instead of reusing results made from the old detector's regions. Runs with ``regions = "given"`` or
+``"none"`` carry neither, so their ids are what they were before the detector entered the ids.
 """
 
 from __future__ import annotations
@@ -124,8 +132,10 @@ class RunSpec:
     holes:    {"generator", "params", "seed", "label", "entry"}  (entry = "module:Class")
     method:   {"name", "params", "label", "entry"}
     metrics:  {"names", "peaks", "scopes", "region_margin", "temporal_consistency"}
-    protocol: {"regions": "given" | "detected" | "none", "detection": {...} (only when given)}
-    versions: {"method", "generator", "metrics", "data"} (data = fingerprint)
+    protocol: {"regions": "given" | "detected" | "none", "detection": {...every detect_holes
+              parameter, defaults included} (only with "detected")}
+    versions: {"method", "generator", "metrics", "data"} (data = fingerprint), plus "detector"
+              (`holes.detection.DETECT_HOLES_VERSION`) with regions "detected"
     """
 
     run_id: str
@@ -164,8 +174,9 @@ class RunSpec:
         # spawned processes); where the code lives is not what the run computes, so it is not hashed.
         holes = {k: v for k, v in self.holes.items() if k not in ("label", "entry")}
         method = {k: v for k, v in self.method.items() if k not in ("label", "entry")}
-        return {"sequence": seq, "holes": holes, "method": method, "protocol": self.protocol,
-                "versions": {k: self.versions[k] for k in ("method", "generator", "data")}}
+        # "detector" only exists for detected-region runs: the ids of the others stay as they were
+        versions = {k: self.versions[k] for k in ("method", "generator", "data", "detector") if k in self.versions}
+        return {"sequence": seq, "holes": holes, "method": method, "protocol": self.protocol, "versions": versions}
 
 
 def compute_ids(spec: RunSpec) -> RunSpec:
@@ -552,6 +563,18 @@ def merge_config(base: dict, overrides: dict) -> dict:
     return out
 
 
+def detection_protocol(detection: dict) -> tuple[dict, str]:
+    """(every keyword parameter of `holes.detection.detect_holes` as a run will call it: its
+    defaults overlaid with ``detection``, and the detector's output version)."""
+    import inspect
+
+    from dpcbench.holes.detection import DETECT_HOLES_VERSION, detect_holes
+
+    defaults = {name: p.default for name, p in inspect.signature(detect_holes).parameters.items()
+                if p.kind == inspect.Parameter.KEYWORD_ONLY and p.default is not inspect.Parameter.empty}
+    return {**defaults, **detection}, str(DETECT_HOLES_VERSION)
+
+
 def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
     """Every run; optional sequences whose data is missing are left out and noted in ``cfg.skipped``
     (also printed to stderr)."""
@@ -562,6 +585,10 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
         for n in cfg.metrics["names"] + (["temporal_consistency"] if cfg.metrics["temporal_consistency"] else []):
             if n in registry:
                 metric_versions[n] = str(getattr(registry[n], "version", "1"))
+    protocol: dict = {"regions": cfg.regions}
+    detector: dict = {}
+    if cfg.regions == "detected":
+        protocol["detection"], detector["detector"] = detection_protocol(cfg.detection)
     runs: list[RunSpec] = []
     seen: set[str] = set()
     for seq in cfg.sequences:
@@ -582,10 +609,9 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
                     holes={k: copy.deepcopy(v) for k, v in hole.items() if k != "version"},
                     method={k: copy.deepcopy(v) for k, v in meth.items() if k != "version"},
                     metrics=copy.deepcopy(cfg.metrics),
-                    # detection parameters enter the ids only when given, so other ids stay as they were
-                    protocol={"regions": cfg.regions, **({"detection": cfg.detection} if cfg.detection else {})},
+                    protocol=copy.deepcopy(protocol),
                     versions={"method": meth["version"], "generator": hole["version"], "data": fingerprint,
-                              "metrics": metric_versions},
+                              "metrics": metric_versions, **detector},
                     timeout_s=cfg.timeout_s,
                 )
                 compute_ids(spec)

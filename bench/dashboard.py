@@ -14,9 +14,10 @@ Sections:
                paper's value as a dashed line where the sequence is one of the paper's
   paper        temporal-graph's gains over the paper's other columns beside the paper's own
   latest       the newest code version's means per method (best per column in bold)
-  speed        time per frame over code versions (from the store) and the pytest-benchmark
+  speed        wall and CPU time per frame over code versions (from the store) and the pytest-benchmark
                history (median seconds per session, log scale) with the newest figures
-  runs         code versions with their dates and run counts, and failed runs with their messages
+  runs         code versions with their dates, run counts and the runs' summed wall and CPU time
+               (the runs table; "-" where no run recorded CPU time), and failed runs with their messages
 
 A code version is the store's ``code_version`` (git commit); versions are ordered by the time of
 their first run. Summaries come from `bench.compare.summarize`, one per code version.
@@ -50,7 +51,7 @@ QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore
 METRIC_NAMES = {
     "gpsnr_d1": "GPSNR D1", "gpsnr_d2": "GPSNR D2", "nshd": "NSHD", "hausdorff": "Hausdorff",
     "chamfer": "Chamfer", "fscore": "F-score", "temporal_consistency": "temporal consistency",
-    "time_s": "time per frame", "peak_mem_mb": "peak memory",
+    "time_s": "time per frame", "cpu_time_s": "CPU time per frame", "peak_mem_mb": "peak memory",
 }
 #: units written after a metric's name (the others are ratios or the data's own length units)
 SHOWN_UNITS = ("dB", "s", "MB")
@@ -267,10 +268,11 @@ def quality_chart(history: History, sequence: str, holes: str, holes_params: str
     return _svg(fig)
 
 
-def time_chart(history: History, colours: dict[str, str]) -> str | None:
-    """Time per frame over code versions: one panel per sequence, one line per method."""
+def time_chart(history: History, colours: dict[str, str], metric: str = "time_s") -> str | None:
+    """Time per frame (``metric``: "time_s" wall, "cpu_time_s" CPU) over code versions: one panel per
+    sequence, one line per method."""
     plt = _matplotlib()
-    times = history.table[history.table["metric"] == "time_s"]
+    times = history.table[history.table["metric"] == metric]
     if times.empty:
         return None
     groups = list(times.groupby(["sequence", "holes", "holes_params"], sort=True))
@@ -286,7 +288,7 @@ def time_chart(history: History, colours: dict[str, str]) -> str | None:
         ax.set_xticks(range(len(history.versions)))
         ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right", fontsize=7.5)
         ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
-        ax.set_title(f"{sequence} · {holes}: seconds per frame", loc="left")
+        ax.set_title(f"{sequence} · {holes}: {'CPU ' if metric == 'cpu_time_s' else ''}seconds per frame", loc="left")
     handles, labels = [], []
     for ax in axes[0]:
         for h, name in zip(*ax.get_legend_handles_labels()):
@@ -461,7 +463,7 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
     for (sequence, holes, holes_params), sub in latest.groupby(["sequence", "holes", "holes_params"], sort=True):
         present = set(zip(sub["metric"], sub["scope"], sub["peak"]))
         peaks = sorted(set(sub["peak"]), key=lambda p: (p not in ("", "intrinsic"), p))
-        columns = [(m, s, p) for s in ("frame", "holes") for m in metrics + ["time_s"] for p in peaks
+        columns = [(m, s, p) for s in ("frame", "holes") for m in metrics + ["time_s", "cpu_time_s"] for p in peaks
                    if (m, s, p) in present]
         values = sub.set_index(["label", "metric", "scope", "peak"])
         best = {}
@@ -469,7 +471,7 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
             metric = column[0]
             cell = sub[(sub["metric"] == metric) & (sub["scope"] == column[1]) & (sub["peak"] == column[2])]
             cell = cell.dropna(subset=["mean"])
-            if len(cell) and metric != "time_s":
+            if len(cell) and metric not in compare.TIME_METRICS:
                 best[column] = cell["mean"].max() if compare.higher_is_better(metric) else cell["mean"].min()
         head = "".join(f"<th>{_e(metric_label(m))}<br><span class='note'>{_e(s)}"
                        f"{_e(' · peak ' + p if p not in ('', 'intrinsic') else '')}</span></th>"
@@ -672,6 +674,11 @@ def speed_section(page: Page) -> str:
     if chart:
         speed.append(f'<h3>Inpainting time per frame (results store)</h3>'
                      f'<div class="figure" data-chart="time" data-commits="{len(history.versions)}">{chart}</div>')
+    cpu_chart = time_chart(history, page.colours, "cpu_time_s") if history.versions else None
+    if cpu_chart:
+        speed.append(f'<h3>Inpainting CPU time per frame (results store)</h3><p class="note">user + system, all '
+                     f'threads: on a loaded machine the wall time grows with the load, the CPU time barely does.</p>'
+                     f'<div class="figure" data-chart="cpu-time" data-commits="{len(history.versions)}">{cpu_chart}</div>')
     if page.n_bench:
         from dpcbench.bench import benchsuite
 
@@ -693,15 +700,38 @@ def speed_section(page: Page) -> str:
     return f'<section id="speed"><h2>Speed</h2>{"".join(speed)}</section>' if speed else ""
 
 
+def _run_seconds(runs: pd.DataFrame | None) -> tuple[dict, dict]:
+    """Per code version: the summed wall_time_s and cpu_time_s of its runs (each run once; a sum is
+    left out where no run of that version recorded the figure)."""
+    if runs is None or runs.empty or "wall_time_s" not in runs.columns:
+        return {}, {}
+    once = runs.drop_duplicates("run_id").assign(code_version=lambda d: d["code_version"].fillna("unknown").astype(str))
+    sums = {}
+    for column in ("wall_time_s", "cpu_time_s"):
+        if column not in once.columns:
+            sums[column] = {}
+            continue
+        values = pd.to_numeric(once[column], errors="coerce")
+        grouped = values.groupby(once["code_version"])
+        sums[column] = {v: float(total) for v, total in grouped.sum(min_count=1).items() if not math.isnan(total)}
+    return sums["wall_time_s"], sums["cpu_time_s"]
+
+
+def _hours(seconds: float | None) -> str:
+    return "-" if seconds is None else f"{seconds / 3600:.3g}"
+
+
 def runs_section(page: Page) -> str:
-    """Code versions with their dates and run counts, and the failed runs with their messages."""
+    """Code versions with their dates, run counts and summed run times, and the failed runs with their messages."""
     history, results, runs = page.history, page.results, page.runs
     if not history.versions:
         return ""
     counts = results.groupby("code_version")["run_id"].nunique()
+    wall, cpu = _run_seconds(runs)
     version_rows = "".join(
         f'<tr><td>{_e(short_version(v))}</td><td>{_e(v)}</td><td>{_e(history.version_dates[v])}</td>'
-        f'<td class="num">{int(counts.get(v, 0))}</td></tr>' for v in reversed(history.versions))
+        f'<td class="num">{int(counts.get(v, 0))}</td><td class="num">{_e(_hours(wall.get(v)))}</td>'
+        f'<td class="num">{_e(_hours(cpu.get(v)))}</td></tr>' for v in reversed(history.versions))
     failed_html = ""
     if runs is not None and page.n_failed:
         failed = runs[runs["status"] == "failed"].drop_duplicates("run_id")
@@ -712,7 +742,8 @@ def runs_section(page: Page) -> str:
                            f'<td>{_e(str(r.error)[:300])}</td></tr>' for r in failed.itertuples(index=False))
                        + "</tbody></table>")
     return (f'<section id="runs"><h2>Code versions</h2><table><thead><tr><th>short</th><th>code version'
-            f'</th><th>first run (UTC)</th><th>runs</th></tr></thead><tbody>{version_rows}</tbody>'
+            f'</th><th>first run (UTC)</th><th>runs</th><th>wall (h)</th><th>CPU (h)</th></tr></thead>'
+            f'<tbody>{version_rows}</tbody>'
             f'</table>{failed_html}</section>')
 
 

@@ -43,7 +43,7 @@ def _failure_record(spec: RunSpec, outcome: dict) -> dict:
     return {"sequence": spec.sequence_label, "holes": spec.holes["generator"], "holes_params": spec.holes["params"],
             "seed": spec.holes["seed"], "method": spec.method["name"], "method_params": spec.method["params"],
             "method_version": spec.versions["method"], "code_version": git_commit(), "spec": spec.to_dict(),
-            "wall_time_s": outcome.get("wall_time_s"), "env": {"log": outcome.get("log"),
+            "wall_time_s": outcome.get("wall_time_s"), "cpu_time_s": outcome.get("cpu_time_s"), "env": {"log": outcome.get("log"),
                                                               "traceback": outcome.get("traceback")}}
 
 

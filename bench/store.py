@@ -8,11 +8,22 @@ Schema (version `SCHEMA_VERSION`)::
     schema_version(version INTEGER)
     runs(run_id TEXT PRIMARY KEY, status TEXT 'done'|'failed', error TEXT,
          sequence, holes, holes_params (JSON), seed, method, method_params (JSON), method_version,
-         code_version (git commit), spec (JSON), wall_time_s, peak_mem_mb, env (JSON),
+         code_version (git commit), spec (JSON), wall_time_s, cpu_time_s, peak_mem_mb, env (JSON),
          created_at, finished_at, output_dir)
     experiment_runs(experiment TEXT, run_id TEXT)      -- a run may belong to several experiments
     results(run_id, frame INTEGER, metric, scope, peak, value REAL)
         PRIMARY KEY (run_id, frame, metric, scope, peak)  -- frame = -1 for sequence-level values
+
+``wall_time_s`` and ``cpu_time_s`` cover the same span of the run (`bench.worker`): wall-clock seconds
+and CPU seconds (user + system, all threads of the worker process and its waited-for children). On a
+loaded machine the wall time measures the load as much as the run; the CPU time barely moves with it.
+``cpu_time_s`` is NULL for runs recorded before schema version 2 (and for runs whose CPU time could
+not be measured).
+
+Schema versions and migration: version 1 had no ``cpu_time_s``. Opening a version-1 store for
+writing migrates it in place (one transaction: ``ALTER TABLE runs ADD COLUMN cpu_time_s REAL``, then
+version 2; every row is kept, their CPU time NULL). A read-only open never writes: it reads a
+version-1 store as it is and shows its CPU times as NULL. A store newer than this code is refused.
 
 Write discipline (what makes a killed run harmless and a rerun idempotent):
 - Only the driver process writes (workers send their results back to it); WAL mode and a busy
@@ -37,7 +48,9 @@ import pandas as pd
 
 from dpcbench.bench.errors import UserError
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+#: schema versions this code can open (older ones are migrated on a writable open, see the module docstring)
+READABLE_SCHEMA_VERSIONS = (1, 2)
 
 #: columns of `ResultsStore.results_frame`, in order
 RESULT_COLUMNS = [
@@ -47,14 +60,14 @@ RESULT_COLUMNS = [
 #: columns of `ResultsStore.runs_frame`, in order
 RUN_COLUMNS = [
     "run_id", "experiment", "status", "error", "sequence", "holes", "holes_params", "seed", "method",
-    "method_params", "method_version", "code_version", "spec", "wall_time_s", "peak_mem_mb", "env",
+    "method_params", "method_version", "code_version", "spec", "wall_time_s", "cpu_time_s", "peak_mem_mb", "env",
     "created_at", "finished_at", "output_dir",
 ]
 
 _RUN_TABLE_COLUMNS = [
     "run_id", "status", "error", "sequence", "holes", "holes_params", "seed", "method", "method_params",
-    "method_version", "code_version", "spec", "wall_time_s", "peak_mem_mb", "env", "created_at", "finished_at",
-    "output_dir",
+    "method_version", "code_version", "spec", "wall_time_s", "cpu_time_s", "peak_mem_mb", "env", "created_at",
+    "finished_at", "output_dir",
 ]
 
 _SCHEMA = """
@@ -66,7 +79,7 @@ CREATE TABLE IF NOT EXISTS runs (
     sequence TEXT, holes TEXT, holes_params TEXT, seed INTEGER,
     method TEXT, method_params TEXT, method_version TEXT, code_version TEXT,
     spec TEXT NOT NULL,
-    wall_time_s REAL, peak_mem_mb REAL, env TEXT,
+    wall_time_s REAL, cpu_time_s REAL, peak_mem_mb REAL, env TEXT,
     created_at TEXT NOT NULL, finished_at TEXT, output_dir TEXT
 );
 CREATE TABLE IF NOT EXISTS experiment_runs (
@@ -125,6 +138,8 @@ class ResultsStore:
         self.path = Path(path).expanduser() if path is not None else default_store_path()
         self.readonly = readonly
         self.timeout_s = timeout_s
+        #: the schema version of the file as opened (1 only for an old store opened read-only)
+        self.schema_version = SCHEMA_VERSION
         if self.path.is_dir():
             raise UserError(f"{self.path}: is a folder; the store is a file: pass e.g. {self.path / 'results.sqlite'}")
         if readonly and not self.path.is_file():
@@ -216,13 +231,36 @@ class ResultsStore:
                     "pass the store's path, or a new path to start one"
                 )
             row = conn.execute("SELECT MAX(version) FROM schema_version").fetchone()
-            if row[0] != SCHEMA_VERSION:
+            if row[0] not in READABLE_SCHEMA_VERSIONS:
                 raise UserError(
-                    f"{self.path}: store schema version {row[0]}, this dpcbench reads version {SCHEMA_VERSION}; "
-                    "use a new --store path (or the dpcbench version that wrote it)"
+                    f"{self.path}: store schema version {row[0]}, this dpcbench reads versions "
+                    f"{', '.join(map(str, READABLE_SCHEMA_VERSIONS))}; use a new --store path (or the dpcbench "
+                    "version that wrote it)"
                 )
+            self.schema_version = int(row[0])
             if not self.readonly:
                 conn.execute("PRAGMA journal_mode = WAL")
+                if self.schema_version < SCHEMA_VERSION:
+                    self._migrate(conn)
+
+    def _migrate(self, conn: sqlite3.Connection) -> None:
+        """Bring an older store to `SCHEMA_VERSION` in one transaction; a second driver migrating at
+        the same moment waits for the write lock (BEGIN IMMEDIATE), then finds nothing left to do."""
+        conn.execute("BEGIN IMMEDIATE")
+        try:
+            version = int(conn.execute("SELECT MAX(version) FROM schema_version").fetchone()[0])
+            if version < 2:
+                columns = {r[1] for r in conn.execute("PRAGMA table_info(runs)")}
+                if "cpu_time_s" not in columns:
+                    conn.execute("ALTER TABLE runs ADD COLUMN cpu_time_s REAL")
+            if version < SCHEMA_VERSION:
+                conn.execute("DELETE FROM schema_version")
+                conn.execute("INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,))
+            conn.execute("COMMIT")
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+        self.schema_version = SCHEMA_VERSION
 
     # -- writes ----------------------------------------------------------------------------
     @staticmethod
@@ -232,7 +270,8 @@ class ResultsStore:
             record.get("sequence"), record.get("holes"), _json(record.get("holes_params", {})),
             record.get("seed"), record.get("method"), _json(record.get("method_params", {})),
             record.get("method_version"), record.get("code_version"), _json(record.get("spec", {})),
-            record.get("wall_time_s"), record.get("peak_mem_mb"), _json(record.get("env", {})),
+            record.get("wall_time_s"), record.get("cpu_time_s"), record.get("peak_mem_mb"),
+            _json(record.get("env", {})),
             record.get("created_at") or now_iso(), record.get("finished_at") or now_iso(),
             None if record.get("output_dir") is None else str(record.get("output_dir")),
         )
@@ -262,7 +301,7 @@ class ResultsStore:
         """Store a finished run and all its results in one transaction (replacing earlier rows).
 
         record:  run facts: sequence, holes, holes_params (dict), seed, method, method_params (dict),
-                 method_version, code_version, spec (dict), wall_time_s, peak_mem_mb, env (dict),
+                 method_version, code_version, spec (dict), wall_time_s, cpu_time_s, peak_mem_mb, env (dict),
                  created_at, finished_at, output_dir.
         results: dicts with frame (int, -1 = sequence level), metric, scope, peak ("" if none), value.
         """
@@ -329,17 +368,24 @@ class ResultsStore:
         return df[RESULT_COLUMNS]
 
     def runs_frame(self, experiment: str | None = None) -> pd.DataFrame:
-        """One row per (run, experiment): columns `RUN_COLUMNS` (spec/env as JSON text)."""
+        """One row per (run, experiment): columns `RUN_COLUMNS` (spec/env as JSON text; cpu_time_s NaN
+        where not recorded, e.g. every run of a version-1 store)."""
         params: tuple = ()
         where = ""
+        # a version-1 store opened read-only has no such column: its runs show NULL
+        cpu = "r.cpu_time_s" if self.schema_version >= 2 else "NULL"
         if experiment is not None:
             where = "WHERE e.experiment = ?"
             params = (experiment,)
         sql = f"""
             SELECT r.run_id, COALESCE(e.experiment, '') AS experiment, r.status, r.error, r.sequence, r.holes,
                    r.holes_params, r.seed, r.method, r.method_params, r.method_version, r.code_version, r.spec,
-                   r.wall_time_s, r.peak_mem_mb, r.env, r.created_at, r.finished_at, r.output_dir
+                   r.wall_time_s, {cpu} AS cpu_time_s, r.peak_mem_mb, r.env, r.created_at, r.finished_at,
+                   r.output_dir
             FROM runs r LEFT JOIN experiment_runs e ON e.run_id = r.run_id {where}
             ORDER BY experiment, r.sequence, r.method, r.run_id
         """
-        return self._frame(sql, params)[RUN_COLUMNS]
+        df = self._frame(sql, params)
+        for column in ("wall_time_s", "cpu_time_s", "peak_mem_mb"):
+            df[column] = pd.to_numeric(df[column], errors="coerce").astype(float)
+        return df[RUN_COLUMNS]

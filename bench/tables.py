@@ -248,14 +248,19 @@ def comparison_table(df: pd.DataFrame, metric: str, scope: str = "frame", peak: 
 
 
 def runtime_table(df: pd.DataFrame, column_of=None) -> pd.DataFrame:
-    """Seconds per frame (sequence-level time_s / frames) and peak memory per method and sequence."""
+    """Seconds per frame, wall (sequence-level time_s / frames) and CPU (sequence-level cpu_time_s /
+    frames; NaN for runs recorded before CPU time was measured), and peak memory, per method and
+    sequence (means over the runs)."""
+    columns = ["sequence", "method", "s_per_frame", "cpu_s_per_frame", "peak_mem_mb"]
     seq = df[(df["metric"] == "time_s") & (df["frame"] == -1)].copy()
     if seq.empty:
-        return pd.DataFrame(columns=["sequence", "method", "s_per_frame", "peak_mem_mb"])
+        return pd.DataFrame(columns=columns)
     frames = df[df["frame"] >= 0].groupby("run_id")["frame"].nunique()
     seq["frames"] = seq["run_id"].map(frames).fillna(1)
     seq["s_per_frame"] = seq["value"] / seq["frames"]
-    mem = df[(df["metric"] == "peak_mem_mb") & (df["frame"] == -1)].set_index("run_id")["value"]
+    cpu = df[(df["metric"] == "cpu_time_s") & (df["frame"] == -1)].drop_duplicates("run_id").set_index("run_id")["value"]
+    seq["cpu_s_per_frame"] = seq["run_id"].map(cpu).astype(float) / seq["frames"]
+    mem = df[(df["metric"] == "peak_mem_mb") & (df["frame"] == -1)].drop_duplicates("run_id").set_index("run_id")["value"]
     seq["peak_mem_mb"] = seq["run_id"].map(mem)
     seq["method"] = column_of(seq) if column_of else method_labels(seq)
-    return (seq.groupby(["sequence", "method"])[["s_per_frame", "peak_mem_mb"]].mean().reset_index())
+    return seq.groupby(["sequence", "method"])[columns[2:]].mean().reset_index()

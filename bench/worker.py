@@ -23,12 +23,22 @@ being killed.
 Per-frame measurements stored as metrics (scope "frame"):
 - ``time_s``: wall time of the method on that frame (``time.perf_counter``); at frame -1 the
   method's total time for the sequence.
+- ``cpu_time_s``: CPU time (user + system) the method took on that frame: the change of
+  `process_cpu_s` across the call, i.e. every thread of the worker process (BLAS, OpenMP, open3d)
+  plus its waited-for child processes; at frame -1 the total. On a shared machine the wall time
+  grows with the load while the CPU time barely does; CPU > wall means the method used several
+  cores. Absent for run folders written before it was measured (reused frames keep their figures).
 - ``peak_mem_mb``: peak resident set size of the worker process while the method ran on that frame
   (Linux: ``VmHWM`` from /proc/self/status after resetting it through /proc/self/clear_refs;
   elsewhere ``resource.getrusage(...).ru_maxrss``, the process-lifetime peak). It includes the
   interpreter and loaded libraries, so it is an upper bound of what the method needs; it sees native
   allocations (open3d, pymeshlab) that tracemalloc would miss.
 - ``removed_fraction``: share of the frame's points the hole generator removed.
+
+Per run (columns of the store's ``runs`` table): ``wall_time_s`` and ``cpu_time_s`` over the same span,
+from the start of `execute_run` (after the worker's interpreter started and imported this module)
+to its end: loading, damage, inpainting, writing and scoring. A run that crashes or times out is
+timed by the driver instead, over the whole worker process (`run_isolated`, through ``os.wait4``).
 """
 
 from __future__ import annotations
@@ -88,6 +98,18 @@ def peak_rss_mb() -> float:
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
 
 
+# -- CPU time ------------------------------------------------------------------------------------
+def _cpu_seconds(usage) -> float:
+    return float(usage.ru_utime + usage.ru_stime)
+
+
+def process_cpu_s() -> float:
+    """CPU seconds (user + system) used so far by this process (all its threads) and by its
+    terminated, waited-for children (``getrusage`` RUSAGE_SELF + RUSAGE_CHILDREN)."""
+    return _cpu_seconds(resource.getrusage(resource.RUSAGE_SELF)) + \
+        _cpu_seconds(resource.getrusage(resource.RUSAGE_CHILDREN))
+
+
 # -- producing the frames ----------------------------------------------------------------------
 def _inpaint_timed(method, frames: list[np.ndarray], regions) -> tuple[list[np.ndarray], list[dict], dict]:
     """Run the method; per-frame timing for frame-independent methods, one timing otherwise."""
@@ -96,16 +118,18 @@ def _inpaint_timed(method, frames: list[np.ndarray], regions) -> tuple[list[np.n
         out = []
         for i, frame in enumerate(frames):
             _reset_peak_rss()
-            t0 = time.perf_counter()
+            c0, t0 = process_cpu_s(), time.perf_counter()
             result = method.inpaint([frame], None if regions is None else [regions[i]])
-            per_frame.append({"frame": i, "time_s": time.perf_counter() - t0, "peak_mem_mb": peak_rss_mb()})
+            per_frame.append({"frame": i, "time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0,
+                              "peak_mem_mb": peak_rss_mb()})
             out.append(result[0])
-        total = {"time_s": sum(p["time_s"] for p in per_frame), "peak_mem_mb": max(p["peak_mem_mb"] for p in per_frame)}
+        total = {"time_s": sum(p["time_s"] for p in per_frame), "cpu_time_s": sum(p["cpu_time_s"] for p in per_frame),
+                 "peak_mem_mb": max(p["peak_mem_mb"] for p in per_frame)}
         return out, per_frame, total
     _reset_peak_rss()
-    t0 = time.perf_counter()
+    c0, t0 = process_cpu_s(), time.perf_counter()
     out = method.inpaint(frames, regions)
-    total = {"time_s": time.perf_counter() - t0, "peak_mem_mb": peak_rss_mb()}
+    total = {"time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0, "peak_mem_mb": peak_rss_mb()}
     return list(out), per_frame, total
 
 
@@ -223,7 +247,7 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     outcome: {"run_id", "status": "done", "record": {...run facts...}, "results": [rows]}
     Raises on any failure (the worker wrapper turns that into a "failed" outcome).
     """
-    t0 = time.perf_counter()
+    c0, t0 = process_cpu_s(), time.perf_counter()
     created = _now()
     run_dir = Path(runs_dir) / spec.inpaint_key
     truth = load_run_sequence(spec.sequence)
@@ -241,13 +265,12 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     removes_points = import_entry(spec.holes["entry"]).removes_points
     results = score_run(spec, truth, folder["inpainted"], folder["regions"]) if removes_points else []
     manifest = folder["manifest"]
-    for entry in manifest["per_frame"]:
-        results.append({"frame": entry["frame"], "metric": "time_s", "scope": "frame", "peak": "", "value": entry["time_s"]})
-        results.append({"frame": entry["frame"], "metric": "peak_mem_mb", "scope": "frame", "peak": "",
-                        "value": entry["peak_mem_mb"]})
-    results.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "", "value": manifest["total"]["time_s"]})
-    results.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "",
-                    "value": manifest["total"]["peak_mem_mb"]})
+    # cpu_time_s only where the run folder measured it (folders written before it was added lack it)
+    for entry in [*manifest["per_frame"], {"frame": -1, **manifest["total"]}]:
+        for metric in ("time_s", "cpu_time_s", "peak_mem_mb"):
+            if entry.get(metric) is not None:
+                results.append({"frame": entry["frame"], "metric": metric, "scope": "frame", "peak": "",
+                                "value": entry[metric]})
     for f, frac in enumerate(manifest["removed_fraction"]):
         results.append({"frame": f, "metric": "removed_fraction", "scope": "frame", "peak": "", "value": frac})
     env = environment()
@@ -257,7 +280,8 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
         "sequence": spec.sequence_label, "holes": spec.holes["generator"], "holes_params": spec.holes["params"],
         "seed": spec.holes["seed"], "method": spec.method["name"], "method_params": spec.method["params"],
         "method_version": spec.versions["method"], "code_version": env["git_commit"], "spec": spec.to_dict(),
-        "wall_time_s": time.perf_counter() - t0, "peak_mem_mb": manifest["total"]["peak_mem_mb"], "env": env,
+        "wall_time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0,
+        "peak_mem_mb": manifest["total"]["peak_mem_mb"], "env": env,
         "created_at": created, "finished_at": _now(), "output_dir": str(run_dir),
     }
     return {"run_id": spec.run_id, "status": "done", "record": record, "results": results}
@@ -286,12 +310,15 @@ def _exit_with_parent() -> None:
 def worker_main(spec_path: str, out_path: str, runs_dir: str, force: bool) -> int:
     _exit_with_parent()
     spec = RunSpec.from_dict(json.loads(Path(spec_path).read_text()))
+    c0, t0 = process_cpu_s(), time.perf_counter()
     try:
         outcome = execute_run(spec, runs_dir, force=force)
     except BaseException as err:  # every failure becomes a recorded message
         tb = traceback.format_exc()
+        # timed like a finished run (the same span), so that a sweep's cost counts its failures too
         outcome = {"run_id": spec.run_id, "status": "failed", "error": f"{type(err).__name__}: {err}",
-                   "traceback": tb[-4000:]}
+                   "traceback": tb[-4000:], "wall_time_s": time.perf_counter() - t0,
+                   "cpu_time_s": process_cpu_s() - c0}
     atomic_write_text(out_path, json.dumps(outcome, default=float))
     return 0
 
@@ -302,6 +329,52 @@ def _tail(path: Path, lines: int = 12) -> str:
     except OSError:
         return ""
     return "\n".join(text[-lines:])
+
+
+def _wait_with_usage(proc: subprocess.Popen, timeout_s: float):
+    """Wait for ``proc`` like ``proc.wait(timeout_s)`` (``subprocess.TimeoutExpired`` past it) and
+    return the child's resource usage (``os.wait4``: its CPU time, all threads and waited-for
+    grandchildren), or None where ``os.wait4`` does not exist (then only ``proc.wait`` is done).
+
+    Why not ``proc.wait``: it reaps the child without its usage, and ``getrusage(RUSAGE_CHILDREN)``
+    in the driver sums every worker of a pool. The polling mirrors ``Popen.wait``'s (a delay that
+    doubles up to 50 ms)."""
+    if not hasattr(os, "wait4"):
+        proc.wait(timeout=timeout_s)
+        return None
+    deadline = time.monotonic() + timeout_s
+    delay = 0.0005
+    while True:
+        try:
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        except ChildProcessError:  # reaped by Popen.poll in another thread (kill_live_workers)
+            proc.wait()
+            return None
+        if pid == proc.pid:
+            proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+            return usage
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise subprocess.TimeoutExpired(proc.args, timeout_s)
+        time.sleep(min(delay, remaining))
+        delay = min(delay * 2, 0.05)
+
+
+def _kill_and_reap(proc: subprocess.Popen):
+    """Kill ``proc`` and reap it; its resource usage as `_wait_with_usage` gives it."""
+    proc.kill()
+    if proc.returncode is not None:
+        return None
+    if not hasattr(os, "wait4"):
+        proc.wait()
+        return None
+    try:
+        _, status, usage = os.wait4(proc.pid, 0)
+    except ChildProcessError:  # reaped by Popen.poll in another thread (kill_live_workers)
+        proc.wait()
+        return None
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return usage
 
 
 def run_isolated(spec_dict: dict, runs_dir: str, force: bool = False, threads: int | None = None) -> dict:
@@ -333,21 +406,21 @@ def run_isolated(spec_dict: dict, runs_dir: str, force: bool = False, threads: i
             with _LIVE_LOCK:
                 _LIVE_PROCESSES.add(proc)
             try:
-                proc.wait(timeout=spec.timeout_s)
+                usage = _wait_with_usage(proc, spec.timeout_s)
                 timed_out = False
             except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+                usage = _kill_and_reap(proc)
                 timed_out = True
             except BaseException:  # Ctrl-C in the driver: the worker goes with it
-                proc.kill()
-                proc.wait()
+                _kill_and_reap(proc)
                 raise
             finally:
                 with _LIVE_LOCK:
                     _LIVE_PROCESSES.discard(proc)
         elapsed = time.perf_counter() - t0
-        base = {"run_id": spec.run_id, "status": "failed", "wall_time_s": elapsed, "log": str(log_path)}
+        # a worker that could not report is timed here, over its whole process (start-up included)
+        base = {"run_id": spec.run_id, "status": "failed", "wall_time_s": elapsed,
+                "cpu_time_s": None if usage is None else _cpu_seconds(usage), "log": str(log_path)}
         if timed_out:
             return {**base, "error": f"timed out after {spec.timeout_s:g} s; the worker was killed "
                                      "(raise experiment.timeout_s or --timeout if the method is just slow)"}

@@ -37,6 +37,12 @@ from dpcbench.holes.geometry import check_frame, estimate_normals, point_spacing
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.metrics.errors import UserError
 
+#: Version of `detect_holes`'s output: bump it whenever a change alters the regions it returns for
+#: some input (a pure speed-up that returns the same regions keeps it). Runs with regions = "detected"
+#: carry it in their ids (`bench.config`), so a bump re-runs exactly those runs instead of reusing
+#: results computed from the old detector's regions.
+DETECT_HOLES_VERSION = "1"
+
 #: Points handled per block in `boundary_points` (bounds the (block, k, 3) temporaries to ~50 MB at k = 32).
 _BLOCK = 1 << 16
 

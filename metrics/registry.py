@@ -9,7 +9,7 @@ Three families, all `Metric`:
   ``(pair: CloudPair, selection: Selection, settings: Settings)`` and returns a float (see
   `metrics.geometry`); ``fn`` of the sequence-level metric takes
   ``(references, results, regions=None, *, region_margin=0.0, correspondences=None)``.
-- ``RESOURCE_METRICS``: what a run costs (``time_s``, ``peak_mem_mb``), measured by the harness
+- ``RESOURCE_METRICS``: what a run costs (``time_s``, ``cpu_time_s``, ``peak_mem_mb``), measured by the harness
   (``fn`` None, level "run").
 - ``INPUT_METRICS``: facts about the damaged input, not the method (``removed_fraction``): no
   direction (``higher_is_better`` None), never a regression.
@@ -141,6 +141,8 @@ RESOURCE_METRICS: dict[str, Metric] = {
     for m in [
         _m("time_s", False, "s", "inpainting time per frame (a sequence method's total divided by its frames)",
            None, level="run"),
+        _m("cpu_time_s", False, "s", "inpainting CPU time (user + system, all threads) per frame (a sequence "
+           "method's total divided by its frames)", None, level="run"),
         _m("peak_mem_mb", False, "MB", "peak resident memory of the run's worker process, interpreter included",
            None, level="run"),
     ]

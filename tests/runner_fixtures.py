@@ -74,6 +74,32 @@ class HangOnFlagFill(PerFrameMethod):
         return points + self.shift
 
 
+class CostlyFill(PerFrameMethod):
+    """Like IdentityFill, after spending known resources on each frame: ``burn`` CPU seconds of
+    this process (a busy loop until `time.process_time` has advanced that much), ``child_burn`` CPU
+    seconds in a child process it waits for, and ``sleep`` wall seconds without CPU."""
+
+    name = "test-costly"
+
+    def __init__(self, burn: float = 0.0, child_burn: float = 0.0, sleep: float = 0.0):
+        self.burn = burn
+        self.child_burn = child_burn
+        self.sleep = sleep
+
+    def inpaint_frame(self, points, regions):
+        import subprocess
+        import sys
+
+        start = time.process_time()
+        while time.process_time() - start < self.burn:
+            pass
+        if self.child_burn:
+            subprocess.run([sys.executable, "-c", "import time\nt = time.process_time()\n"
+                            f"while time.process_time() - t < {self.child_burn}: pass"], check=True)
+        time.sleep(self.sleep)
+        return points
+
+
 class BallHoles(HoleGenerator):
     """Removes the points within ``radius`` of a seeded random point of each frame."""
 
@@ -117,7 +143,7 @@ def register(monkeypatch) -> None:
     from dpcbench.holes import registry as hole_registry
     from dpcbench.methods import registry as method_registry
 
-    for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
+    for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill, CostlyFill):
         monkeypatch.setitem(method_registry.METHODS, cls.name, f"{HERE}:{cls.__name__}")
     monkeypatch.setitem(hole_registry.GENERATORS, BallHoles.name, f"{HERE}:BallHoles")
 
@@ -127,7 +153,7 @@ def register_global() -> None:
     from dpcbench.holes import registry as hole_registry
     from dpcbench.methods import registry as method_registry
 
-    for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill):
+    for cls in (IdentityFill, RaisingFill, CrashingFill, HangOnFlagFill, CostlyFill):
         method_registry.METHODS[cls.name] = f"{HERE}:{cls.__name__}"
     hole_registry.GENERATORS[BallHoles.name] = f"{HERE}:BallHoles"
 

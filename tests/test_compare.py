@@ -207,7 +207,7 @@ def test_direction_and_change_kind_come_from_the_metric_registry_only():
         assert compare.change_kind(name) == metric.change
         assert metric.change == ("delta" if metric.unit == "dB" or name == "fscore" else "ratio")
     # the resource and input metrics the runner stores are described there too
-    assert set(compare.RESOURCE_METRICS) == {"time_s", "peak_mem_mb"} and compare.INFO_METRICS == ("removed_fraction",)
+    assert set(compare.RESOURCE_METRICS) == {"time_s", "cpu_time_s", "peak_mem_mb"} and compare.INFO_METRICS == ("removed_fraction",)
     assert registry.describe("time_s").unit == "s" and registry.describe("peak_mem_mb").unit == "MB"
     assert registry.describe("removed_fraction").higher_is_better is None
     assert tables.higher_is_better("removed_fraction") is None

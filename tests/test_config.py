@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import copy
 
+import numpy as np
 import pytest
 
 from dpcbench.bench.config import ConfigError, canonical_json, load_config, parse_config, stable_hash
+from dpcbench.holes.detection import DETECT_HOLES_VERSION
 from tests import runner_fixtures as helpers
 
 
@@ -163,12 +165,19 @@ def test_detection_parameters(seq_dir):
     base = _config(seq_dir)
     base["experiment"]["regions"] = "detected"
     plain = parse_config(base).expand()
-    assert plain[0].protocol == {"regions": "detected"}
+    # every detect_holes parameter as the run calls it (defaults included), and the detector's version
+    defaults = {"k": 32, "gap": 0.6 * np.pi, "link": 3.0, "min_points": 10, "min_inward": 0.1, "max_radius": 0.25}
+    assert plain[0].protocol == {"regions": "detected", "detection": defaults}
+    assert plain[0].versions["detector"] == DETECT_HOLES_VERSION
     tuned = copy.deepcopy(base)
     tuned["experiment"]["detection"] = {"min_points": 5}
     runs = parse_config(tuned).expand()
-    assert runs[0].protocol["detection"] == {"min_points": 5}
+    assert runs[0].protocol["detection"] == {**defaults, "min_points": 5}
     assert runs[0].run_id != plain[0].run_id
+    # naming a default explicitly is the same computation, so the same run
+    explicit = copy.deepcopy(base)
+    explicit["experiment"]["detection"] = {"min_points": 10}
+    assert _ids(explicit) == [r.run_id for r in plain]
     for bad, key in [({"min_pionts": 5}, "experiment.detection.min_pionts: unknown parameter"),
                      ({"min_points": "many"}, "experiment.detection.min_points: expected a number")]:
         tuned["experiment"]["detection"] = bad
