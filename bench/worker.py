@@ -288,9 +288,12 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
 
 
 def _now() -> str:
-    from dpcbench.bench.store import now_iso
+    """UTC now as the store writes it (`bench.store.now_iso`'s format). Not imported from there: that
+    import loads pandas, seconds of a run's start under load, and `created_at` would then lag the
+    start of the run's wall and CPU time by that much."""
+    from datetime import datetime, timezone
 
-    return now_iso()
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
 # -- the worker process -------------------------------------------------------------------------

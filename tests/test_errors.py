@@ -457,7 +457,8 @@ def test_a_damaged_store_is_refused_before_run_or_report(work, capsys):
     (work / "e.toml").write_text(CONFIG.format(name="human", cube="20"))
     for argv in (["run", "e.toml", "--dry-run", "--store", bad],
                  ["report", bad, "--out", "rep"],
-                 ["compare", "x.csv", bad]):
+                 ["compare", "x.csv", bad],
+                 ["cost", bad]):
         code, _, err = run_cli(argv, capsys)
         assert_refused(code, err, argv[0], "damaged", f"mv {bad} {bad}.bad")
     assert bad.read_bytes() == before and not (work / "rep").exists()
