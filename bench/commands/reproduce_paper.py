@@ -20,11 +20,12 @@ def register(subparsers) -> None:
                     "soldier, ulliwegner); otherwise on the embedded stand-ins (human, bunny), labelled as such "
                     "in every output. Runs are cached in the results store: rerunning only redoes what is missing. "
                     "The tables' columns: the paper's four (Meshlab, Lozes, Hu, Proposed) in the paper configuration, "
-                    "then our tuned temporal-graph and the temporal-copy reference (bench/paper.py TABLE_COLUMNS). "
-                    "--quick: human and bunny at size tiny (10-30k points a frame), 3 frames each, one seed, plus 3 "
-                    "frames with acquisition holes for the real-hole figure (target: under 10 minutes on 2 cores; "
-                    "MeshLab dominates). The full preset (10 frames of 300k-1M points, 3 seeds) takes many hours: "
-                    "see bench/presets/paper.toml.",
+                    "then ours (tuned temporal-graph, temporal-fusion) and the temporal-copy reference "
+                    "(bench/paper.py TABLE_COLUMNS). --quick: human and bunny at size tiny (10-30k points a frame), "
+                    "3 frames each, one seed, plus 3 frames with acquisition holes for the real-hole figure (target: "
+                    "under 10 minutes on 2 cores; MeshLab dominates). The full preset (two stand-ins of 570-640k "
+                    "points, 10 frames, 3 seeds: 84 runs) took 1 h 19 min on 2 cores (measured; "
+                    "bench/presets/paper.toml), plus the samba rows when its data is found.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--data-dir", default=None, help="folder holding local copies of the paper's sequences")
     p.add_argument("--quick", action="store_true", help="the small preset (paper-quick.toml)")
