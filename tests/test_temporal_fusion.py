@@ -16,8 +16,10 @@ from dpcbench.methods.temporal_fusion import (
     crossed_voxels,
     disagreeing,
     fit_height_field,
+    grown_agreeing,
     interpolate_displacement,
     mls_project,
+    plane_offsets,
     plane_target,
     refine_point_to_plane,
     rim_displacement,
@@ -123,6 +125,37 @@ def test_disagreeing_flags_points_off_the_accepted_surface():
     np.testing.assert_array_equal(disagreeing(points, accepted, reach=3.0, tolerance=1.0), [False, True, False])
 
 
+def test_plane_offsets_are_the_distances_to_the_local_plane():
+    grid = np.stack(np.meshgrid(np.arange(0.0, 10), np.arange(0.0, 10), indexing="ij"), -1).reshape(-1, 2)
+    tilted = np.column_stack([grid, 0.5 * grid[:, 0]])  # the plane z = x / 2, unit normal (-1, 0, 2) / sqrt 5
+    points = np.array([[4.2, 4.7, 2.1 + 0.3], [5.0, 5.0, 2.5 - 1.1], [60.0, 0.0, 0.0]])
+    judged, offset = plane_offsets(points, tilted, reach=3.0)
+    np.testing.assert_array_equal(judged, [True, True, False])
+    np.testing.assert_allclose(offset[:2], np.array([0.3, 1.1]) * 2 / np.sqrt(5), atol=1e-9)
+    assert offset[2] == 0.0
+
+
+def test_grown_agreeing_keeps_what_continues_the_surface_and_drops_layers_and_islands():
+    """Support: the plane z = 0 for x < 5. Candidates: the plane's continuation out to x = 20 (farther
+    than the 3-unit reach from the support except through each other: kept by growth), a second layer
+    2 above it (off the plane: dropped), and an island on the plane beyond a 6-unit gap (no chain of
+    kept points reaches it: dropped)."""
+    yy = np.arange(0.0, 10)
+    support = np.array([[x, y, 0.0] for x in np.arange(0.0, 5) for y in yy])
+    continuation = np.array([[x, y, 0.0] for x in np.arange(5.0, 21) for y in yy])
+    layer = np.array([[x, y, 2.0] for x in np.arange(2.0, 12) for y in yy])
+    island = np.array([[x, y, 0.0] for x in np.arange(27.0, 31) for y in yy])
+    points = np.vstack([continuation, layer, island])
+    keep = grown_agreeing(points, support, reach=3.0, tolerance=1.0)
+    n_c, n_l = len(continuation), len(layer)
+    assert keep[:n_c].all()
+    assert not keep[n_c:n_c + n_l].any()
+    assert not keep[n_c + n_l:].any()
+    # one round only (what version 5's `disagreeing` judged): the far continuation is not reached
+    one_round = ~disagreeing(continuation, support, 3.0, 1.0) & (cKDTree(support).query(continuation)[0] <= 3.0)
+    assert one_round.sum() < n_c
+
+
 # -- the method -------------------------------------------------------------------------------------
 
 def test_rigid_motion_fill_matches_the_hidden_surface():
@@ -155,6 +188,27 @@ def test_far_frames_fill_what_the_near_ones_lack():
     assert len(gained) > 0.7 * len(hidden)
     spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
     assert np.median(cKDTree(hidden).query(gained)[0]) < 0.3 * spacing
+
+
+def test_a_misplaced_far_patch_adds_no_second_layer():
+    """Frame 0's patch over the hole is pushed 3.5 spacings outward (its rim is intact, so it aligns as
+    well as the near frames and passes the acceptance test). f-1 and f+1 saw the whole patch, so the
+    fill is their copy: the far frame adds no layer above it (version 5 added it: its points had no
+    accepted point within 3 spacings, so the agreement test did not judge them)."""
+    frames, regions, hidden = rigid_sequence()
+    region = regions[2][0]
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    step = np.array([1.2, -0.7, 0.5])
+    in_frame_2 = frames[0] @ Rotation.from_rotvec([0.0, 0.06, 0.04]).as_matrix().T + step * 2
+    patch = region.contains(in_frame_2)
+    outward = frames[0][patch] / np.linalg.norm(frames[0][patch], axis=1, keepdims=True)
+    frames[0] = frames[0].copy()
+    frames[0][patch] += 3.5 * spacing * outward
+    out = quiet(TemporalFusion(window=2, fallback=False, reuse_previous=False), frames, regions)
+    new = out[2][len(frames[2]):]
+    assert len(new) > 0.7 * len(hidden)
+    assert cKDTree(hidden).query(new)[0].max() < 1.0 * spacing
+    assert len(new) < 1.1 * len(hidden)
 
 
 def test_non_rigid_correction_follows_a_bend():
