@@ -98,6 +98,19 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    never extrapolation), inside R and farther than ``fill_gap_spacings * s`` from every point are
    lifted onto the spline. A hole that fails a test stays open: D2 must not drop below no fill, and
    an off-surface fill costs more in D2 than an open hole.
+6b. Advancing front (``front``, off by default): where step 6 added nothing (its tests refused the
+   hole, e.g. a hole round a limb, which is no height field over one plane), the open cells of R are
+   grown from the rim and the copies one cell shell a round (`_front_fill.front_fill`; cell 1 voxel,
+   or s on unvoxelized data): a free cell within sqrt 3 cells of the trusted points is accepted when
+   the MLS quadric of its ``mls_neighbours`` nearest trusted points crosses it (step 1b's rule) and
+   that fit's weighted RMS residual is at most the 90th percentile of the same fit's residual at the
+   rim's own points (a fit over two layers, where fronts meet at different heights, is refused).
+   At most ceil(sqrt(k / pi)) rounds (step 1b's fit radius), so no new point lies farther than one
+   fit radius from captured points; unlike step 1b the growth need not close, so a wide hole gets
+   a band along its rim. New points: the voxel, or the foot point on the quadric. Off by default:
+   measured (methods/NOTES.md, "step 6b") it raises D1 by 6-8 dB on D-FAUST coherent and occlusion
+   holes but lowers D2 by 0.9-2.2 dB below no fill there (the metric's point-to-plane error of a fill
+   0.3-0.8 s off the surface costs more than an open hole), which the issue forbids.
 7. Surface projection of the copies and reused points: every such new point (on voxelized data: the
    reused ones only; copies are voxels of a captured surface already) is moved onto a moving-least-squares
    surface of its neighbourhood (frame f's points near R and the new points): the ``mls_neighbours`` nearest
@@ -145,6 +158,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   mls_neighbours    20: a quadric has 6 coefficients; 20 points over-determine it ~3 times while
                     spanning about 2.5 s, so the fit follows the surface, not the noise.
   rim_fill          True: step 1b (voxelized data only); its round count follows from mls_neighbours.
+  front             False: step 6b (see there for the measurement that keeps it off); its cell, round
+                    count and residual bound follow from s, mls_neighbours and the rim's own fits.
   snap              "auto": voxelize when the input is voxelized (True/False force it).
 """
 
@@ -157,6 +172,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._front_fill import front_fill, rim_residual_bound
 from dpcbench.methods._point_to_plane import point_to_plane_icp
 from dpcbench.methods._registration import alignment_residual
 from dpcbench.methods.base import InpaintingMethod, Regions
@@ -559,7 +575,8 @@ class TemporalFusion(InpaintingMethod):
                  icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
-                 mls_neighbours: int = 20, rim_fill: bool = True, snap: bool | str = "auto") -> None:
+                 mls_neighbours: int = 20, rim_fill: bool = True, front: bool = False,
+                 snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -575,6 +592,7 @@ class TemporalFusion(InpaintingMethod):
         self.surface_holdout_spacings = surface_holdout_spacings
         self.mls_neighbours = mls_neighbours
         self.rim_fill = rim_fill
+        self.front = front
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -600,7 +618,7 @@ class TemporalFusion(InpaintingMethod):
         number("gap_spacings", False)
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
-        for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill"):
+        for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "front"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -788,6 +806,9 @@ class TemporalFusion(InpaintingMethod):
             spatial = rim_surface_fill(support, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
                                        max_holdout_spacings=self.surface_holdout_spacings, ring=shell / 2,
                                        gap_spacings=self.fill_gap_spacings)
+            if self.front and not len(spatial):
+                # step 6b: what the one-surface fill refused, grown from the rim and copies chart by chart
+                spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"])
         if not len(accepted) and not len(spatial):
             return np.zeros((0, 3))
 
@@ -802,6 +823,17 @@ class TemporalFusion(InpaintingMethod):
             accepted = np.vstack([accepted[:copied], np.unique(np.floor(accepted[copied:] + 0.5), axis=0)])
         accepted = np.vstack([accepted, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
+
+    def _front(self, support, region, covered, rim, spacing, voxelized) -> np.ndarray:
+        """Step 6b (`_front_fill.front_fill`): cell 1 voxel / s, `_rim_fill_rounds` rounds, residual bound
+        the 90th percentile of the rim's own fit residual (`_front_fill.rim_residual_bound`)."""
+        k = max(int(self.mls_neighbours), 6)
+        points = front_fill(support, region, covered, spacing, voxelized=voxelized, max_residual=rim_residual_bound(rim, k),
+                            neighbours=k, max_rounds=self._rim_fill_rounds(),
+                            free_distance=spacing / 2 if voxelized else self.fill_gap_spacings * spacing)
+        if voxelized and len(points):
+            points = np.unique(np.floor(points + 0.5), axis=0)
+        return points
 
     def _rim_fill_rounds(self) -> int:
         """Rounds of step 1b: one fit radius, ceil(sqrt(k / pi)) spacings, the radius of the disc that

@@ -1,0 +1,109 @@
+"""temporal-fusion's step 6b, the advancing-front fill (methods/_front_fill.py): each function on
+surfaces whose hidden part is known, and the method on a hole that one height field cannot describe."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._front_fill import front_fill, local_quadric, rim_residual_bound
+from dpcbench.methods.temporal_fusion import TemporalFusion, rim_surface_fill
+
+
+def grid_plane(half: float = 20.0, step: float = 1.0) -> np.ndarray:
+    g = np.arange(-half, half + step / 2, step)
+    u, v = np.meshgrid(g, g, indexing="ij")
+    return np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)])
+
+
+def cylinder(radius: float = 8.0, length: float = 60.0, step: float = 1.0) -> np.ndarray:
+    """A cylinder round the x axis sampled at about one point per step^2."""
+    count = int(round(2 * np.pi * radius / step))
+    angle = np.arange(count) * 2 * np.pi / count
+    x = np.arange(-length / 2, length / 2 + step / 2, step)
+    xx, aa = np.meshgrid(x, angle, indexing="ij")
+    return np.column_stack([xx.ravel(), radius * np.cos(aa.ravel()), radius * np.sin(aa.ravel())])
+
+
+def test_local_quadric_is_exact_on_a_quadric_and_its_residual_measures_the_scatter():
+    rng = np.random.default_rng(0)
+    uv = rng.uniform(-6, 6, size=(600, 2))
+    surface = np.column_stack([uv, 0.02 * uv[:, 0] ** 2 - 0.01 * uv[:, 0] * uv[:, 1] + 0.03 * uv[:, 1] ** 2])
+    queries = np.array([[0.3, -0.2, 1.0], [1.5, 2.0, -1.0]])
+    foot, normal, residual = local_quadric(queries, surface, 20)
+    exact = 0.02 * queries[:, 0] ** 2 - 0.01 * queries[:, 0] * queries[:, 1] + 0.03 * queries[:, 1] ** 2
+    # the foot lies on the surface (to the third-order terms a quadric in the tilted PCA frame misses;
+    # a projection along the fit's normal moves u, v a little)
+    on = 0.02 * foot[:, 0] ** 2 - 0.01 * foot[:, 0] * foot[:, 1] + 0.03 * foot[:, 1] ** 2
+    np.testing.assert_allclose(foot[:, 2], on, atol=1e-4)
+    assert np.all(np.abs(foot[:, 2] - exact) < 0.1)
+    assert np.all(residual < 1e-4) and np.allclose(np.linalg.norm(normal, axis=1), 1.0)
+    noisy = surface + rng.normal(0, 0.2, size=surface.shape) * [0, 0, 1]
+    bound = rim_residual_bound(noisy, 20)
+    assert 0.1 < bound < 0.35, bound
+
+
+def test_front_fill_closes_a_plane_hole_on_the_plane_at_the_data_density():
+    plane = grid_plane()
+    region = HoleRegion.ball([0.3, -0.2, 0.0], 4.0)
+    kept = plane[~region.contains(plane)]
+    hidden = plane[region.contains(plane)]
+    fill = front_fill(kept, region, cKDTree(kept), 1.0, voxelized=False, max_residual=0.1, free_distance=1.0)
+    assert np.abs(fill[:, 2]).max() < 1e-6
+    assert region.contains(fill).all()
+    # every hidden point has a fill point within one spacing; one point a crossed cell
+    assert cKDTree(fill).query(hidden)[0].max() <= np.sqrt(2) * 0.8  # the lattice is offset from the data's grid
+    assert 0.7 * len(hidden) <= len(fill) <= 1.3 * len(hidden), (len(fill), len(hidden))
+
+
+def test_front_fill_stops_after_its_rounds_and_refuses_two_layers():
+    plane = grid_plane()
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 10.0)
+    kept = plane[~region.contains(plane)]
+    fill = front_fill(kept, region, cKDTree(kept), 1.0, voxelized=False, max_residual=0.1, max_rounds=3,
+                      free_distance=1.0)
+    assert len(fill) > 0
+    # three one-cell rounds reach no farther than 3 sqrt(3) cells (+ the half-cell of a foot point)
+    assert cKDTree(kept).query(fill)[0].max() <= 3 * np.sqrt(3) + 0.5
+    assert np.linalg.norm(fill[:, :2], axis=1).min() > 10.0 - 3 * np.sqrt(3) - 0.5
+    # two parallel sheets 1.5 apart: every fit over the gap spans both, the residual bound refuses it
+    doubled = np.vstack([kept, kept + [0.5, 0.5, 1.5]])
+    assert len(front_fill(doubled, region, cKDTree(doubled), 1.0, voxelized=False, max_residual=0.1,
+                          free_distance=1.0)) == 0
+
+
+def test_front_fill_on_voxels_gives_integer_surface_voxels():
+    plane = np.unique(np.floor(grid_plane(step=0.25) @ np.array([[1, 0, 0], [0, 0.8, 0.6], [0, -0.6, 0.8]]) + 0.5),
+                      axis=0)
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 3.0)
+    kept = plane[~region.contains(plane)]
+    hidden = plane[region.contains(plane)]
+    fill = front_fill(kept, region, cKDTree(kept), 1.0, voxelized=True, max_residual=0.5)
+    assert np.array_equal(fill, np.round(fill)) and len(np.unique(fill, axis=0)) == len(fill)
+    a, b = {tuple(p) for p in fill.astype(int)}, {tuple(p) for p in hidden.astype(int)}
+    assert len(a & b) >= 0.8 * len(b) and len(a & b) >= 0.8 * len(a), (len(a & b), len(a), len(b))
+
+
+def test_a_hole_round_a_limb_is_refused_by_the_spline_and_filled_on_the_surface_by_the_front():
+    """A cylinder of radius 8 (a limb) with a ball hole of radius 7 on its side: the rim wraps round
+    it (not one height field, step 6 refuses it), so by default it stays open; with ``front`` the hole's
+    edge is filled, within a fit radius of the rim, on the cylinder."""
+    limb = cylinder()
+    region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
+    kept = limb[~region.contains(limb)]
+    rim = kept[region.contains(kept, margin=3.5)]
+    assert len(rim_surface_fill(rim, region, cKDTree(kept), 1.0, voxelized=False, ring=1.75)) == 0
+    frames = [kept.copy() for _ in range(3)]
+    regions = [[region] for _ in range(3)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = TemporalFusion(window=0, front=True).inpaint(frames, regions)
+        off = TemporalFusion(window=0).inpaint(frames, regions)  # the default: step 6b off
+    new = out[1][len(kept):]
+    assert len(off[1]) == len(kept)
+    assert len(new) > 0.3 * region.contains(limb).sum()
+    radial = np.linalg.norm(new[:, 1:], axis=1)
+    assert np.abs(radial - 8.0).max() < 0.3, np.abs(radial - 8.0).max()
