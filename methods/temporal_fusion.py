@@ -93,8 +93,10 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    outer rim alone (farther than shell / 2 from R) must predict the inner rim's heights with RMS error
    at most ``surface_holdout_spacings * s``, since the inner ring is as far from the outer rim as the
    hole's edge. Grid points (step s, s / 2 on voxelized data, then rounded to the voxels the surface
-   passes through; on unvoxelized data the step is the frame's median nearest-neighbour distance, so
-   the fill has the data's density) inside the convex hull of the support's (u, v) (interpolation,
+   passes through; on unvoxelized data the step is 1 / sqrt(areal density), `lozes_pde.sampling_step`,
+   so the fill has the data's density; version 5 used the median nearest-neighbour distance, about half
+   that on an uneven sampling, and put 10,025 points where 7,056 were missing on D-FAUST coherent
+   holes, 4 frames, seed 0, against 2,307 now with the same D1) inside the convex hull of the support's (u, v) (interpolation,
    never extrapolation), inside R and farther than ``fill_gap_spacings * s`` from every point are
    lifted onto the spline. A hole that fails a test stays open: D2 must not drop below no fill, and
    an off-surface fill costs more in D2 than an open hole.
@@ -176,8 +178,9 @@ from dpcbench.methods._front_fill import front_fill, rim_residual_bound
 from dpcbench.methods._point_to_plane import point_to_plane_icp
 from dpcbench.methods._registration import alignment_residual
 from dpcbench.methods.base import InpaintingMethod, Regions
+from dpcbench.methods.lozes_pde import sampling_step
 from dpcbench.methods.reference import icp_align
-from dpcbench.metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing
+from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 
 #: most source points an ICP call pairs: a rigid motion has 6 unknowns, and 2000 evenly spread
 #: pairs pin it down as well as the 10-20k of a large hole's shell on an 800k-point frame (the
@@ -648,8 +651,10 @@ class TemporalFusion(InpaintingMethod):
         voxelized = self.snap is True or (self.snap == "auto" and integer)
         largest = max(range(len(frames)), key=lambda g: len(frames[g]))
         spacing = 1.0 if integer else point_spacing(frames[largest], tree=tree_of(largest))
-        # the spatial fill's grid step on unvoxelized data: the frame's own sampling density
-        step = spacing if integer else median_neighbour_distance(frames[largest], tree=tree_of(largest))
+        # the spatial fill's grid step on unvoxelized data: 1 / sqrt(areal density), so a square grid has the
+        # frame's density (the median nearest-neighbour distance of an uneven sampling is about half that,
+        # and a grid of that step put ~4 points where one was missing on D-FAUST)
+        step = spacing if integer else sampling_step(frames[largest])
         context = dict(step=step, frames=frames, regions=regions, tree_of=tree_of, spacing=spacing, voxelized=voxelized)
         outputs: list[np.ndarray] = []
         previous_fill = np.zeros((0, 3))
