@@ -174,7 +174,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
-from dpcbench.methods._front_fill import front_fill, rim_residual_bound
+from dpcbench.methods._front_fill import front_fill, local_quadric, rim_residual_bound
 from dpcbench.methods._point_to_plane import point_to_plane_icp
 from dpcbench.methods._registration import alignment_residual
 from dpcbench.methods.base import InpaintingMethod, Regions
@@ -251,34 +251,8 @@ def mls_fit(points: np.ndarray, support: np.ndarray, neighbours: int = 20,
             support_tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
     """`mls_project` with the fit's unit normals: (projected (P, 3), normal (P, 3), the PCA normal of
     each point's support neighbourhood; zero where the point is returned unchanged)."""
-    points = np.asarray(points, dtype=np.float64)
-    k = int(min(neighbours, len(support)))
-    if len(points) == 0 or k < 6:
-        return points.copy(), np.zeros_like(points)
-    tree = support_tree if support_tree is not None else cKDTree(support)
-    dist, idx = tree.query(points, k=k)
-    nb = support[idx]  # (P, k, 3)
-    centre = nb.mean(axis=1)
-    spread = nb - centre[:, None, :]
-    axes = np.linalg.eigh(np.einsum("pki,pkj->pij", spread, spread))[1]  # columns: ascending variance
-    normal, u_axis, v_axis = axes[:, :, 0], axes[:, :, 2], axes[:, :, 1]
-    u = np.einsum("pki,pi->pk", spread, u_axis)
-    v = np.einsum("pki,pi->pk", spread, v_axis)
-    h = np.einsum("pki,pi->pk", spread, normal)
-    bandwidth = np.maximum(dist[:, -1] / 2.0, 1e-12)
-    weight = np.exp(-(dist / bandwidth[:, None]) ** 2 / 2.0)
-    design = np.stack([np.ones_like(u), u, v, u * u, u * v, v * v], axis=2)  # (P, k, 6)
-    wd = design * weight[:, :, None]
-    lhs = np.einsum("pka,pkb->pab", wd, design) + 1e-9 * np.eye(6)
-    rhs = np.einsum("pka,pk->pa", wd, h)
-    coef = np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]
-    offset = points - centre
-    pu = np.einsum("pi,pi->p", offset, u_axis)
-    pv = np.einsum("pi,pi->p", offset, v_axis)
-    ph = coef[:, 0] + coef[:, 1] * pu + coef[:, 2] * pv + coef[:, 3] * pu * pu + coef[:, 4] * pu * pv + coef[:, 5] * pv * pv
-    projected = centre + pu[:, None] * u_axis + pv[:, None] * v_axis + ph[:, None] * normal
-    finite = np.isfinite(projected).all(axis=1, keepdims=True)
-    return np.where(finite, projected, points), np.where(finite, normal, 0.0)
+    foot, normal, _ = local_quadric(points, support, neighbours, support_tree)
+    return foot, normal
 
 
 def crossed_voxels(region: HoleRegion, support: np.ndarray, occupied: cKDTree, *, neighbours: int = 20,
