@@ -77,7 +77,7 @@ def test_a_run_without_holes_stores_no_quality_score(tmp_path, monkeypatch):
     summary = run_experiment(specs, store, executor="serial", quiet=True)
     assert len(summary.done) == 1, summary.errors
     rows = store.results_frame()
-    assert set(rows.metric) == {"time_s", "peak_mem_mb", "removed_fraction"}
+    assert set(rows.metric) == {"time_s", "cpu_time_s", "peak_mem_mb", "removed_fraction"}
     assert (rows[rows.metric == "removed_fraction"].value == 0.0).all()
     holes = json.loads((tmp_path / "runs" / specs[0].inpaint_key / "holes.json").read_text())
     assert holes["generator"] == "none"
