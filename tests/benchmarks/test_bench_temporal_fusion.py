@@ -8,7 +8,15 @@ figure at several heights (points grow with height^2, as in test_bench_temporal_
 frame for the growth with the number of holes. Target: under 10 s at 800k, 5 holes.
 
     .venv/bin/python -m pytest tests/benchmarks/test_bench_temporal_fusion.py --benchmark-only \
-        --benchmark-columns=min,mean,rounds
+        --benchmark-columns=min,mean,rounds [--benchmark-timer=time.process_time]
+
+With ``--benchmark-timer=time.process_time`` the figure is the process's CPU time (all its threads),
+which the machine's other load does not inflate. Measured 2026-11-24 at cf6226c (temporal-fusion 6), 2-core
+machine, two runs each (the figures of the second, with --benchmark-json for the point counts):
+  points, 5 holes:   93,211 -> 1.44 s;  275,699 -> 3.40 s;  780,302 -> 6.27 s (target < 10 s: met)
+  holes, ~280k pts:  1 -> 0.94 s;  3 -> 2.28 s;  5 -> 3.40 s (about 0.35 s + 0.6 s a hole: linear)
+CPU time grows more slowly than the point count (15.4, 12.3, 8.0 us a point): the per-hole work
+scales with the hole's points, the rest (k-d trees, copies) is a small part.
 """
 
 from __future__ import annotations
