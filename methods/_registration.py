@@ -73,7 +73,10 @@ def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int
         local = (partial - translation) @ rotation
         dist, idx = tree.query(local)
         if keep_count < len(partial):
-            keep = np.argpartition(dist, keep_count - 1)[:keep_count]
+            # the keep_count nearest pairs, ties taken by row and rows in order: np.argpartition's order
+            # and its choice among tied distances depend on the CPU's SIMD kernel, and the sums in kabsch
+            # (so the fit's last bits, and decisions downstream) depend on that order
+            keep = np.sort(np.argsort(dist, kind="stable")[:keep_count])
             new_rotation, new_translation = kabsch(source[idx[keep]], partial[keep])
         else:
             new_rotation, new_translation = kabsch(source[idx], partial)
@@ -91,7 +94,9 @@ def alignment_residual(source_tree: cKDTree, partial: np.ndarray, rotation: np.n
     unmoved source)."""
     dist, _ = source_tree.query((np.asarray(partial) - translation) @ rotation)
     keep = max(1, int(np.ceil(trim * len(dist))))
-    return float(np.partition(dist, keep - 1)[:keep].mean())
+    # sorted rather than partitioned: the partition's order (so the sum's last bits, and which candidate
+    # wins a near tie in align_best) depends on the CPU's SIMD kernel
+    return float(np.sort(dist)[:keep].mean())
 
 
 @dataclass(frozen=True)

@@ -543,7 +543,7 @@ class TemporalFusion(InpaintingMethod):
                "fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface where no frame saw it and the fit is trusted")
-    version = "6"
+    version = "7"  # 7: trimmed residual summed in sorted order (independent of the CPU)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

@@ -993,7 +993,8 @@ class TemporalGraph(_CubeGraphInpainting):
 
     name = "temporal-graph"
     summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
-    version = "4"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix
+    version = "5"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
+    # 5: ICP pairs independent of the CPU
     uses_neighbour_frames = True
     _temporal = True
 
@@ -1045,7 +1046,7 @@ class FuNonlocal(_CubeGraphInpainting):
 
     name = "fu-nonlocal"
     summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
-    version = "2"  # 2: variants and switches, free-mode fix
+    version = "3"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU
     uses_neighbour_frames = False
     _temporal = False
     # not parameters: the temporal terms are off by definition, so there is no temporal evidence

@@ -386,7 +386,7 @@ def face_neighbour_mask(points: np.ndarray) -> np.ndarray | None:
         keys += (points[:, axis] - (lo[axis] - 1)).astype(np.int64)
     sorted_keys, order, shift = sort_with_order(keys.view(np.uint64), int(keys.max()).bit_length())
     if shift:  # grid too large to share 64 bits with the indices
-        order = np.argsort(keys)
+        order = np.argsort(keys, kind="stable")  # duplicates in row order on every CPU
     sorted_keys = keys[order]
     has = np.zeros(len(points), dtype=bool)
     adjacent = np.flatnonzero(sorted_keys[1:] - sorted_keys[:-1] == 1)
