@@ -25,9 +25,12 @@ fi
 
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-if [ "$dev" = 1 ]; then
-  .venv/bin/python -m pip install -q -e '.[dev,dask]'
-else
-  .venv/bin/python -m pip install -q -e .
+target="."
+[ "$dev" = 1 ] && target=".[dev,dask]"
+# constraints.txt: the versions CI passed with (results and the bit-exact tests depend on them); where
+# they cannot be installed (e.g. another Python version without those wheels), the newest ones are
+if ! .venv/bin/python -m pip install -q -c constraints.txt -e "$target"; then
+  echo "install.sh: the versions in constraints.txt could not be installed here; installing the newest ones" >&2
+  .venv/bin/python -m pip install -q -e "$target"
 fi
 echo "dpcbench installed in .venv: run .venv/bin/dpcbench --help"
