@@ -201,6 +201,10 @@ from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 #: alignment cost is then independent of the point density)
 ICP_POINTS = 2000
 
+#: most rim voxels step 4b's bound is read from (with their free neighbours): a statistic of the rim,
+#: so an evenly strided subset gives it at a fixed cost per hole
+CALIBRATION_POINTS = 1000
+
 #: most rim points the spatial fill's thin-plate spline interpolates (a dense solve, O(K^3))
 SURFACE_POINTS = 1000
 
@@ -845,7 +849,7 @@ class TemporalFusion(InpaintingMethod):
 
         if ctx["voxelized"] and self.revoxelize and len(accepted):
             k = max(int(self.mls_neighbours), 6)
-            bound = rim_crossing_threshold(rim, region, local, local_tree, k)
+            bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
             accepted = surface_voxels(accepted, region, np.vstack([local, accepted]), local_tree, k, bound)
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
 

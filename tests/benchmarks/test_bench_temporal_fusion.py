@@ -15,6 +15,9 @@ which the machine's other load does not inflate. Measured 2026-11-24 at cf6226c 
 machine, two runs each (the figures of the second, with --benchmark-json for the point counts):
   points, 5 holes:   93,211 -> 1.44 s;  275,699 -> 3.40 s;  780,302 -> 6.27 s (target < 10 s: met)
   holes, ~280k pts:  1 -> 0.94 s;  3 -> 2.28 s;  5 -> 3.40 s (about 0.35 s + 0.6 s a hole: linear)
+2026-11-25, temporal-fusion 8 (step 4b, re-voxelized copies), CPU time, one run each on this session's
+machine, version 7 measured beside it in the same minutes: 290k 3.09 -> 3.40 s, 800k 4.96 -> 6.22 s
+(target < 10 s: met); 100k 1.34 s; 1 / 3 / 5 holes at ~280k: 0.82 / 2.07 / 3.40 s.
 CPU time grows more slowly than the point count (15.4, 12.3, 8.0 us a point): the per-hole work
 scales with the hole's points, the rest (k-d trees, copies) is a small part.
 """
