@@ -90,8 +90,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    (`rim_crossing_threshold`): the t that best separates R's rim voxels (occupied) from the free voxels
    next to them outside R under the same fit. Measured (10 frames, medium independent holes, seeds
    0-2, D1 / D2 means, version 7 -> 8): bunny small 35.63 / 39.12 -> 36.53 / 40.91, human small
-   28.65 / 31.91 -> 29.71 / 33.33, samba 32.97 / 37.03 -> 33.06 / 37.44; coherent and occlusion rows
-   (seed 0, 5 frames) unchanged; D-FAUST is not voxelized (step 4b does not run).
+   28.65 / 31.91 -> 29.70 / 33.34, samba 32.97 / 37.03 -> 33.05 / 37.43; coherent (seed 0, 10 frames)
+   and occlusion rows (seed 0, 5 frames) unchanged; D-FAUST is not voxelized (step 4b does not run).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
    fill alike) are moved to frame f by f-1's motion (steps 2a and 2c, computed even when f-1 failed
    the coverage test) and, where they still fit the rim (points within 3 s of the rim and farther
