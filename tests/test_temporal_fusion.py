@@ -593,3 +593,28 @@ def test_surface_voxels_revoxelize_a_copy_by_the_capture_s_own_rule():
     # measured (0.895, 0.982): the rim's own voxels pull their fits towards themselves, so the bound read
     # there (0.615) is a little below the column rule's (0.667) and some hidden voxels just above it are lost
     assert thin[1] >= 0.97 and thin[0] >= 0.85, thin
+
+
+def test_the_reused_fill_is_revoxelized_as_it_moves():
+    """A persistent hole (radius 7) on a sphere drifting 0.35 voxel a frame: no frame is a source (each
+    has the hole), frame 0 gets the spatial fill and later frames reuse it, moved by a sub-voxel motion.
+    Re-voxelized by the rim's rule the reused fill restores more of the hidden voxels than rounded
+    (measured 0.84 / 0.80 / 0.79 against 0.63 / 0.61 / 0.63 in frames 1-3, with 0.87-0.90 of the fill on
+    the truth against 0.89-0.92)."""
+    frames, hidden, regions = [], [], []
+    for t in range(4):
+        centre = np.array([0.3 + 0.35 * t, -0.2, 0.1])
+        voxels = crossed_sphere_voxels(40.0, centre)
+        region = HoleRegion.ball(centre + 40.0 * np.array([0.0, 0.6, 0.8]), 7.0)
+        hidden.append(voxels[region.contains(voxels)])
+        frames.append(voxels[~region.contains(voxels)])
+        regions.append([region])
+    scores = {}
+    for revoxelize in (True, False):
+        out = quiet(TemporalFusion(revoxelize=revoxelize), frames, regions)
+        scores[revoxelize] = [overlap(out[t][len(frames[t]):], hidden[t]) for t in range(4)]
+    assert scores[True][0] == scores[False][0]  # frame 0: the spatial fill, no reuse
+    for t in (1, 2, 3):
+        (restored, on_truth), (rounded_restored, rounded_on_truth) = scores[True][t], scores[False][t]
+        assert restored > rounded_restored + 0.1 and on_truth > 0.8, (t, scores)
+        assert restored + on_truth > rounded_restored + rounded_on_truth
