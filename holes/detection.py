@@ -36,6 +36,7 @@ from scipy.spatial import cKDTree
 from dpcbench.holes.geometry import check_frame, point_spacing, radius_components, tangent_basis
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.neighbours import probe_indices
 
 #: Version of `detect_holes`'s output: bump it whenever a change alters the regions it returns for
 #: some input (a pure speed-up that returns the same regions keeps it). Runs with regions = "detected"
@@ -69,8 +70,13 @@ _FAR_R2 = 36
 #: (57 offsets, of which ~20 are occupied on a surface: the counterpart of `_NEAREST_FIRST`).
 _SECTOR_R2 = 5
 
-#: Cells of one slab's occupancy grid on the voxel path (bool, 8 MiB): bounds its memory.
+#: Cells of one slab's occupancy grid on the voxel path (bool, 8 MiB), and points whose neighbourhoods
+#: are gathered at a time (their (points, 147) stencil tables: ~10 MB each): bound its memory.
 _SLAB_CELLS = 1 << 23
+_VOXEL_BLOCK = 1 << 14
+
+#: Points whose 9th-nearest distances give `detect_holes` its point spacing: `point_spacing`'s default sample.
+_SPACING_SAMPLE = 20000
 
 
 def _sector_bits(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -340,35 +346,48 @@ def _voxel_neighbourhoods(grid: np.ndarray, k: int, leftover: list):
     def flat(offsets: np.ndarray) -> np.ndarray:
         return (offsets[:, slab_axis] * ext[b_axis] + offsets[:, b_axis]) * ext[c_axis] + offsets[:, c_axis]
 
-    near_flat, far_flat = flat(near), flat(far)
+    # int32 slab keys when they fit: the (rows, offsets) key tables are the largest temporaries
+    key_type = np.int32 if (width + 2 * reach) * layer < 1 << 31 else np.int64
+    near_flat, far_flat = flat(near).astype(key_type), flat(far).astype(key_type)
     near_offsets, far_offsets = near.astype(np.float64), far.astype(np.float64)
     for a0 in range(0, int(a[-1]) + 1, width):
         lo, first, last, hi = np.searchsorted(a, [a0 - reach, a0, a0 + width, a0 + width + reach])
         if first == last:
             continue
         occupied = np.zeros((width + 2 * reach) * layer, dtype=bool)
-        keys = (a[lo:hi] - (a0 - reach)) * layer + bc[lo:hi]
-        occupied[keys] = True
-        keys = keys[first - lo:last - lo]
-        rows = order[first:last]
-        hits = occupied[keys[:, None] + near_flat[None, :]]
-        done, cols = _shell_limits(hits, near_d2, k)
-        groups = [(rows[done], near_offsets, hits[done], cols[done])]
-        short = np.flatnonzero(~done)
-        if len(short):
-            # the far stencil's first columns are the near one (both ordered by length)
-            hits = np.concatenate([hits[short], occupied[keys[short, None] + far_flat[None, len(near):]]], axis=1)
-            done, cols = _shell_limits(hits, far_d2, k)
-            groups.append((rows[short[done]], far_offsets, hits[done], cols[done]))
-            leftover.append(rows[short[~done]])
-        for group_rows, offsets, group_hits, group_cols in groups:
-            if len(group_rows):
-                m = int(group_cols.max())
-                yield group_rows, offsets[:m], group_hits[:, :m] & (np.arange(m)[None, :] < group_cols[:, None])
+        slab_keys = ((a[lo:hi] - (a0 - reach)) * layer + bc[lo:hi]).astype(key_type)
+        occupied[slab_keys] = True
+        for start in range(first, last, _VOXEL_BLOCK):
+            stop = min(start + _VOXEL_BLOCK, last)
+            yield from _stencil_groups(occupied, slab_keys[start - lo:stop - lo], order[start:stop], k,
+                                       (near_flat, near_offsets, near_d2), (far_flat, far_offsets, far_d2),
+                                       leftover)
+
+
+def _stencil_groups(occupied: np.ndarray, keys: np.ndarray, rows: np.ndarray, k: int, near: tuple, far: tuple,
+                    leftover: list):
+    """The groups of `_voxel_neighbourhoods` for the points ``rows`` at slab keys ``keys`` of the slab's
+    occupancy grid ``occupied``; near and far: (flat offsets, offsets, squared lengths) of each stencil."""
+    near_flat, near_offsets, near_d2 = near
+    far_flat, far_offsets, far_d2 = far
+    hits = occupied[keys[:, None] + near_flat[None, :]]
+    done, cols = _shell_limits(hits, near_d2, k)
+    groups = [(rows[done], near_offsets, hits[done], cols[done])]
+    short = np.flatnonzero(~done)
+    if len(short):
+        # the far stencil's first columns are the near one (both ordered by length)
+        hits = np.concatenate([hits[short], occupied[keys[short, None] + far_flat[None, len(near_flat):]]], axis=1)
+        done, cols = _shell_limits(hits, far_d2, k)
+        groups.append((rows[short[done]], far_offsets, hits[done], cols[done]))
+        leftover.append(rows[short[~done]])
+    for group_rows, offsets, group_hits, group_cols in groups:
+        if len(group_rows):
+            m = int(group_cols.max())
+            yield group_rows, offsets[:m], group_hits[:, :m] & (np.arange(m)[None, :] < group_cols[:, None])
 
 
 def _tree_boundary(points: np.ndarray, rows: np.ndarray, k: int, tree: cKDTree, ties: bool, prefilter: bool,
-                   largest: np.ndarray, direction: np.ndarray) -> None:
+                   largest: np.ndarray, direction: np.ndarray, ninth: np.ndarray | None, wanted: np.ndarray) -> None:
     """Largest gaps and directions of ``points[rows]``, neighbours from ``tree``, written into
     ``largest`` and ``direction``.
 
@@ -377,12 +396,15 @@ def _tree_boundary(points: np.ndarray, rows: np.ndarray, k: int, tree: cKDTree, 
     far as the k-th, found with a ball of radius sqrt(d_k^2 + 1/2), which squared distances, being
     integers, cannot fall between.
     Rows are handled `_BLOCK` at a time in the given order (pass them in the tree's leaf order,
-    ``tree.indices``, for consecutive queries to walk the same nodes).
+    ``tree.indices``, for consecutive queries to walk the same nodes). ``ninth`` (N,) (when not None)
+    gets the distance to the 9th nearest of the rows where ``wanted`` (N,) is True.
     """
     for start in range(0, len(rows), _BLOCK):
         block = rows[start:start + _BLOCK]
         centres = points[block]
         dist, nbr = tree.query(centres, k=k, workers=-1)
+        if ninth is not None:
+            ninth[block[wanted[block]]] = dist[wanted[block], 8]
         if ties:
             balls = tree.query_ball_point(centres, np.sqrt(np.rint(dist[:, -1] ** 2) + 0.5), workers=-1)
             sizes = np.fromiter(map(len, balls), dtype=np.intp, count=len(balls))
@@ -421,24 +443,43 @@ def boundary_points(points: np.ndarray, k: int = 32, gap: float = 0.6 * np.pi, t
     when ``gap`` >= pi / 2 those NaN points have no gap above 90 degrees, so the mask is exactly the
     same, and the work (arctan2 and sort of the angles) is done for a few percent of the points only.
     """
+    largest, direction, _, _ = _boundary(points, k, gap, tree, interior_values)
+    return largest > gap, largest, direction
+
+
+def _boundary(points: np.ndarray, k: int, gap: float, tree: cKDTree | None, interior_values: bool,
+              ninth_of: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, cKDTree | None, np.ndarray | None]:
+    """`boundary_points`' largest gaps (N,) and directions (N, 3), the cKDTree if one was built or given,
+    and, for the rows ``ninth_of`` (indices, k >= 9), their distances to the 9th nearest point (self
+    included; what `point_spacing` takes the median of), from the same neighbourhoods; None when
+    ``ninth_of`` is None or k < 9."""
     points = np.asarray(points, dtype=np.float64)
     n = len(points)
     prefilter = not interior_values and gap >= np.pi / 2
     largest = np.full(n, np.nan)
     direction = np.full((n, 3), np.nan)
+    ninth = np.full(n, np.nan) if ninth_of is not None and k >= 9 else None
+    wanted = np.zeros(n, dtype=bool)
+    if ninth is not None:
+        wanted[ninth_of] = True
     grid = _voxel_coordinates(points)
     with _OneBlasThread():
         if grid is not None:
             leftover = []
             for rows, offsets, mask in _voxel_neighbourhoods(grid, k, leftover):
                 largest[rows], direction[rows] = _neighbourhood_gaps(offsets, mask, prefilter)
+                pick = wanted[rows]
+                if pick.any():
+                    # the 9th occupied column (columns by distance; a group holds >= k >= 9 of them)
+                    col = (mask[pick].cumsum(axis=1) >= 9).argmax(axis=1)
+                    ninth[rows[pick]] = np.sqrt((offsets[col] ** 2).sum(axis=1))
             rest = np.sort(np.concatenate(leftover)) if leftover else np.zeros(0, dtype=np.intp)
         if grid is None or len(rest):
             tree = tree if tree is not None else cKDTree(points)
             if grid is None:
                 rest = np.asarray(tree.indices, dtype=np.intp)  # leaf order
-            _tree_boundary(points, rest, k, tree, grid is not None, prefilter, largest, direction)
-    return largest > gap, largest, direction
+            _tree_boundary(points, rest, k, tree, grid is not None, prefilter, largest, direction, ninth, wanted)
+    return largest, direction, tree, (None if ninth is None else ninth[ninth_of])
 
 
 def detect_holes(
@@ -471,9 +512,14 @@ def detect_holes(
         raise UserError(f"detect_holes: gap must be an angle in (0, 2 pi) radians, got {gap!r}")
     if not link > 0 or not max_radius > 0 or min_points < 1:
         raise UserError("detect_holes: link, max_radius and min_points must be positive")
-    tree = cKDTree(points)
-    spacing = point_spacing(points, tree)
-    on_rim, _, direction = boundary_points(points, int(k), gap, tree, interior_values=False)
+    # point_spacing's probe rows: their 9th-nearest distances come with the neighbourhoods (no second
+    # search, no cKDTree at all for a voxel frame); the same value as point_spacing(points)
+    probe_rows = probe_indices(len(points), _SPACING_SAMPLE, seed=0)
+    largest, direction, tree, ninth = _boundary(points, int(k), gap, None, False, probe_rows)
+    on_rim = largest > gap
+    spacing = float(np.median(ninth)) / np.sqrt(2.0) if ninth is not None else point_spacing(points, tree)
+    if not spacing > 0:  # as point_spacing refuses it
+        raise UserError("detect_holes: the points are (almost all) duplicates: cannot estimate a point spacing")
     rim_idx = np.flatnonzero(on_rim)
     count, labels = radius_components(points[rim_idx], link * spacing)
     diag = float(np.linalg.norm(np.ptp(points, axis=0)))

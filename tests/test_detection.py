@@ -314,3 +314,31 @@ def test_blocked_leaf_order_query_matches_plain_computation(monkeypatch, block):
     assert 0 < reference[0].sum() < len(pts) * 0.2
     assert_same_boundary(pts, boundary_points(pts), reference)
     assert_same_boundary(pts, boundary_points(pts, interior_values=False), reference, computed_fraction=0.5)
+
+
+@pytest.mark.parametrize("voxel", [True, False])
+def test_spacing_from_the_neighbourhoods_is_point_spacing(human, voxel):
+    """detect_holes takes the point spacing from the 9th-nearest distances of point_spacing's probe rows,
+    read off its own neighbourhoods (stencil or cKDTree, strays included): the same value exactly."""
+    from dpcbench.holes.detection import _SPACING_SAMPLE, _boundary
+    from dpcbench.holes.geometry import point_spacing
+    from dpcbench.metrics.neighbours import probe_indices
+
+    frame = get_generator("region", preset="large").damage([human[0]], 0).frames[0]
+    frame = np.vstack([frame, frame.max(axis=0) + [[30, 0, 0], [0, 40, 0], [0, 0, 50]]])  # stray voxels
+    if not voxel:
+        frame = frame + np.random.default_rng(0).normal(0, 0.01, frame.shape)
+    rows = probe_indices(len(frame), 5000, seed=0)
+    rows = np.concatenate([rows, [len(frame) - 3, len(frame) - 2, len(frame) - 1]])
+    ninth = _boundary(frame, 32, 0.6 * np.pi, None, False, rows)[3]
+    reference = kdtree_ninth(frame, rows)
+    assert np.array_equal(ninth, reference)
+    probe = probe_indices(len(frame), _SPACING_SAMPLE, seed=0)
+    assert float(np.median(_boundary(frame, 32, 0.6 * np.pi, None, False, probe)[3])) / np.sqrt(2.0) == \
+        point_spacing(frame)
+
+
+def kdtree_ninth(points, rows):
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points).query(points[rows], k=9)[0][:, 8]
