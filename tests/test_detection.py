@@ -195,8 +195,8 @@ def test_stencil_neighbours_equal_brute_force_with_ties(seed, k, radii, monkeypa
     reference = neighbours_with_ties(points, k)
     leftover, answered = [], []
     for rows, offsets, mask in detection._voxel_neighbourhoods(grid, k, leftover):
-        assert np.array_equal(offsets[0], [0, 0, 0]) and mask[:, 0].all()  # the point itself first
-        for row, used in zip(rows, mask):
+        assert np.array_equal(offsets[0], [0, 0, 0]) and mask[0].all()  # the point itself first
+        for row, used in zip(rows, mask.T):
             found = sorted(index[tuple(v)] for v in (grid[row] + offsets[used].astype(np.int64)).tolist())
             assert found == reference[row].tolist()
         answered.append(rows)
