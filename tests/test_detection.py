@@ -342,3 +342,16 @@ def kdtree_ninth(points, rows):
     from scipy.spatial import cKDTree
 
     return cKDTree(points).query(points[rows], k=9)[0][:, 8]
+
+
+def test_one_blas_thread_inside_and_restored_after():
+    """The batched linear algebra runs with BLAS on one thread; the caller's setting comes back after."""
+    from dpcbench.holes.detection import _OneBlasThread
+
+    apis = _OneBlasThread._lookup()
+    if not apis:
+        pytest.skip("no OpenBLAS found through /proc/self/maps (another BLAS or OS)")
+    before = [get() for get, _ in apis]
+    with _OneBlasThread():
+        assert [get() for get, _ in apis] == [1] * len(apis)
+    assert [get() for get, _ in apis] == before
