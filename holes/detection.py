@@ -77,6 +77,11 @@ _SECTOR_R2 = 5
 _SLAB_CELLS = 1 << 23
 _VOXEL_BLOCK = 1 << 14
 
+#: Largest occupancy grid of one slab (bool, 128 MiB), reached when a single layer across the frame
+#: exceeds `_SLAB_CELLS` (a 12-bit frame: 13 layers of 4108^2 cells, 219 MiB): such frames go to the
+#: cKDTree path instead.
+_MAX_SLAB_CELLS = 1 << 27
+
 #: Points whose 9th-nearest distances give `detect_holes` its point spacing: `point_spacing`'s default sample.
 _SPACING_SAMPLE = 20000
 
@@ -291,11 +296,14 @@ def _stencil(r2: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _voxel_coordinates(points: np.ndarray) -> np.ndarray | None:
     """``points`` (N, 3) as int64 coordinates from 0 when they are distinct voxels (integer-valued,
-    no duplicates, extent under 2^20), else None (the cKDTree path handles them)."""
+    no duplicates, extent under 2^20) whose thinnest slab (one layer across the two shorter extents,
+    plus the stencil's margin) fits in `_MAX_SLAB_CELLS`; else None (the cKDTree path handles them)."""
     if not np.array_equal(points, np.rint(points)):
         return None
     grid = (points - points.min(axis=0)).astype(np.int64)
-    if grid.max() >= 1 << 20:
+    extent = np.sort(grid.max(axis=0)) + 1
+    reach = int(np.sqrt(_FAR_R2))
+    if extent[-1] >= 1 << 20 or (1 + 2 * reach) * (extent[0] + 2 * reach) * (extent[1] + 2 * reach) > _MAX_SLAB_CELLS:
         return None
     key = (grid[:, 0] << 40) | (grid[:, 1] << 20) | grid[:, 2]
     key.sort()

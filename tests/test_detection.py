@@ -212,6 +212,9 @@ def test_voxel_path_only_for_distinct_integer_points():
     assert detection_module()._voxel_coordinates(grid) is not None
     assert detection_module()._voxel_coordinates(grid + 0.5) is None
     assert detection_module()._voxel_coordinates(np.vstack([grid, grid[:1]])) is None
+    # one layer of the occupancy grid would be 4e10 cells: the cKDTree path
+    assert detection_module()._voxel_coordinates(np.vstack([grid, [[200_000, 200_000, 200_000]]])) is None
+    assert detection_module()._voxel_coordinates(np.vstack([grid, [[0, 0, 1 << 20]]])) is None
 
 
 def detection_module():
