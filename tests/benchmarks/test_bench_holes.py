@@ -35,10 +35,12 @@ CPU time on the 2-core machine at load average 3-5 (other jobs running):
     .venv/bin/python -m pytest tests/benchmarks/test_bench_holes.py -k detect --benchmark-only \
         --benchmark-timer=time.process_time
 
-1M human (981,278 points after medium holes): 7.16 -> 1.41 s (one round each, back to back). Outside
-pytest (a one-off script: detect_holes on the saved frame after a warm-up call, fresh process each,
-3 runs): 1M human 6.50-6.66 -> 1.21-1.37 s, Longdress 858k 5.43-5.75 -> 1.35-1.50 s; peak RSS of the
-process 482 -> 237 MiB (1M) and 482 -> 222 MiB (Longdress). cProfile before: the k = 32 cKDTree query
+1M human (981,278 points after medium holes), 4 runs of one round each, before and after alternating:
+6.44-7.16 -> 1.18-1.41 s. Outside pytest (a one-off script: detect_holes on the saved frame after a
+warm-up call, a fresh process each, 3 runs): 1M human 6.50-6.66 -> 1.21-1.37 s, Longdress 858k
+5.43-5.75 -> 1.35-1.50 s; peak RSS of the process 482 -> 234-238 MiB (1M), 482 -> 222-226 MiB
+(Longdress). Wall times at that load were up to 2-8x the CPU times (/proc schedstat: the difference
+is time waiting for a core, none asleep). cProfile before: the k = 32 cKDTree query
 (~45 %) and open3d's normals (~35 %); after (1M): the stencil neighbourhoods ~1/3 (gathers from the
 occupancy grid, shell counts), normals, sector prefilter and angles ~3/5 (closed-form eigenvectors ~1/6).
 Quality (tests/benchmarks/detect_holes_quality.py, human:small, bunny:small, dfaust, longdress, presets
