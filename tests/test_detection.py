@@ -157,12 +157,18 @@ def test_octant_prefilter_changes_no_boundary_decision(seed):
 
 def neighbours_with_ties(points, k):
     """Brute-force reference: per point, the indices of every point no farther than its k-th nearest
-    (itself included), from a cKDTree k-NN query and exact squared distances of integer coordinates."""
+    (itself included), from all pairwise squared distances (exact: integer coordinates). The k-th
+    distance itself comes from a cKDTree query (a value, whichever tied point the tree returns)."""
     from scipy.spatial import cKDTree
 
-    dist, _ = cKDTree(points).query(points, k=k)
-    kth = np.rint(dist[:, -1] ** 2)
-    return [np.flatnonzero(((points - p) ** 2).sum(axis=1) <= kth[i]) for i, p in enumerate(points)]
+    kth = np.rint(cKDTree(points).query(points, k=k)[0][:, -1] ** 2)
+    sq = (points ** 2).sum(axis=1)
+    result = []
+    for start in range(0, len(points), 512):
+        d2 = sq[start:start + 512, None] + sq[None, :] - 2 * points[start:start + 512] @ points.T
+        row, col = np.nonzero(d2 <= kth[start:start + 512, None])
+        result += np.split(col, np.searchsorted(row, np.arange(1, len(d2))))
+    return result
 
 
 def voxel_cloud(seed):
@@ -246,8 +252,9 @@ def test_closed_form_normals_match_eigh():
 
 
 def reference_boundary_points(points, k=32, gap=0.6 * np.pi, ties=True):
-    """The plain computation, point by point: neighbours (k nearest, plus ties when ``ties``), normal by
-    numpy's eigh of their covariance, angles of every other neighbour on the tangent plane."""
+    """The plain computation: neighbours (k nearest, plus ties when ``ties``), normal by numpy's eigh of
+    their covariance, angles of every other neighbour on the tangent plane; points with the same
+    neighbourhood size are stacked (the only batching)."""
     from scipy.spatial import cKDTree
 
     from dpcbench.holes.geometry import tangent_basis
@@ -256,18 +263,22 @@ def reference_boundary_points(points, k=32, gap=0.6 * np.pi, ties=True):
         neighbourhoods = neighbours_with_ties(points, k)
     else:
         neighbourhoods = list(cKDTree(points).query(points, k=k)[1])
+    sizes = np.array([len(nbr) for nbr in neighbourhoods])
     largest, direction = np.zeros(len(points)), np.zeros((len(points), 3))
-    for i, nbr in enumerate(neighbourhoods):
-        offsets = points[nbr] - points[i]
-        centred = offsets - offsets.mean(axis=0)
-        tangent = tangent_basis(np.linalg.eigh(centred.T @ centred)[1][:, 0][None, :])[0]
-        others = offsets[np.asarray(nbr) != i]
-        angles = np.sort(np.arctan2(others @ tangent[:, 1], others @ tangent[:, 0]))
-        gaps = np.diff(angles, append=angles[0] + 2 * np.pi)
-        widest = gaps.argmax()
-        largest[i] = gaps[widest]
-        middle = angles[widest] + gaps[widest] / 2
-        direction[i] = np.cos(middle) * tangent[:, 0] + np.sin(middle) * tangent[:, 1]
+    for size in np.unique(sizes):
+        rows = np.flatnonzero(sizes == size)
+        nbr = np.array([neighbourhoods[i] for i in rows])
+        offsets = points[nbr] - points[rows, None, :]
+        centred = offsets - offsets.mean(axis=1, keepdims=True)
+        tangent = tangent_basis(np.linalg.eigh(centred.transpose(0, 2, 1) @ centred)[1][:, :, 0])
+        others = offsets[nbr != rows[:, None]].reshape(len(rows), size - 1, 3)  # the point itself left out
+        angles = np.sort(np.arctan2(others @ tangent[:, :, 1:2], others @ tangent[:, :, 0:1])[:, :, 0], axis=1)
+        gaps = np.diff(angles, axis=1, append=angles[:, :1] + 2 * np.pi)
+        widest = gaps.argmax(axis=1)
+        local = np.arange(len(rows))
+        largest[rows] = gaps[local, widest]
+        middle = angles[local, widest] + largest[rows] / 2
+        direction[rows] = np.cos(middle)[:, None] * tangent[:, :, 0] + np.sin(middle)[:, None] * tangent[:, :, 1]
     return largest > gap, largest, direction
 
 
