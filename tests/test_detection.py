@@ -91,9 +91,10 @@ def test_detection_finds_synthetic_holes(human, preset):
 
     Seeds 0-2 are pooled because one seed decides on a single hole: detector version 2 (stencil
     neighbourhoods with ties, closed-form normals) scores medium seed 0 at recall 0.83 (frame 0 loses
-    the hole through an ankle: inward score 0.075 against 0.105 for version 1, the threshold being
-    0.1) while version 1 scored 0.92; pooled over seeds 0-2, medium recall is 0.944 (version 1:
-    0.972), small 1.0 for both, precision 1.0 for both (2026-11-25, one-off script not kept).
+    the hole at the lower leg, y = 24 of 186 voxels: inward score 0.075 against 0.105 for version 1,
+    the threshold being 0.1) while version 1 scored 0.92; pooled over seeds 0-2, medium recall is
+    0.944 (version 1: 0.972), small 1.0 for both, precision 1.0 for both (2026-11-25, one-off script
+    not kept).
     """
     recall, precision = [], []
     for seed in range(3):
