@@ -93,18 +93,27 @@ def estimate_normals(points: np.ndarray, k: int = DEFAULT_NORMAL_NEIGHBOURS, *, 
     return normals
 
 
+def probe_indices(n: int, sample: int | None, seed: int | None = None) -> np.ndarray:
+    """The rows (indices into N = ``n`` rows) that `probe` takes, for callers that hold per-row values."""
+    if sample is None or n <= sample:
+        return np.arange(n)
+    if seed is None:
+        return np.arange(0, n, max(1, n // sample))
+    return np.random.default_rng(seed).choice(n, sample, replace=False)
+
+
 def probe(points: np.ndarray, sample: int | None, seed: int | None = None) -> np.ndarray:
     """A deterministic subset of the rows of ``points`` for estimates on large clouds.
 
     sample None or >= N: all points. Else ``seed`` an int: ``sample`` rows drawn without replacement
     by ``numpy.random.default_rng(seed)``; ``seed`` None: every (N // sample)-th row (about ``sample``
-    rows, evenly strided)."""
+    rows, evenly strided). The rows are `probe_indices`."""
     n = len(points)
     if sample is None or n <= sample:
         return points
     if seed is None:
         return points[:: max(1, n // sample)]
-    return points[np.random.default_rng(seed).choice(n, sample, replace=False)]
+    return points[probe_indices(n, sample, seed)]
 
 
 def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int = 20000, seed: int = 0) -> float:
@@ -145,4 +154,4 @@ def median_neighbour_distance(points: np.ndarray, sample: int | None = 20000, tr
 
 
 __all__ = ["DEFAULT_NORMAL_NEIGHBOURS", "check_points", "estimate_normals", "median_neighbour_distance",
-           "point_spacing", "probe"]
+           "point_spacing", "probe", "probe_indices"]

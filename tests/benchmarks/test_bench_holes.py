@@ -27,6 +27,29 @@ min of 3 at load average 4.8-5.6 on the 2 cores: process CPU 12.23 -> 10.50 s on
 (computing the normals from the cKDTree neighbours instead changes the neighbour sets where distances
 tie: 74 % of the normals of a 65,536-point block of Longdress, by up to 49 degrees), so 3 s on 1M is
 out of reach without changing the detected regions.
+
+2026-11-25, detect_holes version 2 (voxel-stencil neighbourhoods with ties, closed-form PCA normals,
+OpenBLAS held to one thread; the regions change, see holes/detection.py DETECT_HOLES_VERSION), process
+CPU time on the 2-core machine at load average 3-5 (other jobs running):
+
+    .venv/bin/python -m pytest tests/benchmarks/test_bench_holes.py -k detect --benchmark-only \
+        --benchmark-timer=time.process_time
+
+1M human (981,278 points after medium holes), 4 runs of one round each, before and after alternating:
+6.44-7.16 -> 1.18-1.41 s. Outside pytest (a one-off script: detect_holes on the saved frame after a
+warm-up call, a fresh process each, 3 runs): 1M human 6.50-6.66 -> 1.21-1.37 s, Longdress 858k
+5.43-5.75 -> 1.35-1.50 s; peak RSS of the process 482 -> 234-238 MiB (1M), 482 -> 222-226 MiB
+(Longdress). Wall times at that load were up to 2-8x the CPU times (/proc schedstat: the difference
+is time waiting for a core, none asleep). cProfile before: the k = 32 cKDTree query
+(~45 %) and open3d's normals (~35 %); after (1M): the stencil neighbourhoods ~1/3 (gathers from the
+occupancy grid, shell counts), normals, sector prefilter and angles ~3/5 (closed-form eigenvectors ~1/6).
+Quality (tests/benchmarks/detect_holes_quality.py, human:small, bunny:small, dfaust, longdress, presets
+small/medium/large x seeds 0-2): hole recall 0.972 -> 0.972, region precision 0.988 -> 0.994, boundary
+recall 0.620 -> 0.620, boundary precision 0.997 -> 1.000; no region of version 1 without a version-2
+region near it. With ``--generator occlusion`` and the stand-in detection parameters (gap pi / 2,
+min_points 5, min_inward 0), same frames, seeds 0-2: hole recall 0.508 -> 0.508, region precision
+0.984 -> 1.000, boundary recall 0.470 -> 0.464 (the tied neighbours close some gaps just over 90
+degrees), boundary precision 0.998 -> 0.999.
 """
 
 from __future__ import annotations
