@@ -56,8 +56,9 @@ those runs' ids also hash every parameter of `holes.detection.detect_holes` as i
 (its defaults overlaid with ``experiment.detection``: ``protocol["detection"]``) and the detector's
 output version (``versions["detector"]`` = `holes.detection.DETECT_HOLES_VERSION`). A changed
 default or a version bump thus gives new ids, and the runner redoes those runs (frames included)
-instead of reusing results made from the old detector's regions. Runs with ``regions = "given"`` or
-``"none"`` carry neither, so their ids are what they were before the detector entered the ids.
+instead of reusing results made from the old detector's regions. With ``regions = "none"`` (blind
+mode) each method calls `detect_holes` with its defaults, so those ids carry the detector's version
+(not the parameters). Runs with ``regions = "given"`` carry neither.
 """
 
 from __future__ import annotations
@@ -135,7 +136,7 @@ class RunSpec:
     protocol: {"regions": "given" | "detected" | "none", "detection": {...every detect_holes
               parameter, defaults included} (only with "detected")}
     versions: {"method", "generator", "metrics", "data"} (data = fingerprint), plus "detector"
-              (`holes.detection.DETECT_HOLES_VERSION`) with regions "detected"
+              (`holes.detection.DETECT_HOLES_VERSION`) with regions "detected" or "none"
     """
 
     run_id: str
@@ -174,7 +175,7 @@ class RunSpec:
         # spawned processes); where the code lives is not what the run computes, so it is not hashed.
         holes = {k: v for k, v in self.holes.items() if k not in ("label", "entry")}
         method = {k: v for k, v in self.method.items() if k not in ("label", "entry")}
-        # "detector" only exists for detected-region runs: the ids of the others stay as they were
+        # "detector" only exists for detected-region and blind runs: the ids of the others stay as they were
         versions = {k: self.versions[k] for k in ("method", "generator", "data", "detector") if k in self.versions}
         return {"sequence": seq, "holes": holes, "method": method, "protocol": self.protocol, "versions": versions}
 
@@ -589,6 +590,10 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
     detector: dict = {}
     if cfg.regions == "detected":
         protocol["detection"], detector["detector"] = detection_protocol(cfg.detection)
+    elif cfg.regions == "none":
+        # blind mode: each method finds the holes itself with `detect_holes`' defaults, so its output
+        # depends on the detector's version as well
+        detector["detector"] = detection_protocol({})[1]
     runs: list[RunSpec] = []
     seen: set[str] = set()
     for seq in cfg.sequences:

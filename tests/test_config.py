@@ -161,6 +161,22 @@ names = ["gpsnr_d1"]
         load_config(tmp_path / "missing.toml")
 
 
+def test_blind_runs_carry_the_detector_version(seq_dir, monkeypatch):
+    """regions = "none": each method runs detect_holes itself (defaults), so a detector version bump
+    must give new run ids (never a result made with the old detector's regions); given-region runs keep theirs."""
+    from dpcbench.holes import detection
+
+    blind, given = _config(seq_dir), _config(seq_dir)
+    blind["experiment"]["regions"] = "none"
+    before = parse_config(blind).expand()
+    assert before[0].versions["detector"] == DETECT_HOLES_VERSION
+    assert "detection" not in before[0].protocol
+    given_before = _ids(given)
+    monkeypatch.setattr(detection, "DETECT_HOLES_VERSION", "2-test")
+    assert set(_ids(blind)).isdisjoint(r.run_id for r in before)
+    assert _ids(given) == given_before
+
+
 def test_detection_parameters(seq_dir):
     base = _config(seq_dir)
     base["experiment"]["regions"] = "detected"
