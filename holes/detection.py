@@ -142,7 +142,7 @@ class _OneBlasThread:
 
     def __enter__(self):
         try:
-            from threadpoolctl import threadpool_limits
+            from threadpoolctl import threadpool_limits  # type: ignore[import-not-found]
         except ImportError:
             self._limits = None
             self._saved = [(put, get()) for get, put in self._lookup()]
@@ -477,11 +477,12 @@ def _boundary(points: np.ndarray, k: int, gap: float, tree: cKDTree | None, inte
     grid = _voxel_coordinates(points)
     with _OneBlasThread():
         if grid is not None:
-            leftover = []
+            leftover: list[np.ndarray] = []
             for rows, offsets, mask in _voxel_neighbourhoods(grid, k, leftover):
                 largest[rows], direction[rows] = _neighbourhood_gaps(offsets, mask, prefilter)
                 pick = wanted[rows]
                 if pick.any():
+                    assert ninth is not None  # rows are wanted only when the 9th distances are asked for
                     # the 9th occupied column (columns by distance; a group holds >= k >= 9 of them)
                     col = (mask[:, pick].cumsum(axis=0) >= 9).argmax(axis=0)
                     ninth[rows[pick]] = np.sqrt((offsets[col] ** 2).sum(axis=1))
