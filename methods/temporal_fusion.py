@@ -103,14 +103,15 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
 6c. Closed-surface fill (``poisson``, on by default; `poisson_surface_fill`): where step 6 added nothing
    (its tests refused the hole: a hole round a limb, a neck or a foot, or one that cuts a limb through),
    the crop of step 1 and the reused points are reconstructed by screened Poisson (open3d, one thread;
-   PCA normals oriented away from the crop's centroid, which lies inside a limb), on an octree whose
+   PCA normals oriented along the surface by a spanning tree, the sign that points most of them away from
+   the crop's centroid, which lies inside a limb), on an octree whose
    finest cell is the fill's grid step (depth = ceil(log2(1.1 extent / step)): the same surface detail
    at every density); the surface is sampled at half a step, rounded to voxels on voxelized data (else
    one sample a cell), and the points inside R, free, and attached to the captured surface (chains of
    points with 3 support or kept points within 3 s) are R's fill, when step 6's hold-out test passes
    (the surface of the crop without its inner ring, shell / 2 wide, misses that ring by at most
-   ``surface_holdout_spacings`` s RMS: a crop holding two body parts, e.g. a hand at the hip, orients
-   its normals wrongly and fails it). Why: a hole left open costs whole-frame
+   ``surface_holdout_spacings`` s RMS: a reconstruction from misoriented normals, or of a sharp edge
+   such as a sole at the floor, fails it). Why: a hole left open costs whole-frame
    D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
    26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
    D1 / D2 8.78 / 26.95 dB open at small, 1.21 / 21.97 open at default, 25.89 / 28.37 with step 6c
@@ -541,8 +542,9 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     (0, 3) when the surface is not trusted.
 
     Normals: open3d's PCA estimate over each point's 16 nearest support points (as `plane_target`),
-    oriented away from the support's centroid c: n_i <- sign((p_i - c) . n_i) n_i (a crop round a limb,
-    a neck or a convex patch of a body has c inside: the outward side). Surface: open3d's screened
+    oriented consistently along the surface (open3d's minimum-spanning-tree propagation over the 16-NN
+    graph), with the global sign that most normals share when pointed away from the support's centroid
+    c, sign((p_i - c) . n_i) (a crop round a limb, a neck or a convex patch of a body has c inside). Surface: open3d's screened
     Poisson reconstruction (Kazhdan and Hoppe 2013; one thread, so the mesh does not depend on the
     thread count) on an octree whose finest cell is at most the fill's grid step g (``spacing`` on
     voxelized data, else ``step``): depth = ceil(log2(1.1 e / g)), e the support's bounding-box side,
@@ -555,9 +557,9 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     Hold-out test (when ``ring`` > 0; step 6's test, with the same bound): the support points within
     ``ring`` of the region (the inner ring) are left out, the surface of the others fills the region grown
     by ``ring``, and the inner ring's RMS distance to that fill must be at most ``max_holdout_spacings``
-    spacings. A crop holding two body parts (a hand at the hip) gets misoriented normals and a surface
-    that misses the inner ring by 1.7 s and the truth by 5-16 voxels (human default, coherent, seed 2);
-    trusted holes there measured 0.49-0.70 s."""
+    spacings. With normals pointed away from the centroid one by one (before the spanning tree), a crop
+    holding two body parts (a hand at the hip) gave a surface that missed the inner ring by 1.7 s and the
+    truth by 5-16 voxels (human default, coherent, seed 2); trusted holes there measured 0.49-0.70 s."""
     support = np.asarray(support, dtype=np.float64)
     if len(support) < 32:
         return np.zeros((0, 3))
@@ -584,9 +586,23 @@ def _poisson_points(support, inside, covered, free, spacing, voxelized, grid) ->
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(support))
     cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
+    # one orientation over the crop, propagated along its surface (open3d's minimum spanning tree over
+    # the 16-NN graph, Hoppe et al. 1992), then the sign most normals agree with: away from the crop's
+    # centroid. Pointing each normal away from the centroid by itself misorients a crop of two body
+    # parts (a hand at the hip: the centroid lies between them) or a concave one; measured, human default
+    # coherent, seeds 0 and 2: fills 5-16 voxels off the truth (p50 / p90) became 0-1.7 voxels
+    try:
+        cloud.orient_normals_consistent_tangent_plane(16)
+        propagated = True
+    except RuntimeError:  # its Delaunay graph refuses degenerate input (all points on one plane)
+        propagated = False
     normals = np.asarray(cloud.normals).copy()
     outward = np.einsum("ij,ij->i", support - support.mean(axis=0), normals) >= 0
-    cloud.normals = o3d.utility.Vector3dVector(np.where(outward[:, None], normals, -normals))
+    if propagated:
+        flip = np.full(len(normals), 2 * int(outward.sum()) < len(outward))
+    else:  # each normal away from the centroid (on one plane: one side, which is all Poisson needs)
+        flip = ~outward
+    cloud.normals = o3d.utility.Vector3dVector(np.where(flip[:, None], -normals, normals))
     extent = float(np.ptp(support, axis=0).max())
     depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / grid, 2.0))), 1, POISSON_MAX_DEPTH))
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
@@ -667,7 +683,7 @@ class TemporalFusion(InpaintingMethod):
                "fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface where no frame saw it and the fit is trusted")
-    version = "9"  # 8: step 6c, screened Poisson fill of the holes step 6 refuses (limb holes); 9: its hold-out test
+    version = "10"  # 8: step 6c, Poisson fill of the holes step 6 refuses; 9: its hold-out test; 10: MST normals
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
