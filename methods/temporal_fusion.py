@@ -114,8 +114,9 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    such as a sole at the floor, fails it). Why: a hole left open costs whole-frame
    D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
    26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
-   D1 / D2 8.78 / 26.95 dB open at small, 1.21 / 21.97 open at default, 25.89 / 28.37 with step 6c
-   (temporal-graph 15.34 / 17.71); medium holes land on a limb about half the time (methods/NOTES.md).
+   D1 / D2 8.78 / 26.95 dB open at small, 1.21 / 21.97 open at default; medium holes land on a limb about
+   half the time. Human default, coherent, 10 frames, seeds 0-2 (methods/NOTES.md): D1 / D2 3.20 / 22.69
+   (version 7) -> 22.11 / 25.41 (no fill 1.43 / 22.11, temporal-graph 16.26 / 19.24).
 6b. Advancing front (``front``, off by default): where steps 6 and 6c added nothing (its tests refused the
    hole, e.g. a hole round a limb, which is no height field over one plane), the open cells of R are
    grown from the rim and the copies one cell shell a round (`_front_fill.front_fill`; cell 1 voxel,
