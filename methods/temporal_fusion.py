@@ -116,9 +116,26 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    that on an uneven sampling, and put 10,025 points where 7,056 were missing on D-FAUST coherent
    holes, 4 frames, seed 0, against 2,307 now with the same D1) inside the convex hull of the support's (u, v) (interpolation,
    never extrapolation), inside R and farther than ``fill_gap_spacings * s`` from every point are
-   lifted onto the spline. A hole that fails a test stays open: D2 must not drop below no fill, and
-   an off-surface fill costs more in D2 than an open hole.
-6b. Advancing front (``front``, off by default): where step 6 added nothing (its tests refused the
+   lifted onto the spline. A hole that fails a test goes to step 6c (with ``poisson=False`` it stays
+   open: an off-surface fill costs more in D2 than an open hole, as step 6b measured).
+6c. Closed-surface fill (``poisson``, on by default; `poisson_surface_fill`): where step 6 added nothing
+   (its tests refused the hole: a hole round a limb, a neck or a foot, or one that cuts a limb through),
+   the crop of step 1 and the reused points are reconstructed by screened Poisson (open3d, one thread;
+   PCA normals oriented along the surface by a spanning tree, the sign that points most of them away from
+   the crop's centroid, which lies inside a limb), on an octree whose
+   finest cell is the fill's grid step (depth = ceil(log2(1.1 extent / step)): the same surface detail
+   at every density); the surface is sampled at half a step, rounded to voxels on voxelized data (else
+   one sample a cell), and the points inside R, free, and attached to the captured surface (chains of
+   points with 3 support or kept points within 3 s) are R's fill, when step 6's hold-out test passes
+   (the surface of the crop without its inner ring, shell / 2 wide, misses that ring by at most
+   ``surface_holdout_spacings`` s RMS: a reconstruction from misoriented normals, or of a sharp edge
+   such as a sole at the floor, fails it). Why: a hole left open costs whole-frame
+   D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
+   26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
+   D1 / D2 8.78 / 26.95 dB open at small, 1.21 / 21.97 open at default; medium holes land on a limb about
+   half the time. Human default, coherent, 10 frames, seeds 0-2 (methods/NOTES.md): D1 / D2 3.20 / 22.69
+   (version 7) -> 22.11 / 25.41 (no fill 1.43 / 22.11, temporal-graph 16.26 / 19.24).
+6b. Advancing front (``front``, off by default): where steps 6 and 6c added nothing (its tests refused the
    hole, e.g. a hole round a limb, which is no height field over one plane), the open cells of R are
    grown from the rim and the copies one cell shell a round (`_front_fill.front_fill`; cell 1 voxel,
    or s on unvoxelized data): a free cell within sqrt 3 cells of the trusted points is accepted when
@@ -179,6 +196,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   mls_neighbours    20: a quadric has 6 coefficients; 20 points over-determine it ~3 times while
                     spanning about 2.5 s, so the fit follows the surface, not the noise.
   rim_fill          True: step 1b (voxelized data only); its round count follows from mls_neighbours.
+  poisson           True: step 6c; its octree depth and sampling follow from the grid step, its trust rule
+                    from step 4's reach (3 s).
   front             False: step 6b (see there for the measurement that keeps it off); its cell, round
                     count and residual bound follow from s, mls_neighbours and the rim's own fits.
   revoxelize        True: step 4b (voxelized data only); its bound t is read from each hole's rim.
@@ -218,6 +237,12 @@ SURFACE_POINTS = 1000
 #: fit's axis: a rim that is a height field over its own PCA plane has almost none (a hole on a
 #: limb's side: the rim spans < 120 degrees of arc); a quarter means the rim wraps round a fold
 MAX_STEEP = 0.25
+
+
+#: screened Poisson (step 6c): open3d's default ratio of the reconstruction cube to the samples' bounding
+#: cube, and the largest octree depth (2^10 cells a side: a crop of 1000 grid steps, far above a hole's)
+POISSON_SCALE = 1.1
+POISSON_MAX_DEPTH = 10
 
 
 def even_subset(points: np.ndarray, count: int) -> np.ndarray:
@@ -580,6 +605,127 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
     return points
 
 
+def sample_triangles(vertices: np.ndarray, triangles: np.ndarray, step: float) -> np.ndarray:
+    """Deterministic samples (P, 3) of a triangle mesh ((V, 3) vertices, (T, 3) vertex indices), no two
+    neighbouring samples of a triangle farther apart than ``step``: triangle t with longest edge L_t gets
+    the barycentric lattice (i / m, j / m, 1 - (i + j) / m), i + j <= m, m = ceil(L_t / step). (Open3D's
+    samplers are random, and the Poisson mesh is coarse inside the hole, where the octree has no samples:
+    its vertices alone leave voxels out.)"""
+    if len(triangles) == 0:
+        return np.zeros((0, 3))
+    corners = vertices[triangles]  # (T, 3 corners, 3)
+    longest = np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1)
+    counts = np.maximum(1, np.ceil(longest / step).astype(np.int64))
+    out = []
+    for m in np.unique(counts):
+        i, j = np.meshgrid(np.arange(m + 1), np.arange(m + 1), indexing="ij")
+        keep = i + j <= m
+        weights = np.stack([i[keep], j[keep], m - i[keep] - j[keep]], axis=1) / m  # (B, 3)
+        out.append(np.einsum("bc,tcd->tbd", weights, corners[counts == m]).reshape(-1, 3))
+    return np.vstack(out)
+
+
+def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
+                         voxelized: bool, step: float | None = None, gap_spacings: float = 1.0, ring: float = 0.0,
+                         max_holdout_spacings: float = 1.0) -> np.ndarray:
+    """Closed-surface fill (step 6c of the module docstring) of the parts of ``region`` that no point of
+    ``covered`` is within ``gap_spacings * spacing`` of, on the screened Poisson surface of ``support``
+    (K, 3) (the points round the hole: the crop of step 1 and the reused points). Returns (P, 3) points;
+    (0, 3) when the surface is not trusted.
+
+    Normals: open3d's PCA estimate over each point's 16 nearest support points (as `plane_target`),
+    oriented consistently along the surface (open3d's minimum-spanning-tree propagation over the 16-NN
+    graph), with the global sign that most normals share when pointed away from the support's centroid
+    c, sign((p_i - c) . n_i) (a crop round a limb, a neck or a convex patch of a body has c inside). Surface: open3d's screened
+    Poisson reconstruction (Kazhdan and Hoppe 2013; one thread, so the mesh does not depend on the
+    thread count) on an octree whose finest cell is at most the fill's grid step g (``spacing`` on
+    voxelized data, else ``step``): depth = ceil(log2(1.1 e / g)), e the support's bounding-box side,
+    1.1 open3d's default margin. Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
+    voxels on voxelized data (unique), else thinned to one a cubic cell of edge g; inside ``region``,
+    not covered, and attached to the support (`grown_agreeing` with reach 3 s and no plane test: a
+    sheet the reconstruction closes across the crop's open sides, not touching the captured surface,
+    is dropped).
+
+    Hold-out test (when ``ring`` > 0; step 6's test, with the same bound): the support points within
+    ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed, and
+    the inner ring's RMS distance to it (to its samples at g / 2 in the region grown by ``ring``) must be
+    at most ``max_holdout_spacings`` spacings. With normals pointed away from the centroid one by one (before the spanning tree), a crop
+    holding two body parts (a hand at the hip) gave a surface that missed the inner ring by 1.7 s and the
+    truth by 5-16 voxels (human default, coherent, seed 2); trusted holes there measured 0.49-0.70 s."""
+    support = np.asarray(support, dtype=np.float64)
+    if len(support) < 32:
+        return np.zeros((0, 3))
+    grid = spacing if voxelized else (step or spacing)
+    free = (0.5 if voxelized else gap_spacings) * spacing
+    if ring > 0:
+        inner = region.contains(support, margin=ring)
+        if inner.sum() >= 6 and (~inner).sum() >= 32:
+            outer = support[~inner]
+            held = _poisson_points(outer, lambda p: region.contains(p, margin=ring), cKDTree(outer), free, spacing,
+                                   voxelized, grid, surface=True)
+            if not len(held):
+                return np.zeros((0, 3))
+            miss = cKDTree(held).query(support[inner])[0]
+            if float(np.sqrt(np.mean(miss ** 2))) > max_holdout_spacings * spacing:
+                return np.zeros((0, 3))
+    return _poisson_points(support, region.contains, covered, free, spacing, voxelized, grid)
+
+
+def _poisson_points(support, inside, covered, free, spacing, voxelized, grid, surface=False) -> np.ndarray:
+    """`poisson_surface_fill`'s surface and points (its docstring), without the hold-out test: ``inside``
+    a mask function of (P, 3) points, ``free`` the distance from ``covered`` a new point keeps. With
+    ``surface``: the surface's samples at g / 2 inside, neither rounded to voxels nor thinned nor tested
+    (the hold-out test measures the distance to the surface, not to a sampling of it: one sample a cell
+    of g lies up to ~g / 2 beside a held-out point that is on the surface)."""
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(support))
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
+    # one orientation over the crop, propagated along its surface (open3d's minimum spanning tree over
+    # the 16-NN graph, Hoppe et al. 1992), then the sign most normals agree with: away from the crop's
+    # centroid. Pointing each normal away from the centroid by itself misorients a crop of two body
+    # parts (a hand at the hip: the centroid lies between them) or a concave one; measured, human default
+    # coherent, seeds 0 and 2: fills 5-16 voxels off the truth (p50 / p90) became 0-1.7 voxels
+    try:
+        cloud.orient_normals_consistent_tangent_plane(16)
+        propagated = True
+    except RuntimeError:  # its Delaunay graph refuses degenerate input (all points on one plane)
+        propagated = False
+    normals = np.asarray(cloud.normals).copy()
+    outward = np.einsum("ij,ij->i", support - support.mean(axis=0), normals) >= 0
+    if propagated:
+        flip = np.full(len(normals), 2 * int(outward.sum()) < len(outward))
+    else:  # each normal away from the centroid (on one plane: one side, which is all Poisson needs)
+        flip = ~outward
+    cloud.normals = o3d.utility.Vector3dVector(np.where(flip[:, None], -normals, normals))
+    extent = float(np.ptp(support, axis=0).max())
+    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / grid, 2.0))), 1, POISSON_MAX_DEPTH))
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE,
+                                                                            n_threads=1)
+    if not len(mesh.triangles):
+        return np.zeros((0, 3))
+    points = sample_triangles(np.asarray(mesh.vertices), np.asarray(mesh.triangles), grid / 2.0)
+    if surface:
+        return points[inside(points)]
+    if voxelized:
+        points = np.unique(np.floor(points + 0.5), axis=0)
+    else:
+        # the data's density: one sample per cubic cell of edge g (the first in sorted order, so the choice
+        # is deterministic); a tilted surface crosses up to sqrt 3 cells per g^2, not more
+        _, first = np.unique(np.floor(points / grid).astype(np.int64), axis=0, return_index=True)
+        points = points[np.sort(first)]
+    points = points[inside(points)]
+    points = points[far_from(points, covered, free)]
+    if not len(points):
+        return points
+    # attached to the captured surface: grown from the support by chains of points each with 3 kept or
+    # support points within 3 s (step 4's reach; no plane test: next to the rim a point's nearest support
+    # points lie along the hole's edge, a strip whose PCA plane is not the surface's; measured on human
+    # default coherent, a plane test at 1 s dropped 25% of fill points that lay within 1.41 voxels of the truth)
+    return points[grown_agreeing(points, support, 3 * spacing, np.inf)]
+
+
 @dataclass(frozen=True)
 class PlaneTarget:
     """A point-to-plane ICP target: points (T, 3), their unit normals (T, 3) (PCA of each point's 16
@@ -634,8 +780,9 @@ class TemporalFusion(InpaintingMethod):
                "fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface where no frame saw it and the fit is trusted")
-    version = "9"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
-    # 9: revoxelize the reused fill too
+    version = "12"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
+    # as 8-11 on a branch beside 8-9, merged with them)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -644,7 +791,7 @@ class TemporalFusion(InpaintingMethod):
                  icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
-                 mls_neighbours: int = 20, rim_fill: bool = True, front: bool = False,
+                 mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True, front: bool = False,
                  revoxelize: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
@@ -661,6 +808,7 @@ class TemporalFusion(InpaintingMethod):
         self.surface_holdout_spacings = surface_holdout_spacings
         self.mls_neighbours = mls_neighbours
         self.rim_fill = rim_fill
+        self.poisson = poisson
         self.front = front
         self.revoxelize = revoxelize
         self.snap = snap
@@ -688,7 +836,7 @@ class TemporalFusion(InpaintingMethod):
         number("gap_spacings", False)
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
-        for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "front", "revoxelize"):
+        for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "front", "revoxelize"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -882,6 +1030,12 @@ class TemporalFusion(InpaintingMethod):
             spatial = rim_surface_fill(support, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
                                        max_holdout_spacings=self.surface_holdout_spacings, ring=shell / 2,
                                        gap_spacings=self.fill_gap_spacings)
+            if self.poisson and not len(spatial):
+                # step 6c: a hole the height field refused (round a limb, a neck), on the crop's closed surface
+                spatial = poisson_surface_fill(np.vstack([local, accepted]), region, covered, spacing,
+                                               voxelized=ctx["voxelized"], step=ctx["step"],
+                                               gap_spacings=self.fill_gap_spacings, ring=shell / 2,
+                                               max_holdout_spacings=self.surface_holdout_spacings)
             if self.front and not len(spatial):
                 # step 6b: what the one-surface fill refused, grown from the rim and copies chart by chart
                 spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"])
@@ -932,5 +1086,6 @@ class TemporalFusion(InpaintingMethod):
 
 
 __all__ = ["TemporalFusion", "crossed_voxels", "crossing_offset", "disagreeing", "fit_height_field",
-           "interpolate_displacement", "mls_fit", "mls_project", "PlaneTarget", "plane_target", "refine_point_to_plane",
-           "rim_crossing_threshold", "rim_displacement", "rim_surface_fill", "snap_to_voxels", "surface_voxels"]
+           "interpolate_displacement", "mls_fit", "mls_project", "PlaneTarget", "plane_target", "poisson_surface_fill",
+           "refine_point_to_plane", "rim_crossing_threshold", "rim_displacement", "rim_surface_fill", "sample_triangles",
+           "snap_to_voxels", "surface_voxels"]
