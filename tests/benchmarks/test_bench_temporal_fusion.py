@@ -18,6 +18,9 @@ machine, two runs each (the figures of the second, with --benchmark-json for the
 2026-11-25, temporal-fusion 8 (step 4b, re-voxelized copies), CPU time, one run each on this session's
 machine, version 7 measured beside it in the same minutes: 290k 3.09 -> 3.40 s, 800k 4.96 -> 6.22 s
 (target < 10 s: met); 100k 1.34 s; 1 / 3 / 5 holes at ~280k: 0.82 / 2.07 / 3.40 s.
+Version 12 (step 6c, Poisson fill of holes no frame saw) does not change these figures: with intact
+neighbours every hole gets copies and step 6c never runs. With coherent holes it does: an 800k human frame
+with 5 coherent holes took ~8 s CPU against ~2.3 s before (helper defsize, one-off script, 2026-11-25).
 CPU time grows more slowly than the point count (15.4, 12.3, 8.0 us a point): the per-hole work
 scales with the hole's points, the rest (k-d trees, copies) is a small part.
 """
