@@ -31,13 +31,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial import cKDTree
-
 from dpcbench.metrics.errors import UserError
+
+if TYPE_CHECKING:  # imported where used: every CLI command loads this module, few need scipy
+    from scipy.spatial import cKDTree
 
 HOLES_FORMAT = "dpcbench-holes"
 HOLES_VERSION = 1
@@ -187,6 +188,8 @@ def check_regions_near(frame: np.ndarray, regions: list[HoleRegion], reach: floa
     if not regions:
         return
     if tree is None:
+        from scipy.spatial import cKDTree
+
         tree = cKDTree(frame)
     reaches = list(reach) if isinstance(reach, (list, tuple, np.ndarray)) else [reach] * len(regions)
     dist, _ = tree.query(np.array([r.center for r in regions]))

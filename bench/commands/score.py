@@ -140,6 +140,10 @@ def run(args) -> int:
     return 0
 
 
+def _cell(value) -> str:
+    return "NaN" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
 def _frames(indices: list[int]) -> str:
     shown = ", ".join(str(i) for i in indices[:8])
     return (shown + (" ..." if len(indices) > 8 else "")) if indices else "none"
@@ -158,13 +162,18 @@ def _clean(obj):
 
 
 def _print_table(scores: dict) -> None:
-    import pandas as pd
-
-    table = pd.DataFrame(scores["frames"]).set_index("frame")
-    if len(table) > 1:
-        table.loc["mean"] = pd.Series(scores["mean"])
-    with pd.option_context("display.max_columns", None, "display.width", 160, "display.float_format", "{:.6g}".format):
-        print(table.to_string())
+    """One row per frame (and the mean when there are several), values as ``{:.6g}``. Formatted by
+    hand rather than with pandas: importing pandas alone costs ~30 MiB and 0.3 s, more than the rest
+    of an integer-grid `score` run needs."""
+    frames = scores["frames"]
+    names = [k for k in (frames[0] if frames else {}) if k != "frame"]
+    rows = [[str(f["frame"])] + [_cell(f.get(n)) for n in names] for f in frames]
+    if len(rows) > 1:
+        rows.append(["mean"] + [_cell(scores["mean"].get(n)) for n in names])
+    header = ["frame"] + names
+    widths = [max(len(r[c]) for r in [header, *rows]) for c in range(len(header))]
+    for row in [header, *rows]:
+        print("  ".join([row[0].ljust(widths[0])] + [v.rjust(w) for v, w in zip(row[1:], widths[1:])]))
     for name, value in scores.get("sequence", {}).items():
         print(f"{name} (sequence): {value:.6g}")
     settings = scores["settings"]
