@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+
 from dpcbench.metrics.errors import UserError
 
 if TYPE_CHECKING:  # imported where used: every CLI command loads this module, few need scipy
