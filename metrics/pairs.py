@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.grid import GridCloud, GridFrame, ball_search, face_neighbours, is_integer_grid
 
 # the one normal estimator and point check (re-exported: metrics.pairs.estimate_normals is public API)
 from dpcbench.metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
@@ -216,6 +217,10 @@ class SortedKeys:
         return hit, index
 
 
+#: Integer-grid clouds take the numpy path of `metrics.grid` (False: always the KD-tree; the tests
+#: compare the two paths by switching this)
+GRID_PATH = True
+
 #: Query rows handled per block: bounds the (rows, k, 3) temporaries of `_sorted_query` (~25 MB at k = 10).
 _CHUNK = 1 << 17
 
@@ -372,6 +377,89 @@ def query_neighbours(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, or
     return Neighbours(tree, targets, queries, order, workers=workers)
 
 
+class GridNeighbours:
+    """`Neighbours` of integer-grid clouds, found by `metrics.grid` (numpy, sorted keys) instead of a KD-tree.
+
+    Same attributes and values as `Neighbours` (``sq_dist``, ``index``, ``exact_rows`` ... ``same_cols``):
+    on the grid distinct squared distances differ by at least 1, so pc_error's "same-distance" run and
+    the exact ties are one set, all the targets at the nearest distance. Three kinds of queries are
+    handed to the KD-tree (``kd_neighbours(rows)`` returns a `Neighbours` that answers those rows), so
+    that every value stays the KD-tree path's: queries the ball search leaves unsettled (farther than
+    `grid.MAX_SQ_RADIUS`, or over its lookup budget); queries with more than 30 targets at the nearest
+    distance (pc_error keeps 30 of them, and which 30 is the KD-tree's choice); and, only when
+    ``index`` is read, the queries with 2 to 30 tied nearest targets (which of them is "the" nearest
+    is the KD-tree's order too; only the estimated-normal transfer reads it).
+
+    Only ``sq_dist`` (all D1 needs) is computed on construction; the tie pairs on first use.
+    """
+
+    def __init__(self, targets: GridCloud, queries: GridCloud, frame: GridFrame, kd_neighbours):
+        self._targets, self._queries, self._frame, self._kd_neighbours = targets, queries, frame, kd_neighbours
+        n = len(queries)
+        miss = np.flatnonzero(~self._matches()[0])  # positions in the queries' key order
+        ball = ball_search(targets, frame, queries.keys[miss])
+        rows = queries.rows[miss]
+        settled = ball.sq >= 0
+        kd = ~settled | (ball.count > _NEIGHBOUR_SCHEDULE[-1])
+        self._kd_rows = np.sort(rows[kd])
+        sq = np.zeros(n)
+        sq[rows[settled]] = ball.sq[settled]
+        self._kd = None
+        if self._kd_rows.size:
+            self._kd = kd_neighbours(self._kd_rows)
+            sq[self._kd_rows] = self._kd.sq_dist[self._kd_rows]
+        self.sq_dist = sq
+        # tie pairs of the settled queries (kept: a few per unmatched query), as query rows and target rows
+        keep = ~kd[ball.tie_query]
+        self._pair_rows, self._pair_cols = rows[ball.tie_query[keep]], ball.tie_target[keep]
+        self._tied_rows = np.sort(rows[settled & ~kd & (ball.count > 1)])
+
+    def _matches(self) -> tuple[np.ndarray, np.ndarray]:
+        """(hit (K,) bool, position (K,)) in key order: which queries are a target, and where in the targets."""
+        keys = self._targets.keys
+        pos = np.searchsorted(keys, self._queries.keys)
+        np.minimum(pos, len(keys) - 1, out=pos)
+        return keys[pos] == self._queries.keys, pos
+
+    @cached_property
+    def index(self) -> np.ndarray:
+        """(N,) the nearest target of each query (for tied ones: the KD-tree's first, as `Neighbours`)."""
+        hit, pos = self._matches()
+        nearest = np.full(len(self._queries), -1, dtype=np.intp)
+        nearest[self._queries.rows[hit]] = self._targets.rows[pos[hit]]
+        nearest[self._pair_rows] = self._pair_cols  # tied queries: overwritten below
+        for rows, nb in ((self._tied_rows, None), (self._kd_rows, self._kd)):
+            if rows.size:
+                nb = nb if nb is not None else self._kd_neighbours(rows)
+                nearest[rows] = nb.index[rows]
+        return nearest
+
+    @cached_property
+    def _ties(self) -> tuple[np.ndarray, np.ndarray]:
+        hit, pos = self._matches()
+        rows = [self._queries.rows[hit], self._pair_rows]
+        cols = [self._targets.rows[pos[hit]], self._pair_cols]
+        del hit, pos
+        if self._kd is not None:  # its rows' pairs; its other rows are placeholders
+            mine = np.zeros(len(self._queries), dtype=bool)
+            mine[self._kd_rows] = True
+            take = mine[self._kd.exact_rows]
+            rows.append(self._kd.exact_rows[take])
+            cols.append(self._kd.exact_cols[take])
+        return np.concatenate(rows).astype(np.intp), np.concatenate(cols).astype(np.intp)
+
+    @property
+    def exact_rows(self) -> np.ndarray:
+        return self._ties[0]
+
+    @property
+    def exact_cols(self) -> np.ndarray:
+        return self._ties[1]
+
+    same_rows = exact_rows  # on the grid the same-distance run is the exact tie set
+    same_cols = exact_cols
+
+
 def face_neighbour_mask(points: np.ndarray) -> np.ndarray | None:
     """(N,) bool: which points of distinct integer ``points`` have another point at distance exactly
     1 (one of their 6 face neighbours on the grid); None when the grid is too large for int64 keys.
@@ -409,6 +497,13 @@ def face_neighbour_mask(points: np.ndarray) -> np.ndarray | None:
     return has
 
 
+def _grid_candidate(points: np.ndarray) -> bool:
+    """Whether ``points`` can take the integer-grid path: a non-empty numeric (N, 3) array of integer
+    values (anything else takes the float path, whose checks give the error messages)."""
+    return (points.ndim == 2 and points.shape[1] == 3 and len(points) > 0 and points.dtype.kind in "iuf"
+            and is_integer_grid(points))
+
+
 class CloudPair:
     """A reference frame and a result frame with the neighbour queries every metric shares.
 
@@ -432,33 +527,65 @@ class CloudPair:
         normal_neighbours: int = DEFAULT_NORMAL_NEIGHBOURS,
         workers: int = -1,
     ):
-        ref = check_points(reference, "reference")
-        res = check_points(result, "result")
-        normals = None
-        if reference_normals is not None:
-            normals = np.asarray(reference_normals, dtype=np.float64)
-            if normals.shape != ref.shape:
-                raise ValueError(
-                    f"reference normals must have the shape of the reference points {ref.shape}, got {normals.shape}"
-                )
         if not (isinstance(workers, (int, np.integer)) and (workers >= 1 or workers == -1)):
             raise ValueError(f"workers must be a positive number of threads or -1 (all cores), got {workers!r}")
         self.workers = int(workers)
         self.drop_duplicates = bool(drop_duplicates)
+        self.normal_neighbours = int(normal_neighbours)
         self._ref_keys = self._res_keys = None
         self.reference_index = self.result_index = None
-        if self.drop_duplicates:
-            self.reference_index, self._ref_keys = distinct_points(ref)
-            self.result_index, self._res_keys = distinct_points(res)
-        if self.reference_index is not None:
-            ref = ref[self.reference_index]
-            normals = None if normals is None else normals[self.reference_index]
-        if self.result_index is not None:
-            res = res[self.result_index]
-        self.reference = np.ascontiguousarray(ref)
-        self.result = np.ascontiguousarray(res)
+        self._grid = None
+        ref_in, res_in = np.asarray(reference), np.asarray(result)
+        if (GRID_PATH and self.drop_duplicates and _grid_candidate(ref_in) and _grid_candidate(res_in)
+                and GridFrame.fits(ref_in, res_in)):
+            # integer grid: numpy-only neighbours on packed keys (`metrics.grid`); the inputs are kept as
+            # given (no float64 copies) and converted only if a metric asks for the coordinates
+            frame = GridFrame(ref_in, res_in)
+            self._grid = (frame, GridCloud(ref_in, frame), GridCloud(res_in, frame))
+            self.reference_index, self.result_index = self._grid[1].kept, self._grid[2].kept
+            self._inputs = (ref_in, res_in)
+            self._reference = self._result = None
+            shape = ref_in.shape
+        else:
+            ref = check_points(reference, "reference")
+            res = check_points(result, "result")
+            if self.drop_duplicates:
+                self.reference_index, self._ref_keys = distinct_points(ref)
+                self.result_index, self._res_keys = distinct_points(res)
+            self._reference = np.ascontiguousarray(ref if self.reference_index is None else ref[self.reference_index])
+            self._result = np.ascontiguousarray(res if self.result_index is None else res[self.result_index])
+            shape = ref.shape
+        normals = None
+        if reference_normals is not None:
+            normals = np.asarray(reference_normals)
+            if normals.dtype.kind != "f":
+                normals = normals.astype(np.float64)
+            if normals.shape != shape:
+                raise ValueError(
+                    f"reference normals must have the shape of the reference points {shape}, got {normals.shape}"
+                )
+            # float32 normals (as PLY files store them) are kept as float32: every use promotes them to
+            # float64 exactly, so the values are those of a float64 copy, at half the memory
+            normals = normals if self.reference_index is None else normals[self.reference_index]
         self._given_normals = normals
-        self.normal_neighbours = int(normal_neighbours)
+
+    @property
+    def reference(self) -> np.ndarray:
+        """(N, 3) float64, the deduplicated reference (on the grid path: made on first use)."""
+        if self._reference is None:
+            self._reference = self._grid_points(0, self.reference_index)
+        return self._reference
+
+    @property
+    def result(self) -> np.ndarray:
+        """(M, 3) float64, the deduplicated result (on the grid path: made on first use)."""
+        if self._result is None:
+            self._result = self._grid_points(1, self.result_index)
+        return self._result
+
+    def _grid_points(self, which: int, kept: np.ndarray | None) -> np.ndarray:
+        points = self._inputs[which]
+        return np.ascontiguousarray(points if kept is None else points[kept], dtype=np.float64)
 
     # -- trees and queries ------------------------------------------------------------------
     @cached_property
@@ -471,11 +598,24 @@ class CloudPair:
 
     @cached_property
     def reference_on_grid(self) -> bool:
-        return on_integer_grid(self.reference)
+        return self._grid is not None or on_integer_grid(self.reference)
 
     @cached_property
     def result_on_grid(self) -> bool:
-        return on_integer_grid(self.result)
+        return self._grid is not None or on_integer_grid(self.result)
+
+    def _kd_neighbours(self, direction: str):
+        """For `GridNeighbours`: rows -> the KD-tree `Neighbours` of those query rows only."""
+        def build(rows: np.ndarray) -> Neighbours:
+            if direction == "ref_to_res":
+                tree, targets, queries = self.result_tree, self.result, self.reference
+            else:
+                tree, targets, queries = self.reference_tree, self.reference, self.result
+            others = np.ones(len(queries), dtype=bool)
+            others[rows] = False  # marked "matched" so that only ``rows`` are queried; their values are ignored
+            return Neighbours(tree, targets, queries, matched=others, matched_index=np.zeros(len(queries), np.intp),
+                              separated_targets=True, workers=self.workers)
+        return build
 
     def _matches(self, queries, query_keys, targets, target_keys):
         """Exact matches of the queries in the (deduplicated) targets, or (None, None) without deduplication:
@@ -485,8 +625,11 @@ class CloudPair:
         return target_keys.exact_matches(query_keys, queries, targets)
 
     @cached_property
-    def ref_to_res(self) -> Neighbours:
+    def ref_to_res(self) -> Neighbours | GridNeighbours:
         """For each reference point, its nearest result point(s)."""
+        if self._grid is not None:
+            frame, ref, res = self._grid
+            return GridNeighbours(res, ref, frame, self._kd_neighbours("ref_to_res"))
         hit, index = self._matches(self.reference, self._ref_keys, self.result, self._res_keys)
         nb = Neighbours(self.result_tree, self.result, self.reference, self.reference_tree.indices,
                         matched=hit, matched_index=index, separated_targets=self.result_on_grid, workers=self.workers)
@@ -494,8 +637,11 @@ class CloudPair:
         return nb
 
     @cached_property
-    def res_to_ref(self) -> Neighbours:
+    def res_to_ref(self) -> Neighbours | GridNeighbours:
         """For each result point, its nearest reference point(s)."""
+        if self._grid is not None:
+            frame, ref, res = self._grid
+            return GridNeighbours(ref, res, frame, self._kd_neighbours("res_to_ref"))
         hit, index = self._matches(self.result, self._res_keys, self.reference, self._ref_keys)
         nb = Neighbours(self.reference_tree, self.reference, self.result, self.result_tree.indices,
                         matched=hit, matched_index=index, separated_targets=self.reference_on_grid,
@@ -515,6 +661,8 @@ class CloudPair:
         On distinct integer points, those with a face neighbour (`face_neighbour_mask`) are at 1
         exactly and skip the tree query.
         """
+        if self._grid is not None:
+            return self._grid_spacing(full=True)
         n = len(self.reference)
         if n < 2:
             return np.full(n, np.inf)
@@ -530,13 +678,40 @@ class CloudPair:
         spacing[order] = np.sqrt(sq[:, 1])
         return spacing
 
+    def _grid_spacing(self, full: bool) -> np.ndarray:
+        """Nearest-other-point distances on the grid path: (N,) with ``full``, else those of the points
+        without a face neighbour plus one 1.0 when some point has one (enough for the maximum)."""
+        frame, ref, _ = self._grid
+        n = len(ref)
+        if n < 2:
+            return np.full(n, np.inf)
+        face = face_neighbours(ref, frame)  # in key order; distance exactly 1
+        rest = np.flatnonzero(~face)
+        ball = ball_search(ref, frame, ref.keys[rest], ties=False)
+        rows = ref.rows[rest]
+        found = ball.sq >= 0
+        far = rows[~found]
+        spacing = np.ones(n) if full else np.ones(len(rows) + 1)
+        at = rows if full else np.arange(len(rows))
+        spacing[at[found]] = np.sqrt(ball.sq[found].astype(np.float64))
+        if far.size:  # beyond the ball search: the KD-tree, as the other path
+            by_row = np.sort(far)
+            _, sq = _sorted_query(self.reference_tree, self.reference, self.reference, by_row, 2, self.workers)
+            spacing[at[~found]] = np.sqrt(sq[np.searchsorted(by_row, far), 1])
+        if not full and not face.any():
+            spacing = spacing[:-1]
+        return spacing
+
     @cached_property
     def intrinsic_resolution(self) -> float:
         """pc_error's default peak: the largest nearest-neighbour distance inside the reference.
 
         Points whose neighbour lies closer than 1e-5 (squared 1e-10) are ignored, as in pc_error.
         """
-        spacing = self.reference_spacing
+        if self._grid is not None and "reference_spacing" not in self.__dict__:
+            spacing = self._grid_spacing(full=False)  # the points without a face neighbour (the max is 1 or theirs)
+        else:
+            spacing = self.reference_spacing
         valid = spacing[spacing * spacing > _INTRINSIC_MIN_SQ]
         valid = valid[np.isfinite(valid)]
         if valid.size == 0:

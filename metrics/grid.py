@@ -1,0 +1,257 @@
+"""Exact nearest neighbours of integer-grid (voxelized) clouds with numpy only: no KD-tree.
+
+Voxelized frames (8i, MPEG: every coordinate an integer) are what pc_error is mostly run on. On such
+data a nearest-neighbour query is a lookup in a sorted array of packed coordinates, which needs
+neither scipy (importing scipy.spatial alone costs ~40 MiB and 0.4 s, more than pc_error's whole
+footprint) nor float64 copies of the clouds. `metrics.pairs.CloudPair` uses this module when both
+clouds are on the integer grid and duplicates are merged; results are those of the KD-tree path
+(`tests/test_metrics_grid.py` checks them against it and against brute force).
+
+Keys. A `GridFrame` covers both clouds' bounding box padded by `MAX_COMPONENT` cells on every side;
+a point (x, y, z) of the frame has the key ((x - x0) * ny + (y - y0)) * nz + (z - z0) (int64). A grid
+offset o = (ox, oy, oz) with |o_i| <= `MAX_COMPONENT` adds the fixed amount (ox * ny + oy) * nz + oz
+to the key of any point of the frame, without wrapping into another row (the padding), so the
+neighbour of a point at offset o exists iff key + key(o) is in the sorted keys of the targets.
+
+Search (`ball_search`). The offsets with 0 < |o|^2 <= `MAX_SQ_RADIUS` are taken in groups of equal
+squared norm n = 1, 2, 3, 4, 5, 6, 8, 9, ... (ascending). A query is settled by the first group in
+which any of its offsets hits a target: every closer offset has been looked up before, so n is its
+exact nearest squared distance, and the hits of that group are all of its targets at exactly that
+distance (its tie set; distinct grid points are >= 1 apart, so pc_error's 1e-8 "same distance" run
+is the same set). Queries are looked up in key order (numpy's binary search is several times faster
+on sorted queries). The cost grows with the cube of the distance (~4.2 n^1.5 lookups for a query at
+squared distance n): a query still unsettled when the lookups of a search exceed `LOOKUP_BUDGET`, or
+beyond `MAX_SQ_RADIUS`, is reported unsettled, and the caller answers it another way (the KD-tree).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+#: largest squared distance the ball search looks at (32 voxels); farther queries are left to the KD-tree
+MAX_SQ_RADIUS = 32 * 32
+#: largest offset component, hence the padding of a `GridFrame` (no key wraps within it)
+MAX_COMPONENT = 32
+#: lookups one `ball_search` may spend (~0.05 s per million on sorted queries) before leaving the
+#: queries still unsettled to the caller: bounds the time on clouds with deep holes
+LOOKUP_BUDGET = 40_000_000
+#: queries x offsets looked up per `np.searchsorted` call: bounds the temporaries (~3 x 4 MB)
+_BLOCK = 1 << 19
+#: coordinates must fit int32 (|x| < 2**31) for the compact paths
+_INT32 = 2**31 - 1 - MAX_COMPONENT
+
+
+def is_integer_grid(points: np.ndarray, block: int = 1 << 18) -> bool:
+    """True when every coordinate of ``points`` (N, 3), any numeric dtype, is an integer of absolute
+    value below ~2**31. Checked in blocks of rows, so a float64 input costs no (N, 3) temporaries."""
+    if len(points) == 0:
+        return True
+    if points.dtype.kind in "iu":
+        return bool(points.max() <= _INT32 and points.min() >= -_INT32)
+    if points.dtype.kind != "f":
+        return False
+    for start in range(0, len(points), block):
+        part = points[start:start + block]
+        if not (np.equal(np.floor(part), part).all() and np.abs(part).max(initial=0) <= _INT32):
+            return False
+    return True
+
+
+class GridFrame:
+    """The key space shared by the clouds of a pair (see the module docstring).
+
+    origin (3,) int64: the smallest coordinates minus the padding; dims (3,) int64: cells per axis.
+    """
+
+    def __init__(self, *clouds: np.ndarray):
+        lo = np.min([np.asarray(c.min(axis=0), dtype=np.int64) for c in clouds], axis=0)
+        hi = np.max([np.asarray(c.max(axis=0), dtype=np.int64) for c in clouds], axis=0)
+        self.origin = lo - MAX_COMPONENT
+        self.dims = hi - lo + 1 + 2 * MAX_COMPONENT
+
+    @staticmethod
+    def fits(*clouds: np.ndarray) -> bool:
+        """Whether the keys of these clouds fit int64 (a grid of fewer than 2**62 cells)."""
+        lo = np.min([c.min(axis=0) for c in clouds], axis=0).astype(float)
+        hi = np.max([c.max(axis=0) for c in clouds], axis=0).astype(float)
+        return float(np.prod(hi - lo + 1 + 2 * MAX_COMPONENT)) < 2.0**62
+
+    def keys(self, points: np.ndarray, block: int = 1 << 18) -> np.ndarray:
+        """(N,) int64 keys of integer-valued ``points`` (N, 3), computed in blocks (no (N, 3) copies)."""
+        out = np.empty(len(points), dtype=np.int64)
+        for start in range(0, len(points), block):
+            part = points[start:start + block]
+            key = out[start:start + len(part)]
+            key[:] = part[:, 0]
+            key -= self.origin[0]
+            for axis in (1, 2):
+                key *= self.dims[axis]
+                key += part[:, axis].astype(np.int64)
+                key -= self.origin[axis]
+        return out
+
+    def offset_keys(self, offsets: np.ndarray) -> np.ndarray:
+        """(G,) int64 key increments of grid offsets (G, 3)."""
+        o = offsets.astype(np.int64)
+        return (o[:, 0] * self.dims[1] + o[:, 1]) * self.dims[2] + o[:, 2]
+
+    def decode(self, keys: np.ndarray) -> np.ndarray:
+        """(N, 3) float64 coordinates of keys (the inverse of `keys`)."""
+        out = np.empty((len(keys), 3))
+        rest = keys.copy()
+        for axis in (2, 1):
+            rest, out[:, axis] = np.divmod(rest, self.dims[axis])
+            out[:, axis] += self.origin[axis]
+        out[:, 0] = rest + self.origin[0]
+        return out
+
+
+class GridCloud:
+    """The distinct points of one integer cloud as sorted keys.
+
+    keys: (K,) int64 sorted, distinct; rows: (K,) intp, the row of each key in the deduplicated cloud;
+    kept: (K,) the input rows of the first occurrences, in input order (pc_error's ``--dropdups=2``:
+    the first occurrence is kept), or None when no point is repeated.
+    """
+
+    def __init__(self, points: np.ndarray, frame: GridFrame):
+        n = len(points)
+        bits = max(1, int(n - 1).bit_length())
+        key_bits = int(np.prod(frame.dims.astype(float)) - 1).bit_length()
+        keys = frame.keys(points)
+        if key_bits + bits <= 63:
+            # key and row packed into one int64 and sorted with np.sort (a SIMD sort, ~5x faster than
+            # argsort); equal keys come out in row order, so the first of a run is the first occurrence
+            keys <<= bits
+            keys |= np.arange(n, dtype=np.int64)
+            keys.sort()
+            order = (keys & ((1 << bits) - 1)).astype(np.intp)
+            keys >>= bits
+        else:
+            order = np.argsort(keys, kind="stable")
+            keys = keys[order]
+        first = np.empty(n, dtype=bool)
+        first[0] = True
+        np.not_equal(keys[1:], keys[:-1], out=first[1:])
+        if first.all():
+            self.kept = None
+            self.keys, self.rows = keys, order
+            return
+        self.keys = keys[first]
+        del keys
+        starts = order[first]
+        self.kept = np.sort(starts)
+        self.rows = np.searchsorted(self.kept, starts)  # row of each first occurrence among the kept ones
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+
+@lru_cache(maxsize=4)
+def _ball_groups(max_sq: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(offsets (G, 3) sorted by squared norm, their squared norms (G,), start of each norm group (U + 1,))
+    for 0 < |o|^2 <= max_sq."""
+    r = int(np.floor(np.sqrt(max_sq)))
+    axis = np.arange(-r, r + 1)
+    o = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    norm = (o * o).sum(axis=1)
+    keep = (norm > 0) & (norm <= max_sq)
+    o, norm = o[keep], norm[keep]
+    order = np.argsort(norm, kind="stable")
+    o, norm = o[order], norm[order]
+    starts = np.flatnonzero(np.r_[True, norm[1:] != norm[:-1], True])
+    return o, norm, starts
+
+
+class BallResult:
+    """What `ball_search` found for P queries.
+
+    sq: (P,) int64 nearest squared distance, -1 where unsettled; count: (P,) number of targets at that
+    distance (0 where unsettled); tie_query (T,), tie_target (T,): every (query, target row) pair at
+    the nearest distance, grouped by norm group, not sorted.
+    """
+
+    def __init__(self, sq, count, tie_query, tie_target):
+        self.sq, self.count, self.tie_query, self.tie_target = sq, count, tie_query, tie_target
+
+
+def ball_search(targets: GridCloud, frame: GridFrame, query_keys: np.ndarray, *, ties: bool = True,
+                max_sq: int = MAX_SQ_RADIUS, budget: int = LOOKUP_BUDGET) -> BallResult:
+    """Nearest targets of the grid points with keys ``query_keys`` (P,) (sorted for speed), other than
+    a target at the query itself (offset 0 is not looked up): see the module docstring.
+
+    ties: also return the tie pairs (else ``tie_query``/``tie_target`` are empty).
+    """
+    p = len(query_keys)
+    sq = np.full(p, -1, dtype=np.int64)
+    count = np.zeros(p, dtype=np.int64)
+    tie_q: list[np.ndarray] = []
+    tie_t: list[np.ndarray] = []
+    offsets, norms, starts = _ball_groups(max_sq)
+    offset_keys = frame.offset_keys(offsets)
+    pending = np.arange(p)
+    keys, last = targets.keys, len(targets.keys) - 1
+    spent = 0
+    if last < 0:
+        return BallResult(sq, count, np.empty(0, np.intp), np.empty(0, np.intp))
+    for g in range(len(starts) - 1):
+        if pending.size == 0:
+            break
+        group = offset_keys[starts[g]:starts[g + 1]]
+        spent += pending.size * group.size
+        if spent > budget:
+            break
+        pkeys = query_keys[pending]
+        step = max(1, _BLOCK // group.size)
+        found_rows, found_q, found_t = [], [], []
+        for lo in range(0, pending.size, step):
+            block = pkeys[lo:lo + step]
+            wanted = group[:, None] + block[None, :]  # offset-major: each row sorted, lookups stay sorted
+            pos = np.searchsorted(keys, wanted)
+            np.minimum(pos, last, out=pos)
+            hit = keys[pos] == wanted
+            if not hit.any():
+                continue
+            col = np.nonzero(hit)[1]
+            found_rows.append(col + lo)
+            if ties:
+                found_t.append(targets.rows[pos[hit]])
+        if not found_rows:
+            continue
+        cols = np.concatenate(found_rows)
+        queries = pending[cols]
+        n_hits = np.bincount(cols, minlength=pending.size)
+        settled = n_hits > 0
+        sq[pending[settled]] = norms[starts[g]]
+        count[pending[settled]] = n_hits[settled]
+        if ties:
+            tie_q.append(queries)
+            tie_t.append(np.concatenate(found_t))
+        pending = pending[~settled]
+    empty = np.empty(0, dtype=np.intp)
+    return BallResult(sq, count, np.concatenate(tie_q) if tie_q else empty,
+                      np.concatenate(tie_t) if tie_t else empty)
+
+
+def face_neighbours(cloud: GridCloud, frame: GridFrame) -> np.ndarray:
+    """(K,) bool, in sorted-key order: which points of ``cloud`` have a point at distance exactly 1.
+
+    z-neighbours are adjacent in key order; the others are looked up only for the points not yet
+    settled (most surface points have a z-neighbour)."""
+    keys = cloud.keys
+    has = np.zeros(len(keys), dtype=bool)
+    adjacent = np.flatnonzero(np.diff(keys) == 1)
+    has[adjacent] = True
+    has[adjacent + 1] = True
+    last = len(keys) - 1
+    for step in (int(frame.dims[2]), int(frame.dims[1] * frame.dims[2])):
+        for sign in (1, -1):
+            rest = np.flatnonzero(~has)
+            if rest.size == 0:
+                return has
+            wanted = keys[rest] + sign * step
+            pos = np.minimum(np.searchsorted(keys, wanted), last)
+            has[rest[keys[pos] == wanted]] = True
+    return has
