@@ -22,7 +22,7 @@ from dpcbench.bench.errors import UserError
 class PointCloud:
     """One frame.
 
-    points:  (N, 3) float64 coordinates.
+    points:  (N, 3) float64 coordinates (int16 or float32 from ``read_ply(..., compact=True)``).
     colors:  (N, 3) uint8 RGB, or None.
     normals: (N, 3) float64, or None.
     """
@@ -59,6 +59,16 @@ def _stack(vertex: plyfile.PlyElement, names: tuple[str, ...], dtype) -> np.ndar
     return out
 
 
+def _small_integers(column: np.ndarray) -> bool:
+    """Whether every value of a numeric column is an integer in int16's range (voxelized coordinates
+    up to 15 bits), so that int16 holds it exactly."""
+    if column.dtype.kind not in "iuf" or column.size == 0:
+        return False
+    if not (column.min() >= -(2**15) and column.max() < 2**15):  # False for NaN too
+        return False
+    return column.dtype.kind in "iu" or bool(np.equal(np.floor(column), column).all())
+
+
 def _check_declared_size(data: plyfile.PlyData, path: Path) -> None:
     """Refuse a file holding more data than its header declares (plyfile reads the declared count
     and silently ignores the rest, so a wrong ``element vertex N`` would read the frame short).
@@ -91,12 +101,16 @@ def _check_declared_size(data: plyfile.PlyData, path: Path) -> None:
                         "header's 'element ... N' counts are wrong or the file is damaged: re-export it")
 
 
-def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True) -> PointCloud:
+def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True, compact: bool = False) -> PointCloud:
     """Read one PLY frame. Colours are read from red/green/blue (or r/g/b), normals from nx/ny/nz.
 
     With ``check`` (default) a frame with zero points or non-finite coordinates is refused with a
     UserError naming the file. ``colors=False`` skips the colours (``colors`` is then None), for
-    callers that only measure geometry.
+    callers that only measure geometry. ``compact=True`` returns the coordinates in the narrowest
+    type that holds them exactly instead of float64: int16 for voxelized frames (integers below
+    2**15: a quarter of the memory), else float32 when stored as float32; normals stay float32 when
+    stored so. Same values (each converts to float64 exactly), for callers that accept any numeric
+    dtype (the metrics).
     """
     path = Path(path)
     if not path.is_file():
@@ -107,7 +121,12 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         names = {p.name for p in vertex.properties}
         if not {"x", "y", "z"} <= names:
             raise UserError(f"{path}: the vertex element has no x, y, z properties (has {sorted(names)})")
-        points = _stack(vertex, ("x", "y", "z"), np.float64)
+        def float_type(names):
+            return np.float32 if compact and all(vertex[n].dtype == np.float32 for n in names) else np.float64
+
+        xyz = ("x", "y", "z")
+        points = _stack(vertex, xyz, np.int16 if compact and all(_small_integers(vertex[n]) for n in xyz)
+                        else float_type(xyz))
         read_colors, colors = colors, None
         for rgb in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
             if not read_colors:
@@ -121,7 +140,8 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
                     raw = raw * 255.0  # float colours in [0, 1]
                 colors = np.clip(np.rint(raw), 0, 255).astype(np.uint8)
                 break
-        normals = _stack(vertex, ("nx", "ny", "nz"), np.float64) if {"nx", "ny", "nz"} <= names else None
+        normals = (_stack(vertex, ("nx", "ny", "nz"), float_type(("nx", "ny", "nz")))
+                   if {"nx", "ny", "nz"} <= names else None)
     except UserError:
         raise
     except Exception as err:  # a third-party parser of the user's file: it raises many types on corrupt input

@@ -84,10 +84,10 @@ def infer_bit_depth(frames: list[PointCloud]) -> int | None:
 
 
 def load_sequence(source: str | os.PathLike | list, *, name: str | None = None, progress: bool = False,
-                  colors: bool = True) -> Sequence:
+                  colors: bool = True, compact: bool = False) -> Sequence:
     """Read every PLY frame of a folder (or glob, or single file) in natural order; a list of files is
     read in the order given. ``colors=False`` skips the colours (geometry-only callers such as
-    `dpcbench score`).
+    `dpcbench score`); ``compact=True`` keeps float32 coordinates and normals as stored (see `read_ply`).
 
     All frames must carry the same attributes (all with colours or none, all with normals or none).
     """
@@ -103,7 +103,7 @@ def load_sequence(source: str | os.PathLike | list, *, name: str | None = None, 
         from dpcbench.bench.progress import progress_bar
 
         iterator = progress_bar(files, desc="reading frames", unit="frame")
-    frames = [read_ply(f, colors=colors) for f in iterator]
+    frames = [read_ply(f, colors=colors, compact=compact) for f in iterator]
     for attr in ("colors", "normals"):
         has = [getattr(f, attr) is not None for f in frames]
         if any(has) and not all(has):

@@ -39,6 +39,8 @@ MAX_COMPONENT = 32
 LOOKUP_BUDGET = 40_000_000
 #: queries x offsets looked up per `np.searchsorted` call: bounds the temporaries (~3 x 4 MB)
 _BLOCK = 1 << 19
+#: rows per block when packing keys
+_ROWS = 1 << 16
 #: coordinates must fit int32 (|x| < 2**31) for the compact paths
 _INT32 = 2**31 - 1 - MAX_COMPONENT
 
@@ -70,6 +72,10 @@ class GridFrame:
         hi = np.max([np.asarray(c.max(axis=0), dtype=np.int64) for c in clouds], axis=0)
         self.origin = lo - MAX_COMPONENT
         self.dims = hi - lo + 1 + 2 * MAX_COMPONENT
+        self.cells = int(np.prod(self.dims.astype(float)))
+        #: int32 keys when the padded box has fewer than 2**31 cells (any 10-bit frame: 1088**3 < 2**31):
+        #: half the memory, and every key + offset stays in range (the padding), so sums never overflow
+        self.dtype = np.dtype(np.int32) if self.cells < 2**31 else np.dtype(np.int64)
 
     @staticmethod
     def fits(*clouds: np.ndarray) -> bool:
@@ -79,7 +85,8 @@ class GridFrame:
         return float(np.prod(hi - lo + 1 + 2 * MAX_COMPONENT)) < 2.0**62
 
     def keys(self, points: np.ndarray, block: int = 1 << 18) -> np.ndarray:
-        """(N,) int64 keys of integer-valued ``points`` (N, 3), computed in blocks (no (N, 3) copies)."""
+        """(N,) int64 keys of integer-valued ``points`` (N, 3), computed in blocks (no (N, 3) copies);
+        `GridCloud` stores them as ``dtype``."""
         out = np.empty(len(points), dtype=np.int64)
         for start in range(0, len(points), block):
             part = points[start:start + block]
@@ -93,14 +100,14 @@ class GridFrame:
         return out
 
     def offset_keys(self, offsets: np.ndarray) -> np.ndarray:
-        """(G,) int64 key increments of grid offsets (G, 3)."""
+        """(G,) key increments (``dtype``) of grid offsets (G, 3)."""
         o = offsets.astype(np.int64)
-        return (o[:, 0] * self.dims[1] + o[:, 1]) * self.dims[2] + o[:, 2]
+        return ((o[:, 0] * self.dims[1] + o[:, 1]) * self.dims[2] + o[:, 2]).astype(self.dtype)
 
     def decode(self, keys: np.ndarray) -> np.ndarray:
         """(N, 3) float64 coordinates of keys (the inverse of `keys`)."""
         out = np.empty((len(keys), 3))
-        rest = keys.copy()
+        rest = keys.astype(np.int64)
         for axis in (2, 1):
             rest, out[:, axis] = np.divmod(rest, self.dims[axis])
             out[:, axis] += self.origin[axis]
@@ -119,19 +126,27 @@ class GridCloud:
     def __init__(self, points: np.ndarray, frame: GridFrame):
         n = len(points)
         bits = max(1, int(n - 1).bit_length())
-        key_bits = int(np.prod(frame.dims.astype(float)) - 1).bit_length()
+        key_bits = int(frame.cells - 1).bit_length()
         keys = frame.keys(points)
         if key_bits + bits <= 63:
             # key and row packed into one int64 and sorted with np.sort (a SIMD sort, ~5x faster than
-            # argsort); equal keys come out in row order, so the first of a run is the first occurrence
+            # argsort); equal keys come out in row order, so the first of a run is the first occurrence.
+            # Packed and unpacked in blocks: no full-size temporaries beside the one int64 array.
             keys <<= bits
-            keys |= np.arange(n, dtype=np.int64)
+            for start in range(0, n, _ROWS):
+                keys[start:start + _ROWS] |= np.arange(start, min(n, start + _ROWS), dtype=np.int64)
             keys.sort()
-            order = (keys & ((1 << bits) - 1)).astype(np.intp)
-            keys >>= bits
+            order = np.empty(n, dtype=np.int32 if n < 2**31 else np.intp)
+            packed, keys = keys, np.empty(n, dtype=frame.dtype)
+            for start in range(0, n, _ROWS):
+                part = packed[start:start + _ROWS]
+                order[start:start + _ROWS] = part & ((1 << bits) - 1)
+                keys[start:start + _ROWS] = part >> bits
+            del packed, part
         else:
             order = np.argsort(keys, kind="stable")
             keys = keys[order]
+        keys = keys.astype(frame.dtype, copy=False)
         first = np.empty(n, dtype=bool)
         first[0] = True
         np.not_equal(keys[1:], keys[:-1], out=first[1:])
@@ -143,10 +158,16 @@ class GridCloud:
         del keys
         starts = order[first]
         self.kept = np.sort(starts)
-        self.rows = np.searchsorted(self.kept, starts)  # row of each first occurrence among the kept ones
+        self.rows = np.searchsorted(self.kept, starts).astype(order.dtype)  # row among the kept points
 
     def __len__(self) -> int:
         return len(self.keys)
+
+    def points(self, frame: GridFrame) -> np.ndarray:
+        """(K, 3) float64 coordinates of the distinct points in row order (decoded from the keys: exact)."""
+        out = np.empty((len(self.keys), 3))
+        out[self.rows] = frame.decode(self.keys)
+        return out
 
 
 @lru_cache(maxsize=4)
@@ -154,11 +175,11 @@ def _ball_groups(max_sq: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(offsets (G, 3) sorted by squared norm, their squared norms (G,), start of each norm group (U + 1,))
     for 0 < |o|^2 <= max_sq."""
     r = int(np.floor(np.sqrt(max_sq)))
-    axis = np.arange(-r, r + 1)
+    axis = np.arange(-r, r + 1, dtype=np.int16)  # small types: the cube has (2r + 1)^3 = 275k cells at r = 32
     o = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
-    norm = (o * o).sum(axis=1)
+    norm = (o.astype(np.int32) ** 2).sum(axis=1, dtype=np.int32)
     keep = (norm > 0) & (norm <= max_sq)
-    o, norm = o[keep], norm[keep]
+    o, norm = o[keep].astype(np.int8 if r < 128 else np.int16), norm[keep]
     order = np.argsort(norm, kind="stable")
     o, norm = o[order], norm[order]
     starts = np.flatnonzero(np.r_[True, norm[1:] != norm[:-1], True])
@@ -205,7 +226,7 @@ def ball_search(targets: GridCloud, frame: GridFrame, query_keys: np.ndarray, *,
             break
         pkeys = query_keys[pending]
         step = max(1, _BLOCK // group.size)
-        found_rows, found_q, found_t = [], [], []
+        found_rows, found_t = [], []
         for lo in range(0, pending.size, step):
             block = pkeys[lo:lo + step]
             wanted = group[:, None] + block[None, :]  # offset-major: each row sorted, lookups stay sorted
@@ -242,9 +263,10 @@ def face_neighbours(cloud: GridCloud, frame: GridFrame) -> np.ndarray:
     settled (most surface points have a z-neighbour)."""
     keys = cloud.keys
     has = np.zeros(len(keys), dtype=bool)
-    adjacent = np.flatnonzero(np.diff(keys) == 1)
-    has[adjacent] = True
-    has[adjacent + 1] = True
+    adjacent = np.diff(keys) == 1  # masks, not index arrays: no intp array of every surface point
+    has[:-1] |= adjacent
+    has[1:] |= adjacent
+    del adjacent
     last = len(keys) - 1
     for step in (int(frame.dims[2]), int(frame.dims[1] * frame.dims[2])):
         for sign in (1, -1):

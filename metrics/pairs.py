@@ -390,29 +390,37 @@ class GridNeighbours:
     ``index`` is read, the queries with 2 to 30 tied nearest targets (which of them is "the" nearest
     is the KD-tree's order too; only the estimated-normal transfer reads it).
 
-    Only ``sq_dist`` (all D1 needs) is computed on construction; the tie pairs on first use.
+    Only the distances (all D1 needs) are computed on construction; the tie pairs on first use.
     """
 
     def __init__(self, targets: GridCloud, queries: GridCloud, frame: GridFrame, kd_neighbours):
         self._targets, self._queries, self._frame, self._kd_neighbours = targets, queries, frame, kd_neighbours
-        n = len(queries)
         miss = np.flatnonzero(~self._matches()[0])  # positions in the queries' key order
         ball = ball_search(targets, frame, queries.keys[miss])
         rows = queries.rows[miss]
         settled = ball.sq >= 0
         kd = ~settled | (ball.count > _NEIGHBOUR_SCHEDULE[-1])
         self._kd_rows = np.sort(rows[kd])
-        sq = np.zeros(n)
-        sq[rows[settled]] = ball.sq[settled]
         self._kd = None
+        sq_rows, sq_values = [rows[settled]], [ball.sq[settled].astype(np.float64)]
         if self._kd_rows.size:
             self._kd = kd_neighbours(self._kd_rows)
-            sq[self._kd_rows] = self._kd.sq_dist[self._kd_rows]
-        self.sq_dist = sq
+            sq_rows.append(self._kd_rows)
+            sq_values.append(self._kd.sq_dist[self._kd_rows])
+        # only the non-zero distances are kept (the unmatched queries: a few percent); `sq_dist` expands them
+        self._sq_rows, self._sq_values = np.concatenate(sq_rows), np.concatenate(sq_values)
         # tie pairs of the settled queries (kept: a few per unmatched query), as query rows and target rows
         keep = ~kd[ball.tie_query]
         self._pair_rows, self._pair_cols = rows[ball.tie_query[keep]], ball.tie_target[keep]
         self._tied_rows = np.sort(rows[settled & ~kd & (ball.count > 1)])
+
+    @property
+    def sq_dist(self) -> np.ndarray:
+        """(N,) float64 squared distance of each query to its nearest target (made on each read: the
+        pair stores only the non-zero ones, so that a frame's D1 holds no N-sized float arrays)."""
+        sq = np.zeros(len(self._queries))
+        sq[self._sq_rows] = self._sq_values
+        return sq
 
     def _matches(self) -> tuple[np.ndarray, np.ndarray]:
         """(hit (K,) bool, position (K,)) in key order: which queries are a target, and where in the targets."""
@@ -538,12 +546,11 @@ class CloudPair:
         ref_in, res_in = np.asarray(reference), np.asarray(result)
         if (GRID_PATH and self.drop_duplicates and _grid_candidate(ref_in) and _grid_candidate(res_in)
                 and GridFrame.fits(ref_in, res_in)):
-            # integer grid: numpy-only neighbours on packed keys (`metrics.grid`); the inputs are kept as
-            # given (no float64 copies) and converted only if a metric asks for the coordinates
+            # integer grid: numpy-only neighbours on packed keys (`metrics.grid`); the pair keeps the keys
+            # only (no float64 copies, nor the inputs) and decodes the coordinates if a metric asks for them
             frame = GridFrame(ref_in, res_in)
             self._grid = (frame, GridCloud(ref_in, frame), GridCloud(res_in, frame))
             self.reference_index, self.result_index = self._grid[1].kept, self._grid[2].kept
-            self._inputs = (ref_in, res_in)
             self._reference = self._result = None
             shape = ref_in.shape
         else:
@@ -573,19 +580,15 @@ class CloudPair:
     def reference(self) -> np.ndarray:
         """(N, 3) float64, the deduplicated reference (on the grid path: made on first use)."""
         if self._reference is None:
-            self._reference = self._grid_points(0, self.reference_index)
+            self._reference = self._grid[1].points(self._grid[0])
         return self._reference
 
     @property
     def result(self) -> np.ndarray:
         """(M, 3) float64, the deduplicated result (on the grid path: made on first use)."""
         if self._result is None:
-            self._result = self._grid_points(1, self.result_index)
+            self._result = self._grid[2].points(self._grid[0])
         return self._result
-
-    def _grid_points(self, which: int, kept: np.ndarray | None) -> np.ndarray:
-        points = self._inputs[which]
-        return np.ascontiguousarray(points if kept is None else points[kept], dtype=np.float64)
 
     # -- trees and queries ------------------------------------------------------------------
     @cached_property

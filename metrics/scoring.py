@@ -15,6 +15,7 @@ about 1e-19) and `score_sequence` lists the capped (frame, metric) pairs under `
 from __future__ import annotations
 
 import math
+from collections import abc
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -147,7 +148,10 @@ def score_sequence(references: Frames, results: Frames, metrics: MetricNames = N
     "capped": [{"frame": i, "metric": name}] (PSNRs capped at max_psnr), and, when a sequence-level
     metric is asked for, "sequence": {name: value}}.
     """
-    references, results = list(references), list(results)
+    # a Sequence is used as it is (indexed, never copied into a list), so that a caller can hand frames
+    # out one at a time: a frame is then only held while its pair is built (see `dpcbench score`)
+    references = references if isinstance(references, abc.Sequence) else list(references)
+    results = results if isinstance(results, abc.Sequence) else list(results)
     if len(references) != len(results):
         raise ValueError(
             f"mismatched frame counts: {len(references)} reference frames and {len(results)} result frames; "
@@ -166,9 +170,11 @@ def score_sequence(references: Frames, results: Frames, metrics: MetricNames = N
 
     _split_options(options, peak)  # a bad option or peak fails before any frame is scored
     frames, capped = [], []
-    for i, (ref, res) in enumerate(zip(references, results)):
-        try:
-            pair = make_pair(ref, res, None if reference_normals is None else reference_normals[i], **options)
+    for i in range(len(references)):
+        pair = None  # the previous frame's pair is freed before this frame's is built
+        try:  # the frames are not bound to names: the pair (which keeps what it needs) is their only holder
+            pair = make_pair(references[i], results[i], None if reference_normals is None else reference_normals[i],
+                             **options)
             values, capped_names = score_pair(
                 pair, frame_names, peak=peak, regions=None if regions is None else regions[i],
                 region_margin=region_margin, **options,

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections import abc
 
 from dpcbench.bench.errors import UserError
 
@@ -56,6 +57,7 @@ def run(args) -> int:
     from dpcbench.bench.errors import RECORDED, warn
     from dpcbench.bench.sequences import load_sequence
     from dpcbench.metrics.geometry import resolve_peak
+    from dpcbench.metrics.registry import METRICS
     from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
 
     if not (args.jobs >= 1 or args.jobs == -1):
@@ -69,8 +71,10 @@ def run(args) -> int:
         raise UserError(f"--fscore-threshold {args.fscore_threshold:g}: must be a positive distance")
     if args.max_psnr is not None and not args.max_psnr > 0:
         raise UserError(f"--max-psnr {args.max_psnr:g}: must be a positive number of dB (or inf)")
-    reference = load_sequence(args.reference, colors=False)
-    result = load_sequence(args.result, colors=False)
+    # compact: float32 files stay float32 (the metrics take them as they are: on the integer grid
+    # without a float64 copy), half the memory of a frame pair
+    reference = load_sequence(args.reference, colors=False, compact=True)
+    result = load_sequence(args.result, colors=False, compact=True)
     if len(reference) != len(result):
         raise UserError(
             f"mismatched frame counts: {args.reference} has {len(reference)} frame(s), {args.result} has "
@@ -110,14 +114,23 @@ def run(args) -> int:
                  "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
                  "for this reference?")
     normals = [f.normals for f in reference.frames]
+    ref_points, res_points = reference.points, result.points
+    if not any(METRICS[n].level == "sequence" for n in (args.metrics or [])):
+        # every frame is used once: hand each over to the metrics and forget it here, so that a scored
+        # frame's coordinates are freed as soon as its pair holds what it needs (on the integer grid:
+        # packed keys, a third of a float32 frame); see metrics.scoring.score_sequence
+        ref_points, res_points, normals = _HandOver(ref_points), _HandOver(res_points), _HandOver(normals)
+        reference.frames.clear()
+        result.frames.clear()
     options = {"max_psnr": DEFAULT_MAX_PSNR if args.max_psnr is None else args.max_psnr, "workers": args.jobs}
     if args.fscore_threshold is not None:
         options["fscore_threshold"] = args.fscore_threshold
     if bit_depth is not None:
         options["bit_depth"] = bit_depth
+    given_normals = any(n is not None for n in normals)
     scores = metrics.score_sequence(
-        reference.points, result.points, args.metrics, peak=peak,
-        reference_normals=None if all(n is None for n in normals) else normals,
+        ref_points, res_points, args.metrics, peak=peak,
+        reference_normals=normals if given_normals else None,
         regions=regions, region_margin=args.region_margin, **options,
     )
     scores["settings"] = {
@@ -126,7 +139,7 @@ def run(args) -> int:
         "peak": peak if bit_depth is None else f"bitdepth:{bit_depth}",
         "scope": "holes" if regions is not None else "frame",
         "region_margin": args.region_margin if regions is not None else None,
-        "reference_normals": "given" if any(n is not None for n in normals) else "estimated",
+        "reference_normals": "given" if given_normals else "estimated",
     }
     undefined = sorted({k for f in scores["frames"] for k, v in f.items()
                         if k != "frame" and isinstance(v, float) and np.isnan(v)})
@@ -138,6 +151,22 @@ def run(args) -> int:
         return 0
     _print_table(scores)
     return 0
+
+
+class _HandOver(abc.Sequence):
+    """A list whose items are forgotten once read (``seq[i]`` returns the item and drops it): frames
+    handed to `metrics.score_sequence`, which reads each frame once, so that this list does not keep
+    them alive while they are scored."""
+
+    def __init__(self, items):
+        self._items = list(items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __getitem__(self, i):
+        item, self._items[i] = self._items[i], None
+        return item
 
 
 def _cell(value) -> str:
