@@ -59,6 +59,11 @@ def _stack(vertex: plyfile.PlyElement, names: tuple[str, ...], dtype) -> np.ndar
     return out
 
 
+def _float_type(vertex: plyfile.PlyElement, names: tuple[str, ...], compact: bool) -> type:
+    """float32 for float32 properties read compact, else float64."""
+    return np.float32 if compact and all(vertex[n].dtype == np.float32 for n in names) else np.float64
+
+
 def _small_integers(column: np.ndarray) -> bool:
     """Whether every value of a numeric column is an integer in int16's range (voxelized coordinates
     up to 15 bits), so that int16 holds it exactly."""
@@ -121,12 +126,9 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         names = {p.name for p in vertex.properties}
         if not {"x", "y", "z"} <= names:
             raise UserError(f"{path}: the vertex element has no x, y, z properties (has {sorted(names)})")
-        def float_type(names):
-            return np.float32 if compact and all(vertex[n].dtype == np.float32 for n in names) else np.float64
-
         xyz = ("x", "y", "z")
         points = _stack(vertex, xyz, np.int16 if compact and all(_small_integers(vertex[n]) for n in xyz)
-                        else float_type(xyz))
+                        else _float_type(vertex, xyz, compact))
         read_colors, colors = colors, None
         for rgb in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
             if not read_colors:
@@ -140,7 +142,7 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
                     raw = raw * 255.0  # float colours in [0, 1]
                 colors = np.clip(np.rint(raw), 0, 255).astype(np.uint8)
                 break
-        normals = (_stack(vertex, ("nx", "ny", "nz"), float_type(("nx", "ny", "nz")))
+        normals = (_stack(vertex, ("nx", "ny", "nz"), _float_type(vertex, ("nx", "ny", "nz"), compact))
                    if {"nx", "ny", "nz"} <= names else None)
     except UserError:
         raise

@@ -114,6 +114,7 @@ def run(args) -> int:
                  "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
                  "for this reference?")
     normals = [f.normals for f in reference.frames]
+    given_normals = any(n is not None for n in normals)
     ref_points, res_points = reference.points, result.points
     if not any(METRICS[n].level == "sequence" for n in (args.metrics or [])):
         # every frame is used once: hand each over to the metrics and forget it here, so that a scored
@@ -127,7 +128,6 @@ def run(args) -> int:
         options["fscore_threshold"] = args.fscore_threshold
     if bit_depth is not None:
         options["bit_depth"] = bit_depth
-    given_normals = any(n is not None for n in normals)
     scores = metrics.score_sequence(
         ref_points, res_points, args.metrics, peak=peak,
         reference_normals=normals if given_normals else None,
@@ -164,7 +164,7 @@ class _HandOver(abc.Sequence):
     def __len__(self) -> int:
         return len(self._items)
 
-    def __getitem__(self, i):
+    def __getitem__(self, i):  # iterating reads (and drops) every item too
         item, self._items[i] = self._items[i], None
         return item
 
