@@ -125,6 +125,7 @@ class GridCloud:
 
     def __init__(self, points: np.ndarray, frame: GridFrame):
         n = len(points)
+        self._by_row = None
         bits = max(1, int(n - 1).bit_length())
         key_bits = int(frame.cells - 1).bit_length()
         keys = frame.keys(points)
@@ -162,6 +163,14 @@ class GridCloud:
 
     def __len__(self) -> int:
         return len(self.keys)
+
+    @property
+    def keys_by_row(self) -> np.ndarray:
+        """(K,) the keys in row order (made on first use, kept: the coordinates of any rows decode from it)."""
+        if self._by_row is None:
+            self._by_row = np.empty_like(self.keys)
+            self._by_row[self.rows] = self.keys
+        return self._by_row
 
     def points(self, frame: GridFrame) -> np.ndarray:
         """(K, 3) float64 coordinates of the distinct points in row order (decoded from the keys: exact)."""

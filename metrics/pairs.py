@@ -454,7 +454,8 @@ class GridNeighbours:
             take = mine[self._kd.exact_rows]
             rows.append(self._kd.exact_rows[take])
             cols.append(self._kd.exact_cols[take])
-        return np.concatenate(rows).astype(np.intp), np.concatenate(cols).astype(np.intp)
+        small = np.int32 if max(len(self._queries), len(self._targets)) < 2**31 else np.intp
+        return np.concatenate(rows).astype(small), np.concatenate(cols).astype(small)  # int32: half the memory
 
     @property
     def exact_rows(self) -> np.ndarray:
@@ -752,7 +753,7 @@ class CloudPair:
         one is first flipped to agree with the normal of the result point's nearest reference
         point, which makes D2 independent of their orientation.
         """
-        n_res = len(self.result)
+        n_res = self._size("result")
         ref_normals = self.reference_normals
         fwd, back = self.ref_to_res, self.res_to_ref
 
@@ -765,6 +766,8 @@ class CloudPair:
             sums = np.stack([np.bincount(rows_res, weights=normals[:, c], minlength=n_res) for c in range(3)], axis=1)
             return sums, np.bincount(rows_res, minlength=n_res)
 
+        if not self.normals_estimated:
+            return self._carried_normals(ref_normals, fwd, back, n_res)
         sums, counts = contributions(fwd.exact_cols, fwd.exact_rows)
         normals = np.zeros((n_res, 3))
         got = counts > 0
@@ -777,21 +780,63 @@ class CloudPair:
         return normals
 
     @staticmethod
-    def _plane_errors(queries, targets, target_normals, rows, cols, n_queries) -> np.ndarray:
+    def _carried_normals(ref_normals, fwd, back, n_res: int) -> np.ndarray:
+        """`result_normals` for given normals, one coordinate at a time (no (T, 3) or second (M, 3)
+        temporaries; the same sums and quotients, so the same bits)."""
+        normals = np.zeros((n_res, 3))
+        counts = np.bincount(fwd.exact_cols, minlength=n_res)
+        got = counts > 0
+        for c in range(3):
+            sums = np.bincount(fwd.exact_cols, weights=ref_normals[:, c][fwd.exact_rows], minlength=n_res)
+            np.divide(sums, counts, out=normals[:, c], where=got)  # the quotients of sums[got] / counts[got]
+        if not got.all():
+            sel = ~got[back.exact_rows]
+            rows_res, cols_ref = back.exact_rows[sel], back.exact_cols[sel]
+            counts = np.bincount(rows_res, minlength=n_res)
+            miss = ~got
+            for c in range(3):
+                sums = np.bincount(rows_res, weights=ref_normals[:, c][cols_ref], minlength=n_res)
+                np.divide(sums, counts, out=normals[:, c], where=miss)
+        return normals
+
+    def _size(self, side: str) -> int:
+        """Points in the deduplicated reference or result (``side``), without making its coordinates."""
+        if self._grid is not None:
+            return len(self._grid[1] if side == "reference" else self._grid[2])
+        return len(self.reference if side == "reference" else self.result)
+
+    def _coordinates(self, side: str, rows: np.ndarray) -> np.ndarray:
+        """(len(rows), 3) float64 coordinates of ``rows`` of the deduplicated reference or result
+        (``side``); on the grid path decoded from the keys (exact) unless the full array exists."""
+        full = self._reference if side == "reference" else self._result
+        if full is not None:
+            return full[rows]
+        frame, ref, res = self._grid
+        return frame.decode((ref if side == "reference" else res).keys_by_row[rows])
+
+    def _plane_errors(self, query_side: str, target_side: str, target_normals, rows, cols, n_queries) -> np.ndarray:
         """Mean over each query's same-distance targets of ((q - t) . n_t)^2, shape (n_queries,).
 
         A target whose normal has a NaN component contributes the squared point-to-point distance
         instead (pc_error's non-averaging branch does this; its averaging branch adds the signed sum
         of the coordinate differences, which we take for a bug and do not reproduce).
+
+        Pairs are taken in blocks of `_CHUNK` (bounded temporaries); bincount adds each block's
+        per-query sums in pair order, so the totals are those of one pass.
         """
-        diff = queries[rows] - targets[cols]
-        normal = target_normals[cols]
-        proj = diff[:, 0] * normal[:, 0] + diff[:, 1] * normal[:, 1] + diff[:, 2] * normal[:, 2]
-        err = proj * proj
-        bad = np.isnan(err)
-        if bad.any():
-            err[bad] = squared_distances(queries[rows[bad]], targets[cols[bad]])
-        total = np.bincount(rows, weights=err, minlength=n_queries)
+        total = np.zeros(n_queries)
+        for start in range(0, len(rows), _CHUNK):
+            r, c = rows[start:start + _CHUNK], cols[start:start + _CHUNK]
+            diff = self._coordinates(query_side, r)
+            diff -= self._coordinates(target_side, c)
+            normal = target_normals[c]
+            proj = diff[:, 0] * normal[:, 0] + diff[:, 1] * normal[:, 1] + diff[:, 2] * normal[:, 2]
+            err = proj * proj
+            bad = np.isnan(err)
+            if bad.any():
+                d = diff[bad]
+                err[bad] = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2]
+            total += np.bincount(r, weights=err, minlength=n_queries)
         count = np.bincount(rows, minlength=n_queries)
         return total / count
 
@@ -799,15 +844,15 @@ class CloudPair:
     def plane_ref_to_res(self) -> np.ndarray:
         """(N,) point-to-plane error of each reference point against the result (result normals)."""
         nb = self.ref_to_res
-        return self._plane_errors(self.reference, self.result, self.result_normals, nb.same_rows, nb.same_cols,
-                                  len(self.reference))
+        return self._plane_errors("reference", "result", self.result_normals, nb.same_rows, nb.same_cols,
+                                  self._size("reference"))
 
     @cached_property
     def plane_res_to_ref(self) -> np.ndarray:
         """(M,) point-to-plane error of each result point against the reference (reference normals)."""
         nb = self.res_to_ref
-        return self._plane_errors(self.result, self.reference, self.reference_normals, nb.same_rows, nb.same_cols,
-                                  len(self.result))
+        return self._plane_errors("result", "reference", self.reference_normals, nb.same_rows, nb.same_cols,
+                                  self._size("result"))
 
     # -- region masks -------------------------------------------------------------------------
     def masks(self, regions: Sequence[Region], margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
