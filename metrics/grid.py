@@ -208,12 +208,14 @@ class BallResult:
 
 
 def ball_search(targets: GridCloud, frame: GridFrame, query_keys: np.ndarray, *, ties: bool = True,
-                max_sq: int = MAX_SQ_RADIUS, budget: int = LOOKUP_BUDGET) -> BallResult:
+                max_sq: int = MAX_SQ_RADIUS, budget: int | None = None) -> BallResult:
     """Nearest targets of the grid points with keys ``query_keys`` (P,) (sorted for speed), other than
     a target at the query itself (offset 0 is not looked up): see the module docstring.
 
     ties: also return the tie pairs (else ``tie_query``/``tie_target`` are empty).
+    budget: lookups allowed (None: `LOOKUP_BUDGET`, read at call time).
     """
+    budget = LOOKUP_BUDGET if budget is None else budget
     p = len(query_keys)
     sq = np.full(p, -1, dtype=np.int64)
     count = np.zeros(p, dtype=np.int64)

@@ -80,3 +80,20 @@ def test_reads_shared_real_data(shared_dir):
     punch = load_sequence(shared_dir / "data" / "dfaust_50004_punching")
     assert len(punch) == 17 and all(len(f) == 100_000 for f in punch.frames)
     assert punch.files[0].name.endswith("0000.ply") and punch.files[-1].name.endswith("0016.ply")
+
+
+def test_compact_reading_keeps_the_values_in_narrow_types(tmp_path):
+    """compact=True: voxelized coordinates as int16, other float32 coordinates and normals as float32;
+    every value equal to the float64 reading."""
+    rng = np.random.default_rng(0)
+    voxels = rng.integers(-1000, 30000, (500, 3)).astype(float)
+    normals = rng.normal(size=(500, 3))
+    cases = {"vox": voxels, "float": voxels + 0.25, "wide": voxels * 4}  # 4 x 30000 is beyond int16
+    for name, points in cases.items():
+        write_ply(tmp_path / f"{name}.ply", PointCloud(points, None, normals))
+        plain = read_ply(tmp_path / f"{name}.ply")
+        compact = read_ply(tmp_path / f"{name}.ply", compact=True)
+        assert compact.points.dtype == (np.int16 if name == "vox" else np.float32)
+        assert compact.normals.dtype == np.float32
+        assert np.array_equal(compact.points.astype(np.float64), plain.points)
+        assert np.array_equal(compact.normals.astype(np.float64), plain.normals)
