@@ -442,18 +442,32 @@ class GridNeighbours:
                 nearest[rows] = nb.index[rows]
         return nearest
 
-    @cached_property
-    def _ties(self) -> tuple[np.ndarray, np.ndarray]:
-        hit, pos = self._matches()
-        rows = [self._queries.rows[hit], self._pair_rows]
-        cols = [self._targets.rows[pos[hit]], self._pair_cols]
-        del hit, pos
+    def unmatched_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(query rows, target rows) of the tie pairs of the queries that are not a target point
+        (a few percent of a damaged or inpainted frame); a matched query's only pair is its match."""
+        rows, cols = [self._pair_rows], [self._pair_cols]
         if self._kd is not None:  # its rows' pairs; its other rows are placeholders
             mine = np.zeros(len(self._queries), dtype=bool)
             mine[self._kd_rows] = True
             take = mine[self._kd.exact_rows]
             rows.append(self._kd.exact_rows[take])
             cols.append(self._kd.exact_cols[take])
+        return np.concatenate(rows).astype(np.intp), np.concatenate(cols).astype(np.intp)
+
+    def matched_rows(self, target_rows: np.ndarray) -> np.ndarray:
+        """For target rows (T,), the query row at the same point, -1 where no query is there."""
+        keys = self._queries.keys
+        wanted = self._targets.keys_by_row[target_rows]
+        pos = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+        return np.where(keys[pos] == wanted, self._queries.rows[pos], -1)
+
+    @cached_property
+    def _ties(self) -> tuple[np.ndarray, np.ndarray]:
+        hit, pos = self._matches()
+        pair_rows, pair_cols = self.unmatched_pairs()
+        rows = [self._queries.rows[hit], pair_rows]
+        cols = [self._targets.rows[pos[hit]], pair_cols]
+        del hit, pos
         small = np.int32 if max(len(self._queries), len(self._targets)) < 2**31 else np.intp
         return np.concatenate(rows).astype(small), np.concatenate(cols).astype(small)  # int32: half the memory
 
@@ -814,7 +828,8 @@ class CloudPair:
         frame, ref, res = self._grid
         return frame.decode((ref if side == "reference" else res).keys_by_row[rows])
 
-    def _plane_errors(self, query_side: str, target_side: str, target_normals, rows, cols, n_queries) -> np.ndarray:
+    def _plane_errors(self, query_side: str, target_side: str, target_normals, rows, cols, n_queries,
+                      normal_rows: np.ndarray | None = None) -> np.ndarray:
         """Mean over each query's same-distance targets of ((q - t) . n_t)^2, shape (n_queries,).
 
         A target whose normal has a NaN component contributes the squared point-to-point distance
@@ -822,14 +837,16 @@ class CloudPair:
         of the coordinate differences, which we take for a bug and do not reproduce).
 
         Pairs are taken in blocks of `_CHUNK` (bounded temporaries); bincount adds each block's
-        per-query sums in pair order, so the totals are those of one pass.
+        per-query sums in pair order, so the totals are those of one pass. ``normal_rows``: the row of
+        each pair's normal in ``target_normals`` (default ``cols``). Queries without pairs get 0 (a
+        query equal to its target, on the grid path).
         """
         total = np.zeros(n_queries)
         for start in range(0, len(rows), _CHUNK):
             r, c = rows[start:start + _CHUNK], cols[start:start + _CHUNK]
             diff = self._coordinates(query_side, r)
             diff -= self._coordinates(target_side, c)
-            normal = target_normals[c]
+            normal = target_normals[c if normal_rows is None else normal_rows[start:start + _CHUNK]]
             proj = diff[:, 0] * normal[:, 0] + diff[:, 1] * normal[:, 1] + diff[:, 2] * normal[:, 2]
             err = proj * proj
             bad = np.isnan(err)
@@ -838,11 +855,46 @@ class CloudPair:
                 err[bad] = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2]
             total += np.bincount(r, weights=err, minlength=n_queries)
         count = np.bincount(rows, minlength=n_queries)
-        return total / count
+        if len(rows) and count.all():
+            return total / count
+        out = np.zeros(n_queries)
+        np.divide(total, count, out=out, where=count > 0)
+        return out
+
+    def _grid_plane_errors(self, forward: bool) -> np.ndarray:
+        """`plane_ref_to_res` (``forward``) or `plane_res_to_ref` on the grid path with given normals.
+
+        A query equal to a target point has that point as its only tie (distinct grid points are >= 1
+        apart) and error ((q - t) . n)^2 = 0 (or the squared distance 0 for a NaN normal), so only the
+        pairs of the unmatched queries are evaluated, and the carried normals only at their targets:
+        no (N,)-sized pair arrays, no (M, 3) normals. The target's carried normal is the mean of the
+        normals of the reference points that have it among their nearest: the reference point at the
+        same position (if any) and the unmatched ones whose ties include it (it has at least one, so
+        `result_normals`' second branch never applies there).
+        """
+        nb = self.ref_to_res if forward else self.res_to_ref
+        rows, cols = nb.unmatched_pairs()
+        n = self._size("reference" if forward else "result")
+        ref_normals = self.reference_normals
+        if forward:
+            at, local = np.unique(cols, return_inverse=True)
+            same = nb.matched_rows(at)  # the reference point at each target, or -1
+            has = same >= 0
+            contrib_local = np.concatenate([np.flatnonzero(has), local])
+            contrib_ref = np.concatenate([same[has], rows])
+            counts = np.bincount(contrib_local, minlength=len(at))
+            normals = np.empty((len(at), 3))
+            for c in range(3):
+                sums = np.bincount(contrib_local, weights=ref_normals[:, c][contrib_ref], minlength=len(at))
+                normals[:, c] = sums / counts
+            return self._plane_errors("reference", "result", normals, rows, cols, n, normal_rows=local)
+        return self._plane_errors("result", "reference", ref_normals, rows, cols, n)
 
     @cached_property
     def plane_ref_to_res(self) -> np.ndarray:
         """(N,) point-to-plane error of each reference point against the result (result normals)."""
+        if self._grid is not None and not self.normals_estimated and "result_normals" not in self.__dict__:
+            return self._grid_plane_errors(forward=True)
         nb = self.ref_to_res
         return self._plane_errors("reference", "result", self.result_normals, nb.same_rows, nb.same_cols,
                                   self._size("reference"))
@@ -850,6 +902,8 @@ class CloudPair:
     @cached_property
     def plane_res_to_ref(self) -> np.ndarray:
         """(M,) point-to-plane error of each result point against the reference (reference normals)."""
+        if self._grid is not None and not self.normals_estimated:
+            return self._grid_plane_errors(forward=False)
         nb = self.res_to_ref
         return self._plane_errors("result", "reference", self.reference_normals, nb.same_rows, nb.same_cols,
                                   self._size("result"))
