@@ -75,12 +75,6 @@ def _pick(values: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
     return values if mask is None else values[mask]
 
 
-def _directional(values_ref: np.ndarray, values_res: np.ndarray, sel: Selection) -> list[np.ndarray]:
-    """The per-point values of the non-empty directions: [A->B values, B->A values] minus empty ones."""
-    out = [_pick(values_ref, sel.reference), _pick(values_res, sel.result)]
-    return [v for v in out if v.size]
-
-
 def psnr(error: float, peak: float) -> float:
     """10 log10(3 peak^2 / error) in dB (pc_error's geometry PSNR); +inf when error == 0, NaN for NaN."""
     if math.isnan(error):
@@ -144,19 +138,34 @@ class Settings:
     fscore_threshold: float | None = None
 
 
+def _reduce_directions(pair: CloudPair, name: str, sel: Selection, reduce) -> list[float]:
+    """``reduce`` of the per-point values of each non-empty direction, [A->B, B->A] minus empty ones;
+    ``name`` "sq" (nearest squared distances) or "plane" (point-to-plane errors). One direction's
+    array at a time: on the integer-grid path each read makes an (N,) array, not kept."""
+    getters = ((lambda: pair.ref_to_res.sq_dist, lambda: pair.res_to_ref.sq_dist) if name == "sq"
+               else (lambda: pair.plane_ref_to_res, lambda: pair.plane_res_to_ref))
+    out = []
+    for get, mask in zip(getters, (sel.reference, sel.result)):
+        values = _pick(get(), mask)
+        if values.size:
+            out.append(float(reduce(values)))
+        del values  # before the other direction's array is made
+    return out
+
+
 def d1_mse(pair: CloudPair, sel: Selection, settings: Settings | None = None) -> float:
-    parts = _directional(pair.ref_to_res.sq_dist, pair.res_to_ref.sq_dist, sel)
-    return max(float(v.mean()) for v in parts) if parts else math.nan
+    parts = _reduce_directions(pair, "sq", sel, np.mean)
+    return max(parts) if parts else math.nan
 
 
 def d2_mse(pair: CloudPair, sel: Selection, settings: Settings | None = None) -> float:
-    parts = _directional(pair.plane_ref_to_res, pair.plane_res_to_ref, sel)
-    return max(float(v.mean()) for v in parts) if parts else math.nan
+    parts = _reduce_directions(pair, "plane", sel, np.mean)
+    return max(parts) if parts else math.nan
 
 
 def hausdorff_sq(pair: CloudPair, sel: Selection, settings: Settings | None = None) -> float:
-    parts = _directional(pair.ref_to_res.sq_dist, pair.res_to_ref.sq_dist, sel)
-    return max(float(v.max()) for v in parts) if parts else math.nan
+    parts = _reduce_directions(pair, "sq", sel, np.max)
+    return max(parts) if parts else math.nan
 
 
 def gpsnr_d1_value(pair: CloudPair, sel: Selection, settings: Settings) -> float:
@@ -202,8 +211,8 @@ def nshd_value(pair: CloudPair, sel: Selection, settings: Settings | None = None
 
 
 def chamfer_value(pair: CloudPair, sel: Selection, settings: Settings | None = None) -> float:
-    parts = _directional(pair.ref_to_res.sq_dist, pair.res_to_ref.sq_dist, sel)
-    return float(sum(v.mean() for v in parts)) if parts else math.nan
+    parts = _reduce_directions(pair, "sq", sel, np.mean)
+    return float(sum(parts)) if parts else math.nan
 
 
 def fscore_threshold(pair: CloudPair, settings: Settings | None = None) -> float:

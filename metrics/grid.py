@@ -138,12 +138,20 @@ class GridCloud:
                 keys[start:start + _ROWS] |= np.arange(start, min(n, start + _ROWS), dtype=np.int64)
             keys.sort()
             order = np.empty(n, dtype=np.int32 if n < 2**31 else np.intp)
-            packed, keys = keys, np.empty(n, dtype=frame.dtype)
             for start in range(0, n, _ROWS):
-                part = packed[start:start + _ROWS]
-                order[start:start + _ROWS] = part & ((1 << bits) - 1)
-                keys[start:start + _ROWS] = part >> bits
-            del packed, part
+                order[start:start + _ROWS] = keys[start:start + _ROWS] & ((1 << bits) - 1)
+            keys >>= bits
+            if frame.dtype == np.int32:
+                # narrow in place: int32 key i goes to bytes [4i, 4i + 4), which only hold int64 keys < i,
+                # already read when going forwards in blocks; then the buffer is shrunk to its first half
+                # (a realloc), so no second key array is ever allocated beside the int64 one
+                narrow = keys.view(np.int32)
+                for start in range(0, n, _ROWS):
+                    block = keys[start:start + _ROWS].astype(np.int32)
+                    narrow[start:start + len(block)] = block
+                del narrow, block
+                keys.resize((n + 1) // 2, refcheck=False)
+                keys = keys.view(np.int32)[:n]
         else:
             order = np.argsort(keys, kind="stable")
             keys = keys[order]
@@ -171,6 +179,10 @@ class GridCloud:
             self._by_row = np.empty_like(self.keys)
             self._by_row[self.rows] = self.keys
         return self._by_row
+
+    def release_rows(self) -> None:
+        """Forget `keys_by_row` (made again on the next use)."""
+        self._by_row = None
 
     def points(self, frame: GridFrame) -> np.ndarray:
         """(K, 3) float64 coordinates of the distinct points in row order (decoded from the keys: exact)."""

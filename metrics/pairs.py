@@ -590,6 +590,7 @@ class CloudPair:
             # float64 exactly, so the values are those of a float64 copy, at half the memory
             normals = normals if self.reference_index is None else normals[self.reference_index]
         self._given_normals = normals
+        self._planes: dict[bool, tuple] = {}  # plane errors by direction: (rows or None for all, values)
 
     @property
     def reference(self) -> np.ndarray:
@@ -837,14 +838,23 @@ class CloudPair:
         of the coordinate differences, which we take for a bug and do not reproduce).
 
         Pairs are taken in blocks of `_CHUNK` (bounded temporaries); bincount adds each block's
-        per-query sums in pair order, so the totals are those of one pass. ``normal_rows``: the row of
-        each pair's normal in ``target_normals`` (default ``cols``). Queries without pairs get 0 (a
-        query equal to its target, on the grid path).
+        per-query sums in pair order, so the totals are those of one pass. ``normal_rows`` (grid path):
+        the row of each pair's normal in ``target_normals``; the pairs then cover only some queries
+        (the others, equal to their target, get 0) and are summed per query present, without
+        N-sized temporaries; returns (rows present, their errors) then.
         """
-        total = np.zeros(n_queries)
+        if normal_rows is not None:  # sparse rows (grid path): (rows present, their errors)
+            present, rows = np.unique(rows, return_inverse=True)
+            return present, self._plane_sums(query_side, target_side, target_normals, rows, cols, len(present),
+                                             normal_rows, present)
+        return self._plane_sums(query_side, target_side, target_normals, rows, cols, n_queries, None, None)
+
+    def _plane_sums(self, query_side, target_side, target_normals, rows, cols, n, normal_rows, row_ids):
+        """Mean error per row 0..n-1 of ``rows`` (see `_plane_errors`); ``row_ids`` maps them to query rows."""
+        total = np.zeros(n)
         for start in range(0, len(rows), _CHUNK):
             r, c = rows[start:start + _CHUNK], cols[start:start + _CHUNK]
-            diff = self._coordinates(query_side, r)
+            diff = self._coordinates(query_side, r if row_ids is None else row_ids[r])
             diff -= self._coordinates(target_side, c)
             normal = target_normals[c if normal_rows is None else normal_rows[start:start + _CHUNK]]
             proj = diff[:, 0] * normal[:, 0] + diff[:, 1] * normal[:, 1] + diff[:, 2] * normal[:, 2]
@@ -853,13 +863,8 @@ class CloudPair:
             if bad.any():
                 d = diff[bad]
                 err[bad] = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2]
-            total += np.bincount(r, weights=err, minlength=n_queries)
-        count = np.bincount(rows, minlength=n_queries)
-        if len(rows) and count.all():
-            return total / count
-        out = np.zeros(n_queries)
-        np.divide(total, count, out=out, where=count > 0)
-        return out
+            total += np.bincount(r, weights=err, minlength=n)
+        return total / np.bincount(rows, minlength=n)
 
     def _grid_plane_errors(self, forward: bool) -> np.ndarray:
         """`plane_ref_to_res` (``forward``) or `plane_res_to_ref` on the grid path with given normals.
@@ -887,26 +892,49 @@ class CloudPair:
             for c in range(3):
                 sums = np.bincount(contrib_local, weights=ref_normals[:, c][contrib_ref], minlength=len(at))
                 normals[:, c] = sums / counts
-            return self._plane_errors("reference", "result", normals, rows, cols, n, normal_rows=local)
-        return self._plane_errors("result", "reference", ref_normals, rows, cols, n)
+            sparse = self._plane_errors("reference", "result", normals, rows, cols, n, normal_rows=local)
+        else:
+            sparse = self._plane_errors("result", "reference", ref_normals, rows, cols, n, normal_rows=cols)
+        frame, ref, res = self._grid
+        ref.release_rows()  # the row -> key maps of the decoding: 4 bytes a point each, not kept
+        res.release_rows()
+        return sparse
 
-    @cached_property
+    @property
     def plane_ref_to_res(self) -> np.ndarray:
-        """(N,) point-to-plane error of each reference point against the result (result normals)."""
-        if self._grid is not None and not self.normals_estimated and "result_normals" not in self.__dict__:
-            return self._grid_plane_errors(forward=True)
-        nb = self.ref_to_res
-        return self._plane_errors("reference", "result", self.result_normals, nb.same_rows, nb.same_cols,
-                                  self._size("reference"))
+        """(N,) point-to-plane error of each reference point against the result (result normals).
 
-    @cached_property
+        Computed once; on the grid path with given normals only the non-zero errors are kept, and the
+        (N,) array is made on each read (as `GridNeighbours.sq_dist`)."""
+        return self._plane(forward=True)
+
+    @property
     def plane_res_to_ref(self) -> np.ndarray:
         """(M,) point-to-plane error of each result point against the reference (reference normals)."""
-        if self._grid is not None and not self.normals_estimated:
-            return self._grid_plane_errors(forward=False)
-        nb = self.res_to_ref
-        return self._plane_errors("result", "reference", self.reference_normals, nb.same_rows, nb.same_cols,
-                                  self._size("result"))
+        return self._plane(forward=False)
+
+    def _plane(self, forward: bool) -> np.ndarray:
+        n = self._size("reference" if forward else "result")
+        if forward not in self._planes:
+            grid = self._grid is not None and not self.normals_estimated
+            if forward and grid and "result_normals" not in self.__dict__:
+                self._planes[forward] = self._grid_plane_errors(forward=True)
+            elif not forward and grid:
+                self._planes[forward] = self._grid_plane_errors(forward=False)
+            elif forward:
+                nb = self.ref_to_res
+                self._planes[forward] = (None, self._plane_errors("reference", "result", self.result_normals,
+                                                                  nb.same_rows, nb.same_cols, n))
+            else:
+                nb = self.res_to_ref
+                self._planes[forward] = (None, self._plane_errors("result", "reference", self.reference_normals,
+                                                                  nb.same_rows, nb.same_cols, n))
+        present, values = self._planes[forward]
+        if present is None:
+            return values
+        out = np.zeros(n)
+        out[present] = values
+        return out
 
     # -- region masks -------------------------------------------------------------------------
     def masks(self, regions: Sequence[Region], margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
