@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dpcbench.metrics.errors import UserError
-from dpcbench.metrics.grid import GridCloud, GridFrame, ball_search, face_neighbours, is_integer_grid
+from dpcbench.metrics.grid import GridCloud, GridFrame, face_neighbours, is_integer_grid, nearest
 
 # the one normal estimator and point check (re-exported: metrics.pairs.estimate_normals is public API)
 from dpcbench.metrics.neighbours import DEFAULT_NORMAL_NEIGHBOURS, check_points, estimate_normals
@@ -384,8 +384,8 @@ class GridNeighbours:
     on the grid distinct squared distances differ by at least 1, so pc_error's "same-distance" run and
     the exact ties are one set, all the targets at the nearest distance. Three kinds of queries are
     handed to the KD-tree (``kd_neighbours(rows)`` returns a `Neighbours` that answers those rows), so
-    that every value stays the KD-tree path's: queries the ball search leaves unsettled (farther than
-    `grid.MAX_SQ_RADIUS`, or over its lookup budget); queries with more than 30 targets at the nearest
+    that every value stays the KD-tree path's: queries the grid search leaves unsettled (farther than
+    ~100 voxels: `grid.nearest`); queries with more than 30 targets at the nearest
     distance (pc_error keeps 30 of them, and which 30 is the KD-tree's choice); and, only when
     ``index`` is read, the queries with 2 to 30 tied nearest targets (which of them is "the" nearest
     is the KD-tree's order too; only the estimated-normal transfer reads it).
@@ -396,7 +396,7 @@ class GridNeighbours:
     def __init__(self, targets: GridCloud, queries: GridCloud, frame: GridFrame, kd_neighbours):
         self._targets, self._queries, self._frame, self._kd_neighbours = targets, queries, frame, kd_neighbours
         miss = np.flatnonzero(~self._matches()[0])  # positions in the queries' key order
-        ball = ball_search(targets, frame, queries.keys[miss])
+        ball = nearest(targets, frame, queries.keys[miss])
         rows = queries.rows[miss]
         settled = ball.sq >= 0
         kd = ~settled | (ball.count > _NEIGHBOUR_SCHEDULE[-1])
@@ -706,7 +706,7 @@ class CloudPair:
             return np.full(n, np.inf)
         face = face_neighbours(ref, frame)  # in key order; distance exactly 1
         rest = np.flatnonzero(~face)
-        ball = ball_search(ref, frame, ref.keys[rest], ties=False)
+        ball = nearest(ref, frame, ref.keys[rest], ties=False)
         rows = ref.rows[rest]
         found = ball.sq >= 0
         far = rows[~found]

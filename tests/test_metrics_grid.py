@@ -116,9 +116,34 @@ def test_lookup_budget_changes_no_value(monkeypatch):
     names = ["d1_mse", "gpsnr_d2", "hausdorff", "gpsnr_d1"]
     want = score_frame(ref, res, names, reference_normals=normals)
     monkeypatch.setattr(grid, "LOOKUP_BUDGET", 500)
+    frame = grid.GridFrame(ref, res)
+    assert (grid.ball_search(grid.GridCloud(res, frame), frame, grid.GridCloud(ref, frame).keys).sq < 0).sum() > 100
     pair = pairs.CloudPair(ref, res, normals)
-    assert pair.ref_to_res._kd_rows.size > 100  # most queries left to the KD-tree
+    assert pair.ref_to_res._kd_rows.size == 0  # the queries the ball search left: answered by coarse_search
     assert score_frame(ref, res, names, reference_normals=normals) == pytest.approx(want, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_coarse_search_is_exact_against_brute_force(seed):
+    """Distances and every tie of far queries; beyond the reach: unsettled (-1), for the KD-tree."""
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        side = int(rng.integers(5, 150))
+        ref = rng.integers(0, side, (int(rng.integers(2, 200)), 3))
+        res = rng.integers(0, side, (int(rng.integers(1, 150)), 3)) * int(rng.integers(1, 6))
+        frame = grid.GridFrame(ref, res)
+        targets, queries = grid.GridCloud(res, frame), grid.GridCloud(ref, frame)
+        out = grid.coarse_search(targets, frame, queries.keys)
+        q = grid._relative(frame, queries.keys)
+        t = grid._relative(frame, targets.keys)
+        d2 = ((q[:, None, :] - t[None, :, :]) ** 2).sum(axis=2).astype(float)
+        d2[d2 == 0] = np.inf  # a target at the query itself is not a neighbour
+        best = d2.min(axis=1)
+        within = best < (grid._CELL_REACH * grid._CELL + 1) ** 2
+        assert np.array_equal(out.sq, np.where(within, best, -1).astype(np.int64))
+        rows, cols = np.nonzero((d2 == best[:, None]) & within[:, None])
+        assert set(zip(out.tie_query.tolist(), out.tie_target.tolist())) == set(
+            zip(rows.tolist(), targets.rows[cols].tolist()))
 
 
 def test_duplicates_keep_first_occurrence_and_dtypes_do_not_matter(monkeypatch):
