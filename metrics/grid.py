@@ -22,11 +22,12 @@ is the same set). Queries are looked up in key order (numpy's binary search is s
 on sorted queries). The cost grows with the cube of the distance (~4.2 n^1.5 lookups for a query at
 squared distance n): a search stops when its lookups exceed `LOOKUP_BUDGET` (~1.5 s), or would if
 the queries still pending were found before 1.5 x the present radius, or at `MAX_SQ_RADIUS`; the
-queries left are reported unsettled and the caller answers them another way (the KD-tree). Measured:
-an occlusion-damaged Longdress frame (14,674 unmatched points, none farther than 16) needs 1.25e7
-lookups and stays here; a region-damaged human frame (12,381 unmatched, up to 27 away: 1.07e8
-lookups) stops at radius ~8 and sends ~6,000 queries to the KD-tree. A coarse-grid search for such
-deep holes would keep them off scipy; not done.
+queries left go to `coarse_search` (4-voxel cells visited by increasing distance bound: exact, and
+~(r / 4)^3 lookups plus the targets of the nearby occupied cells), and those beyond its reach (~96
+voxels) to the caller's KD-tree (`nearest` chains the two searches). Measured: an occlusion-damaged
+Longdress frame (14,674 unmatched points, none farther than 16) needs 1.25e7 voxel lookups and stays
+in the ball search; a region-damaged human frame (12,381 unmatched, up to 27 away: 1.07e8 lookups)
+leaves ~6,000 queries to the coarse search.
 """
 
 from __future__ import annotations
