@@ -27,7 +27,7 @@ queries left go to `coarse_search` (4-voxel cells visited by increasing distance
 voxels) to the caller's KD-tree (`nearest` chains the two searches). Measured: an occlusion-damaged
 Longdress frame (14,674 unmatched points, none farther than 16) needs 1.25e7 voxel lookups and stays
 in the ball search; a region-damaged human frame (12,381 unmatched, up to 27 away: 1.07e8 lookups)
-leaves ~6,000 queries to the coarse search.
+leaves 7,878 queries to the coarse search (it stops at radius ~6).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from functools import lru_cache
 
 import numpy as np
 
-#: largest squared distance the ball search looks at (32 voxels); farther queries are left to the KD-tree
+#: largest squared distance the ball search looks at (32 voxels); farther queries go to `coarse_search`
 MAX_SQ_RADIUS = 32 * 32
 #: largest offset component, hence the padding of a `GridFrame` (no key wraps within it)
 MAX_COMPONENT = 32
