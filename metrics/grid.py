@@ -27,7 +27,7 @@ queries left go to `coarse_search` (4-voxel cells visited by increasing distance
 voxels) to the caller's KD-tree (`nearest` chains the two searches). Measured: an occlusion-damaged
 Longdress frame (14,674 unmatched points, none farther than 16) needs 1.25e7 voxel lookups and stays
 in the ball search; a region-damaged human frame (12,381 unmatched, up to 27 away: 1.07e8 lookups)
-leaves 7,878 queries to the coarse search (it stops at radius ~6).
+leaves 7,878 queries to the coarse search.
 """
 
 from __future__ import annotations
