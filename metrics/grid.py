@@ -134,10 +134,10 @@ class GridCloud:
 
     def __init__(self, points: np.ndarray, frame: GridFrame):
         n = len(points)
-        self._by_row = None
+        self._by_row: np.ndarray | None = None
         bits = max(1, int(n - 1).bit_length())
         key_bits = int(frame.cells - 1).bit_length()
-        keys = frame.keys(points)
+        keys: np.ndarray = frame.keys(points)
         if key_bits + bits <= 63:
             # key and row packed into one int64 and sorted with np.sort (a SIMD sort, ~5x faster than
             # argsort); equal keys come out in row order, so the first of a run is the first occurrence.
@@ -146,7 +146,7 @@ class GridCloud:
             for start in range(0, n, _ROWS):
                 keys[start:start + _ROWS] |= np.arange(start, min(n, start + _ROWS), dtype=np.int64)
             keys.sort()
-            order = np.empty(n, dtype=np.int32 if n < 2**31 else np.intp)
+            order: np.ndarray = np.empty(n, dtype=np.int32 if n < 2**31 else np.intp)
             for start in range(0, n, _ROWS):
                 order[start:start + _ROWS] = keys[start:start + _ROWS] & ((1 << bits) - 1)
             keys >>= bits

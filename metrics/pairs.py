@@ -44,7 +44,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -557,7 +557,7 @@ class CloudPair:
         self.normal_neighbours = int(normal_neighbours)
         self._ref_keys = self._res_keys = None
         self.reference_index = self.result_index = None
-        self._grid = None
+        self._grid: tuple[GridFrame, GridCloud, GridCloud] | None = None
         ref_in, res_in = np.asarray(reference), np.asarray(result)
         if (GRID_PATH and self.drop_duplicates and _grid_candidate(ref_in) and _grid_candidate(res_in)
                 and GridFrame.fits(ref_in, res_in)):
@@ -590,20 +590,27 @@ class CloudPair:
             # float64 exactly, so the values are those of a float64 copy, at half the memory
             normals = normals if self.reference_index is None else normals[self.reference_index]
         self._given_normals = normals
-        self._planes: dict[bool, tuple] = {}  # plane errors by direction: (rows or None for all, values)
+        self._planes: dict[bool, Any] = {}  # plane errors by direction: (rows or None for all, values)
+
+    @property
+    def _grid_parts(self) -> tuple[GridFrame, GridCloud, GridCloud]:
+        """(frame, reference, result) of the grid path; only read on that path."""
+        if self._grid is None:
+            raise RuntimeError("not on the integer-grid path")
+        return self._grid
 
     @property
     def reference(self) -> np.ndarray:
         """(N, 3) float64, the deduplicated reference (on the grid path: made on first use)."""
         if self._reference is None:
-            self._reference = self._grid[1].points(self._grid[0])
+            self._reference = self._grid_parts[1].points(self._grid_parts[0])
         return self._reference
 
     @property
     def result(self) -> np.ndarray:
         """(M, 3) float64, the deduplicated result (on the grid path: made on first use)."""
         if self._result is None:
-            self._result = self._grid[2].points(self._grid[0])
+            self._result = self._grid_parts[2].points(self._grid_parts[0])
         return self._result
 
     # -- trees and queries ------------------------------------------------------------------
@@ -700,7 +707,7 @@ class CloudPair:
     def _grid_spacing(self, full: bool) -> np.ndarray:
         """Nearest-other-point distances on the grid path: (N,) with ``full``, else those of the points
         without a face neighbour plus one 1.0 when some point has one (enough for the maximum)."""
-        frame, ref, _ = self._grid
+        frame, ref, _ = self._grid_parts
         n = len(ref)
         if n < 2:
             return np.full(n, np.inf)
@@ -826,11 +833,11 @@ class CloudPair:
         full = self._reference if side == "reference" else self._result
         if full is not None:
             return full[rows]
-        frame, ref, res = self._grid
+        frame, ref, res = self._grid_parts
         return frame.decode((ref if side == "reference" else res).keys_by_row[rows])
 
     def _plane_errors(self, query_side: str, target_side: str, target_normals, rows, cols, n_queries,
-                      normal_rows: np.ndarray | None = None) -> np.ndarray:
+                      normal_rows: np.ndarray | None = None) -> Any:
         """Mean over each query's same-distance targets of ((q - t) . n_t)^2, shape (n_queries,).
 
         A target whose normal has a NaN component contributes the squared point-to-point distance
@@ -878,6 +885,7 @@ class CloudPair:
         `result_normals`' second branch never applies there).
         """
         nb = self.ref_to_res if forward else self.res_to_ref
+        assert isinstance(nb, GridNeighbours)  # the grid path's neighbours
         rows, cols = nb.unmatched_pairs()
         n = self._size("reference" if forward else "result")
         ref_normals = self.reference_normals
@@ -895,7 +903,7 @@ class CloudPair:
             sparse = self._plane_errors("reference", "result", normals, rows, cols, n, normal_rows=local)
         else:
             sparse = self._plane_errors("result", "reference", ref_normals, rows, cols, n, normal_rows=cols)
-        frame, ref, res = self._grid
+        frame, ref, res = self._grid_parts
         ref.release_rows()  # the row -> key maps of the decoding: 4 bytes a point each, not kept
         res.release_rows()
         return sparse
