@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods.temporal_fusion import (
     TemporalFusion,
+    cap_fill,
     crossed_voxels,
     disagreeing,
     fit_height_field,
@@ -399,6 +400,50 @@ def test_rim_surface_fill_on_voxels_gives_the_surface_voxels():
     on_truth = np.mean([tuple(p) in hidden_keys for p in fill.astype(int)])
     assert on_truth > 0.7, on_truth  # measured 0.75: the rest are the true voxels' face neighbours
     assert cKDTree(surface).query(fill)[0].max() <= 1.0
+
+
+def voxel_cylinder(radius: float = 20.0, height: float = 30.0) -> np.ndarray:
+    """The surface voxels (N, 3) of a closed cylinder standing on z = 0: side wall, bottom and top discs,
+    sampled finely and rounded to integer voxels."""
+    angle = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+    z = np.arange(0.0, height + 0.25, 0.25)
+    aa, zz = np.meshgrid(angle, z)
+    wall = np.column_stack([radius * np.cos(aa.ravel()), radius * np.sin(aa.ravel()), zz.ravel()])
+    xy = np.arange(-radius, radius + 0.25, 0.25)
+    xx, yy = np.meshgrid(xy, xy)
+    disc = np.column_stack([xx.ravel(), yy.ravel()])
+    disc = disc[np.hypot(disc[:, 0], disc[:, 1]) <= radius]
+    bottom = np.column_stack([disc, np.zeros(len(disc))])
+    top = np.column_stack([disc, np.full(len(disc), height)])
+    return np.unique(np.floor(np.vstack([wall, bottom, top]) + 0.5), axis=0)
+
+
+def test_cap_fill_closes_a_flat_base_and_refuses_a_band_round_the_body():
+    """A cylinder's bottom disc (radius 20 voxels) opened by a box (32 x 32 voxels, from z = -3 to 0.5):
+    the cap spans the loop (the disc's rim round the opening) and recovers the disc's voxels (a flat
+    membrane through a flat loop); a band cut round the wall (two loops 10 voxels apart) is no opening
+    and is refused."""
+    body = voxel_cylinder()
+    base = HoleRegion.box([0.0, 0.0, -1.25], [16.0, 16.0, 1.75])
+    kept = body[~base.contains(body)]
+    hidden = body[base.contains(body)]
+    fill = cap_fill(kept, base, cKDTree(kept), 1.0, voxelized=True)
+    assert np.array_equal(fill, np.round(fill)) and len(np.unique(fill, axis=0)) == len(fill)
+    # every hidden voxel is filled or next to a kept one (a fill point within a spacing of a captured
+    # point is not added: step 6's rule), and every fill voxel is a hidden one or its neighbour; within
+    # 5 voxels of the wall the loop holds the wall's lowest voxels too, which lift the membrane there
+    interior = hidden[np.hypot(hidden[:, 0], hidden[:, 1]) <= 15.0]
+    assert cKDTree(np.vstack([kept, fill])).query(interior)[0].max() <= 1.0
+    assert len(fill) >= 0.8 * len(hidden), (len(fill), len(hidden))
+    assert cKDTree(hidden).query(fill)[0].max() <= 1.0
+    hidden_keys = {tuple(p) for p in hidden.astype(int)}
+    assert np.mean([tuple(p) in hidden_keys for p in fill.astype(int)]) > 0.9
+    # the flatness bound is what admits it: with no tolerance at all even this loop is refused
+    assert len(cap_fill(kept, base, cKDTree(kept), 1.0, voxelized=True, max_loop_spacings=0.0,
+                        max_loop_fraction=0.0)) == 0
+    band = HoleRegion.box([0.0, 0.0, 15.0], [22.0, 22.0, 5.0])
+    kept = body[~band.contains(body)]
+    assert len(cap_fill(kept, band, cKDTree(kept), 1.0, voxelized=True)) == 0
 
 
 def test_a_frame_with_its_own_hole_there_is_no_source():
