@@ -116,14 +116,10 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    that on an uneven sampling, and put 10,025 points where 7,056 were missing on D-FAUST coherent
    holes, 4 frames, seed 0, against 2,307 now with the same D1) inside the convex hull of the support's (u, v) (interpolation,
    never extrapolation), inside R and farther than ``fill_gap_spacings * s`` from every point are
-   lifted onto the spline. A hole whose rim is no height field (or too sparse for the fit, or whose hull
-   holds no grid point) goes to step 6c; one whose spline missed the inner ring stays open, as does one
-   with ``poisson=False`` (an off-surface fill costs more in D2 than an open hole, as step 6b measured).
-6c. Closed-surface fill (``poisson``, on by default; `poisson_surface_fill`): where step 6 refused the hole
-   as no height field over one plane (`spline_fill`'s verdict "steep", "support" or "grid": a hole round a
-   limb, a neck or a foot, or one that cuts a limb through; version 12 also ran after "holdout", where
-   the rim's own spline could not predict its inner ring, and on occlusion rows reconstructed there ~50
-   times in 5 frames to add nothing, methods/NOTES.md "version 13"),
+   lifted onto the spline. A hole that fails a test goes to step 6c (with ``poisson=False`` it stays
+   open: an off-surface fill costs more in D2 than an open hole, as step 6b measured).
+6c. Closed-surface fill (``poisson``, on by default; `poisson_surface_fill`): where step 6 added nothing
+   (its tests refused the hole: a hole round a limb, a neck or a foot, or one that cuts a limb through),
    the crop of step 1 and the reused points are reconstructed by screened Poisson (open3d, one thread;
    PCA normals oriented along the surface by a spanning tree, the sign that points most of them away from
    the crop's centroid, which lies inside a limb), on an octree whose
@@ -565,21 +561,11 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
     Grid: step ``spacing / 2`` on voxelized data (then rounded half up to voxels, unique), else
     ``step`` (default ``spacing``); only grid points inside the convex hull of the support's (u, v),
     inside ``region`` and not covered are lifted onto the spline."""
-    return spline_fill(support, region, covered, spacing, voxelized=voxelized, step=step, max_steep=max_steep,
-                       gap_spacings=gap_spacings, ring=ring, max_holdout_spacings=max_holdout_spacings)[0]
-
-
-def spline_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
-                voxelized: bool, step: float | None = None, max_steep: float = MAX_STEEP, gap_spacings: float = 1.0,
-                ring: float = 0.0, max_holdout_spacings: float = 1.0) -> tuple[np.ndarray, str]:
-    """`rim_surface_fill` and why it returned what it did: "filled" (points, possibly none left uncovered),
-    or the test that refused the hole: "support" (< 12 points), "steep" (no height field), "grid" (no grid
-    point in the hull and the hole's disc), "holdout" (the outer rim's spline missed the inner ring)."""
     if len(support) < 12:
-        return np.zeros((0, 3)), "support"
+        return np.zeros((0, 3))
     centre, axes, _coef, _rms, steep = fit_height_field(support)
     if steep > max_steep:
-        return np.zeros((0, 3)), "steep"
+        return np.zeros((0, 3))
     from scipy.interpolate import RBFInterpolator
     from scipy.spatial import ConvexHull, QhullError
 
@@ -598,7 +584,7 @@ def spline_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None
     near = np.einsum("ij,ij->i", grid - centre_uv, grid - centre_uv) <= (region.bounding_radius * (1 + 1e-9)) ** 2
     grid = grid[near]
     if not len(grid):
-        return np.zeros((0, 3)), "grid"
+        return np.zeros((0, 3))
     try:
         # inside the convex hull: on the inner side of every hull edge (a half-plane test; Delaunay's
         # find_simplex gives the same answer but its walk across the hole's long thin triangles
@@ -606,10 +592,10 @@ def spline_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None
         edges = ConvexHull(uv).equations  # rows (a, b, c): a u + b v + c <= 0 inside, (a, b) unit length
         inside_hull = (grid @ edges[:, :2].T + edges[:, 2] <= 1e-9 * spacing).all(axis=1)
     except QhullError:
-        return np.zeros((0, 3)), "grid"
+        return np.zeros((0, 3))
     grid = grid[inside_hull]
     if not len(grid):
-        return np.zeros((0, 3)), "grid"
+        return np.zeros((0, 3))
     heights = (spread @ axes[2]) / spacing
     if ring > 0:
         # hold-out test of the surface across a gap: fit the outer rim only, predict the inner ring
@@ -621,7 +607,7 @@ def spline_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None
                                            smoothing=1.0, degree=2)
             held_out = float(np.sqrt(np.mean((outer_spline(uv[inner] / spacing) - heights[inner]) ** 2)))
             if held_out > max_holdout_spacings:
-                return np.zeros((0, 3)), "holdout"
+                return np.zeros((0, 3))
     # thin-plate spline in point-spacing units (the biharmonic membrane through the rim, the smooth
     # surface that bends least); smoothing 1: the rim's heights are samples with ~0.3-0.5 s noise
     spline = RBFInterpolator(uv / spacing, heights, kernel="thin_plate_spline",
@@ -633,7 +619,7 @@ def spline_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None
     points = points[far_from(points, covered, gap_spacings * spacing)]
     if voxelized and len(points):
         points = np.unique(np.floor(points + 0.5), axis=0)
-    return points, "filled"
+    return points
 
 
 def sample_triangles(vertices: np.ndarray, triangles: np.ndarray, step: float) -> np.ndarray:
@@ -1100,13 +1086,10 @@ class TemporalFusion(InpaintingMethod):
         if self.fallback and not copied:  # a copied frame saw all of R (step 3): its gaps are the capture's
             covered = cKDTree(np.vstack([local, accepted])) if len(accepted) else local_tree
             support = np.vstack([rim, accepted[:copied]]) if copied else rim
-            spatial, verdict = spline_fill(support, region, covered, spacing, voxelized=ctx["voxelized"],
-                                           step=ctx["step"], max_holdout_spacings=self.surface_holdout_spacings,
-                                           ring=shell / 2, gap_spacings=self.fill_gap_spacings)
-            # step 6c only where the rim is no height field over one plane (or too sparse for one): where the
-            # spline was fitted and either found R covered or missed the rim's own inner ring, the surface
-            # across the gap is already judged (unpredictable from the rim, or closed)
-            if self.poisson and not len(spatial) and verdict not in ("holdout", "filled"):
+            spatial = rim_surface_fill(support, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
+                                       max_holdout_spacings=self.surface_holdout_spacings, ring=shell / 2,
+                                       gap_spacings=self.fill_gap_spacings)
+            if self.poisson and not len(spatial):
                 # step 6c: a hole the height field refused (round a limb, a neck), on the crop's closed surface
                 spatial = poisson_surface_fill(np.vstack([local, accepted]), region, covered, spacing,
                                                voxelized=ctx["voxelized"], step=ctx["step"],
@@ -1168,5 +1151,5 @@ class TemporalFusion(InpaintingMethod):
 
 __all__ = ["TemporalFusion", "crossed_voxels", "crossing_offset", "disagreeing", "fit_height_field",
            "interpolate_displacement", "mls_fit", "mls_project", "PlaneTarget", "plane_target", "poisson_surface_fill",
-           "refine_point_to_plane", "rim_crossing_threshold", "rim_displacement", "rim_surface_fill", "sample_triangles", "spline_fill",
+           "refine_point_to_plane", "rim_crossing_threshold", "rim_displacement", "rim_surface_fill", "sample_triangles",
            "snap_to_voxels", "surface_voxels"]

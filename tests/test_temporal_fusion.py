@@ -669,30 +669,3 @@ def test_poisson_fill_reconstructs_each_body_alone_so_it_never_bridges_two():
     assert len(new) >= 0.8 * len(hidden) and off_surface(new).max() <= 1.5
     with pytest.raises(ValueError, match="poisson_ring"):
         TemporalFusion(poisson_ring=-1.0).inpaint([kept], [[region]])
-
-
-def test_spline_fill_says_which_test_refused_the_hole():
-    """`spline_fill` (step 6) returns its verdict with the points; step 6c runs only after "steep", "support"
-    or "grid" (the rim is no height field over one plane, or too sparse for one), never after "holdout" (the
-    rim's own spline could not predict its inner ring) or "filled". Cases: a paraboloid hole is filled, the
-    fast wave of `test_rim_surface_fill_leaves_a_hole_open_when_the_rim_is_not_one_surface` fails the hold-out,
-    a limb (a cylinder round the hole) is steep, and 11 points are too few."""
-    from dpcbench.methods.temporal_fusion import spline_fill
-
-    surface = paraboloid_patch(curvature=0.0)
-    region = HoleRegion.ball([0.0, 0.0, 0.0], 10.0)
-    rim = surface[~region.contains(surface) & region.contains(surface, margin=8.0)]
-    points, verdict = spline_fill(rim, region, cKDTree(rim), 1.0, voxelized=False, ring=4.0)
-    assert verdict == "filled" and len(points) > 200
-    wavy = surface.copy()
-    wavy[:, 2] = 3.0 * np.sin(wavy[:, 0] / 2) * np.cos(wavy[:, 1] / 2)
-    rim = wavy[~region.contains(wavy) & region.contains(wavy, margin=8.0)]
-    assert spline_fill(rim, region, cKDTree(rim), 1.0, voxelized=False, ring=4.0)[1] == "holdout"
-    angle = np.linspace(0, 2 * np.pi, 60, endpoint=False)
-    x = np.arange(-20.0, 20.5, 1.0)
-    xx, aa = np.meshgrid(x, angle, indexing="ij")
-    limb = np.column_stack([xx.ravel(), 8 * np.cos(aa.ravel()), 8 * np.sin(aa.ravel())])
-    ring_region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
-    limb_rim = limb[~ring_region.contains(limb)]
-    assert spline_fill(limb_rim, ring_region, cKDTree(limb_rim), 1.0, voxelized=False)[1] == "steep"
-    assert spline_fill(rim[:11], region, None, 1.0, voxelized=False)[1] == "support"
