@@ -126,22 +126,18 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    finest cell is the fill's grid step (depth = ceil(log2(1.1 extent / step)): the same surface detail
    at every density); the surface is sampled at half a step, rounded to voxels on voxelized data (else
    one sample a cell), and the points inside R, free, and attached to the captured surface (chains of
-   points with 3 support or kept points within 3 s) are R's fill, when a hold-out test passes: the surface
-   of the crop without its inner ring (the support within ``poisson_ring * shell`` of R: the whole rim
-   shell by default) misses that ring by at most ``surface_holdout_spacings`` s RMS (a reconstruction from
-   misoriented normals, or of a sharp edge such as a sole at the floor, fails it). Each body of the crop
-   (``poisson_bodies``: its connected components, points linked within 3 s, the attachment reach; those
-   with a point within 3 s of R) is reconstructed and tested on its own, and the fill is the union.
+   points with 3 support or kept points within 3 s) are R's fill, when step 6's hold-out test passes
+   (the surface of the crop without its inner ring, shell / 2 wide, misses that ring by at most
+   ``surface_holdout_spacings`` s RMS: a reconstruction from misoriented normals, or of a sharp edge
+   such as a sole at the floor, fails it). Each body of the crop (``poisson_bodies``: its connected
+   components, points linked within 3 s, the attachment reach; those with at least 32 points and a point
+   within 3 s of R) is reconstructed and tested on its own, and the fill is the union.
    Why bodies (version 13): one reconstruction of a crop holding two bodies closer than the hole's
    diameter (a thigh above a forearm, a hand at the hip) closes the indicator function across the gap
-   between them inside R, a bridge that its own rim does not contradict: samba coherent seed 1 (10 frames),
+   between them inside R, a bridge that the hold-out ring does not see: samba coherent seed 1 (10 frames),
    a fill 1.4 / 4.1 voxels off the truth (p50 / p90) passed the hold-out at 0.91 s and, reused over the
    frames, took whole-frame D2 from 26.20 (no step 6c) to 16.95 dB; body by body the row gives D1 / D2
-   25.60 / 28.27 (no fill 9.00 / 26.24). Why the whole shell (version 12 held out shell / 2): a disc's points
-   lie within r / 4 of its rim for 44 % of its area and within r / 2 for 75 %, so the narrower ring tests
-   the surface only where the fill is easy; measured, seed 0 of samba (one body, a fill 1.12 s RMS off
-   the truth in point-to-plane terms: hold-out 1.01 s with shell / 2, 2.40 s with the shell). Rows:
-   methods/NOTES.md, "version 13".
+   25.60 / 28.27 (no fill 9.00 / 26.24). Rows: methods/NOTES.md, "version 13".
    Why step 6c at all: a hole left open costs whole-frame
    D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
    26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
@@ -211,8 +207,6 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   rim_fill          True: step 1b (voxelized data only); its round count follows from mls_neighbours.
   poisson           True: step 6c; its octree depth and sampling follow from the grid step, its trust rule
                     from step 4's reach (3 s).
-  poisson_ring      1.0: step 6c holds out the whole rim shell (in shells; 0.5 is version 12), so the
-                    held-out points lie as deep (up to r / 2 from the remaining support) as 3/4 of the fill.
   poisson_bodies    True: step 6c reconstructs each connected body of the crop alone (links of 3 s, the
                     attachment reach; False: one reconstruction of the whole crop, version 12).
   front             False: step 6b (see there for the measurement that keeps it off); its cell, round
@@ -836,8 +830,8 @@ class TemporalFusion(InpaintingMethod):
                "rim's surface where no frame saw it and the fit is trusted")
     version = "13"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
-    # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each body of the crop alone and
-    # holds out the whole rim shell
+    # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
+    # alone
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -846,7 +840,7 @@ class TemporalFusion(InpaintingMethod):
                  icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
-                 mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True, poisson_ring: float = 1.0,
+                 mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True,
                  poisson_bodies: bool = True, front: bool = False, revoxelize: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
@@ -864,7 +858,6 @@ class TemporalFusion(InpaintingMethod):
         self.mls_neighbours = mls_neighbours
         self.rim_fill = rim_fill
         self.poisson = poisson
-        self.poisson_ring = poisson_ring
         self.poisson_bodies = poisson_bodies
         self.front = front
         self.revoxelize = revoxelize
@@ -893,7 +886,6 @@ class TemporalFusion(InpaintingMethod):
         number("gap_spacings", False)
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
-        number("poisson_ring", False)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
                      "front", "revoxelize"):
             if not isinstance(getattr(self, name), bool):
@@ -1093,7 +1085,7 @@ class TemporalFusion(InpaintingMethod):
                 # step 6c: a hole the height field refused (round a limb, a neck), on the crop's closed surface
                 spatial = poisson_surface_fill(np.vstack([local, accepted]), region, covered, spacing,
                                                voxelized=ctx["voxelized"], step=ctx["step"],
-                                               gap_spacings=self.fill_gap_spacings, ring=self._poisson_ring(shell),
+                                               gap_spacings=self.fill_gap_spacings, ring=shell / 2,
                                                max_holdout_spacings=self.surface_holdout_spacings,
                                                separate_bodies=self.poisson_bodies)
             if self.front and not len(spatial):
@@ -1131,10 +1123,6 @@ class TemporalFusion(InpaintingMethod):
         if voxelized and len(points):
             points = np.unique(np.floor(points + 0.5), axis=0)
         return points
-
-    def _poisson_ring(self, shell) -> float:
-        """Width of step 6c's held-out ring: ``poisson_ring`` times the rim shell (see the parameter)."""
-        return float(self.poisson_ring) * shell
 
     def _rim_fill_rounds(self) -> int:
         """Rounds of step 1b: one fit radius, ceil(sqrt(k / pi)) spacings, the radius of the disc that

@@ -642,7 +642,7 @@ def test_poisson_fill_reconstructs_each_body_alone_so_it_never_bridges_two():
     """Step 6c reconstructs each connected body of the crop (points linked within 3 s) on its own. A hole of
     radius 10.6 at the bottom of a tube 8 voxels above another body (the geometry of the samba rows' bad fill):
     one reconstruction of the whole crop bridges the gap between the two inside the hole (fill points 4-5
-    voxels off both surfaces; version 12's hold-out ring, shell / 2, passes it). Body by body, the tube's
+    voxels off both surfaces; the hold-out ring, shell / 2, passes it). Body by body, the tube's
     bottom and the other body's top are closed on their own surfaces: every fill point within the voxel
     rounding of one of them, and the hidden voxels are restored (each within 1.5 of a fill point)."""
     from dpcbench.methods.temporal_fusion import poisson_surface_fill
@@ -664,8 +664,12 @@ def test_poisson_fill_reconstructs_each_body_alone_so_it_never_bridges_two():
     assert len(bridge) > 300 and off_surface(bridge).max() > 4.0  # one reconstruction bridges the gap
     assert off_surface(bodies).max() <= 1.5
     assert cKDTree(bodies).query(hidden)[0].max() <= 1.5
-    out = quiet(TemporalFusion(window=0), [kept.copy(), kept.copy()], [[region], [region]])
-    new = out[1][len(kept):]
-    assert len(new) >= 0.8 * len(hidden) and off_surface(new).max() <= 1.5
-    with pytest.raises(ValueError, match="poisson_ring"):
-        TemporalFusion(poisson_ring=-1.0).inpaint([kept], [[region]])
+    for bodies in (True, False):
+        out = quiet(TemporalFusion(window=0, poisson_bodies=bodies), [kept.copy(), kept.copy()], [[region], [region]])
+        new = out[1][len(kept):]
+        if bodies:
+            assert len(new) >= 0.8 * len(hidden) and off_surface(new).max() <= 1.5
+        else:  # version 12: the bridge is the whole method's fill
+            assert off_surface(new).max() > 4.0
+    with pytest.raises(ValueError, match="poisson_bodies"):
+        TemporalFusion(poisson_bodies="yes").inpaint([kept], [[region]])
