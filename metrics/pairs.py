@@ -260,7 +260,29 @@ def build_tree(points: np.ndarray) -> cKDTree:
     return cKDTree(points, leafsize=32, balanced_tree=False)
 
 
-class Neighbours:
+class _TiePairs:
+    """The tie-pair attributes shared by `Neighbours` and `GridNeighbours`, read from their cached ``_ties``:
+    (exact rows, exact cols, same rows, same cols), or (rows, cols) on the grid, where the same-distance
+    run is the exact tie set."""
+
+    @property
+    def exact_rows(self) -> np.ndarray:
+        return self._ties[0]  # type: ignore[attr-defined]
+
+    @property
+    def exact_cols(self) -> np.ndarray:
+        return self._ties[1]  # type: ignore[attr-defined]
+
+    @property
+    def same_rows(self) -> np.ndarray:
+        return self._ties[-2]  # type: ignore[attr-defined]
+
+    @property
+    def same_cols(self) -> np.ndarray:
+        return self._ties[-1]  # type: ignore[attr-defined]
+
+
+class Neighbours(_TiePairs):
     """Nearest neighbours of each query point in a target cloud, with pc_error's tie sets.
 
     sq_dist: (N,) float64, the squared distance of each query point to its nearest target point.
@@ -353,21 +375,6 @@ class Neighbours:
             pending = pending[again]
         return np.concatenate(exact_r), np.concatenate(exact_c), np.concatenate(same_r), np.concatenate(same_c)
 
-    @property
-    def exact_rows(self) -> np.ndarray:
-        return self._ties[0]
-
-    @property
-    def exact_cols(self) -> np.ndarray:
-        return self._ties[1]
-
-    @property
-    def same_rows(self) -> np.ndarray:
-        return self._ties[2]
-
-    @property
-    def same_cols(self) -> np.ndarray:
-        return self._ties[3]
 
 
 def query_neighbours(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, order: np.ndarray | None = None,
@@ -377,7 +384,7 @@ def query_neighbours(tree: cKDTree, targets: np.ndarray, queries: np.ndarray, or
     return Neighbours(tree, targets, queries, order, workers=workers)
 
 
-class GridNeighbours:
+class GridNeighbours(_TiePairs):
     """`Neighbours` of integer-grid clouds, found by `metrics.grid` (numpy, sorted keys) instead of a KD-tree.
 
     Same attributes and values as `Neighbours` (``sq_dist``, ``index``, ``exact_rows`` ... ``same_cols``):
@@ -471,16 +478,6 @@ class GridNeighbours:
         small = np.int32 if max(len(self._queries), len(self._targets)) < 2**31 else np.intp
         return np.concatenate(rows).astype(small), np.concatenate(cols).astype(small)  # int32: half the memory
 
-    @property
-    def exact_rows(self) -> np.ndarray:
-        return self._ties[0]
-
-    @property
-    def exact_cols(self) -> np.ndarray:
-        return self._ties[1]
-
-    same_rows = exact_rows  # on the grid the same-distance run is the exact tie set
-    same_cols = exact_cols
 
 
 def face_neighbour_mask(points: np.ndarray) -> np.ndarray | None:
