@@ -19,6 +19,7 @@ from dpcbench.methods.temporal_fusion import (
     fit_height_field,
     grown_agreeing,
     interpolate_displacement,
+    mls_fit,
     mls_project,
     plane_offsets,
     plane_target,
@@ -500,6 +501,52 @@ def test_crossed_voxels_restores_a_thin_gap_exactly_and_says_it_closed():
     fill, closed = crossed_voxels(top, voxels[~top.contains(voxels)], cKDTree(voxels[~top.contains(voxels)]),
                                   with_closed=True)
     assert closed and overlap(fill, voxels[top.contains(voxels)]) == (1.0, 1.0)
+
+
+def crossed_voxels_by_scanning_the_cube(region, support, occupied, neighbours=20, max_rounds=64):
+    """The naive form of `crossed_voxels` (its docstring, word for word): every integer point of the
+    region's bounding cube is a candidate, and each round judges those within sqrt 3 of the support."""
+    lo, hi = np.floor(region.center - region.bounding_radius), np.ceil(region.center + region.bounding_radius)
+    cand = np.stack(np.meshgrid(*[np.arange(lo[j], hi[j] + 1) for j in range(3)], indexing="ij"), -1).reshape(-1, 3)
+    cand = cand[region.contains(cand)]
+    cand = cand[~np.isfinite(occupied.query(cand, distance_upper_bound=0.5)[0])]
+    support, accepted = np.asarray(support, dtype=float), []
+    for _ in range(max_rounds):
+        if not len(cand):
+            return np.vstack(accepted) if accepted else np.zeros((0, 3)), True
+        tree = cKDTree(support)
+        near = np.isfinite(tree.query(cand, distance_upper_bound=np.sqrt(3.0) * (1 + 1e-9))[0])
+        if not near.any():
+            return np.vstack(accepted) if accepted else np.zeros((0, 3)), True
+        judged, cand = cand[near], cand[~near]
+        foot, normal = mls_fit(judged, support, neighbours, tree)
+        l1 = np.abs(normal).sum(axis=1)
+        crossed = (np.abs(np.einsum("ij,ij->i", judged - foot, normal)) <= l1 / 2) & (l1 > 0)
+        if not crossed.any():
+            return np.vstack(accepted) if accepted else np.zeros((0, 3)), True
+        accepted.append(judged[crossed])
+        support = np.vstack([support, judged[crossed]])
+    return np.vstack(accepted) if accepted else np.zeros((0, 3)), False
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.3])
+def test_crossed_voxels_grows_the_same_voxels_as_a_scan_of_the_region_cube(jitter):
+    """`crossed_voxels` lists its candidates round the last round's voxels instead of over the region's
+    bounding cube: the same voxels in the same order and the same closed flag as the naive scan, for a
+    ball and a tilted box, with few and many rounds, on voxels and on support points off the grid."""
+    rng = np.random.default_rng(3)
+    voxels = crossed_sphere_voxels(30.0, np.array([0.2, 0.1, -0.3]))
+    support = voxels + rng.uniform(-jitter, jitter, voxels.shape)
+    rotation = Rotation.from_euler("xyz", [20, 35, 10], degrees=True).as_matrix()
+    for region in (HoleRegion.ball([0.0, 0.0, 30.0], 6.0),
+                   HoleRegion.box([18.0, 0.0, 24.0], [9.0, 4.0, 3.0], rotation)):
+        kept = support[~region.contains(support)]
+        tree = cKDTree(kept)
+        for rounds in (2, 64):
+            fast, closed = crossed_voxels(region, kept, tree, max_rounds=rounds, with_closed=True)
+            naive, naive_closed = crossed_voxels_by_scanning_the_cube(region, kept, tree, max_rounds=rounds)
+            assert len(naive) > 0 and closed == naive_closed, (region.shape, rounds)
+            np.testing.assert_array_equal(fast, naive)
 
 
 def overlap(fill: np.ndarray, truth: np.ndarray) -> tuple[float, float]:

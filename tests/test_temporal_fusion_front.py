@@ -11,7 +11,13 @@ from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._front_fill import front_fill, local_quadric, rim_residual_bound
-from dpcbench.methods.temporal_fusion import TemporalFusion, poisson_surface_fill, rim_surface_fill, sample_triangles
+from dpcbench.methods.temporal_fusion import (
+    TemporalFusion,
+    orient_along_surface,
+    poisson_surface_fill,
+    rim_surface_fill,
+    sample_triangles,
+)
 
 
 def grid_plane(half: float = 20.0, step: float = 1.0) -> np.ndarray:
@@ -163,3 +169,48 @@ def test_sample_triangles_spacing_and_corners():
     w = rng.dirichlet([1.0, 1.0, 1.0], size=2000)
     probes = np.vstack([w @ vertices[t] for t in triangles])
     assert cKDTree(samples).query(probes)[0].max() <= 0.5
+
+
+def test_orient_along_surface_points_every_body_outwards_like_the_analytic_normals():
+    """Normals of random sign on two spheres and a torus (analytic outward normals known): after the
+    spanning-tree propagation and the per-component majority away from the centre, every normal is the
+    outward one; on a plane every normal takes one side."""
+    rng = np.random.default_rng(0)
+    centres = np.array([[-60.0, 0.0, 0.0], [60.0, 0.0, 0.0]])
+    spheres = [c + sphere_points(20.0, 2000, rng) for c in centres]
+    u, v = rng.uniform(0, 2 * np.pi, (2, 6000))
+    torus = np.column_stack([(30 + 10 * np.cos(v)) * np.cos(u), (30 + 10 * np.cos(v)) * np.sin(u), 10 * np.sin(v)])
+    torus_out = np.column_stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)])
+    for points, truth in ((np.vstack(spheres), np.vstack([(s - c) / 20.0 for s, c in zip(spheres, centres)])),
+                          (torus, torus_out)):
+        signs = rng.choice([-1.0, 1.0], len(points))
+        oriented = orient_along_surface(points, truth * signs[:, None], points.mean(axis=0))
+        np.testing.assert_allclose(oriented, truth, atol=1e-12)
+    plane = grid_plane(10.0)
+    normals = np.tile([0.0, 0.0, 1.0], (len(plane), 1)) * rng.choice([-1.0, 1.0], len(plane))[:, None]
+    oriented = orient_along_surface(plane, normals, np.zeros(3))
+    assert len(np.unique(oriented[:, 2])) == 1
+
+
+def sphere_points(radius: float, count: int, rng: np.random.Generator) -> np.ndarray:
+    directions = rng.normal(size=(count, 3))
+    return radius * directions / np.linalg.norm(directions, axis=1, keepdims=True)
+
+
+def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
+    """Step 6c's hold-out test caps far distances first; its pass / fail must be the exact RMS rule's:
+    on the limb hole, with the bound just above and just below the exact RMS miss (distances of the inner
+    ring to the held-out surface's samples, in full), it passes and fails."""
+    from dpcbench.methods.temporal_fusion import _holds_out, _poisson_points
+
+    limb = cylinder(8.0, 60.0)
+    region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
+    kept = limb[~region.contains(limb)]
+    ring = 2.0
+    inner = region.contains(kept, margin=ring)
+    held = _poisson_points(kept[~inner], lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
+                           surface=True)
+    exact = float(np.sqrt(np.mean(cKDTree(held).query(kept[inner])[0] ** 2)))
+    assert 0.0 < exact < 1.0
+    for bound, passes in ((exact * 1.01, True), (exact * 0.99, False), (exact / 8.0, False)):
+        assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
