@@ -3,6 +3,7 @@ surfaces whose hidden part is known, and the method on a hole that one height fi
 
 from __future__ import annotations
 
+import os
 import warnings
 
 import numpy as np
@@ -214,3 +215,17 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     assert 0.0 < exact < 1.0
     for bound, passes in ((exact * 1.01, True), (exact * 0.99, False), (exact / 8.0, False)):
         assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
+
+
+def test_native_stderr_is_silenced_for_the_block_only(capfd):
+    """What native code writes to descriptor 2 inside the block (PoissonRecon's warnings) is dropped; the
+    descriptor is restored after it, also when the block raises."""
+    from dpcbench.methods.temporal_fusion import _native_stderr_silenced
+
+    os.write(2, b"before\n")
+    with _native_stderr_silenced():
+        os.write(2, b"getValue assumes leaf node\n")
+    with pytest.raises(RuntimeError), _native_stderr_silenced():
+        raise RuntimeError("inside")
+    os.write(2, b"after\n")
+    assert capfd.readouterr().err == "before\nafter\n"
