@@ -127,16 +127,16 @@ class LozesPDE(PerFrameMethod):
         spacing = sampling_step(points)
         new_parts = []
         for k, region in enumerate(regions):
-            seeds, ring = self._seed_hole(points, region, spacing)
+            seeds, ring = self.seed_hole(points, region, spacing)
             if len(seeds) == 0:
                 continue
-            filled = self._evolve(ring, seeds, spacing)
+            filled = self.evolve(ring, seeds, spacing)
             for earlier in regions[:k]:
                 filled = filled[~earlier.contains(filled)]
             new_parts.append(filled)
         return np.concatenate([points, *new_parts], axis=0) if new_parts else points.copy()
 
-    def _seed_hole(self, points, region, spacing) -> tuple[np.ndarray, np.ndarray]:
+    def seed_hole(self, points, region, spacing) -> tuple[np.ndarray, np.ndarray]:
         """(seeds (S, 3) on the ring's plane inside the hole's footprint, ring (K, 3) known points)."""
         ring_width = self.ring_spacings * spacing
         ring = points[region.contains(points, margin=ring_width)]
@@ -166,7 +166,7 @@ class LozesPDE(PerFrameMethod):
                              f"{self.max_new_points}; use smaller regions or raise max_new_points")
         return seeds, ring
 
-    def _evolve(self, known: np.ndarray, seeds: np.ndarray, spacing: float) -> np.ndarray:
+    def evolve(self, known: np.ndarray, seeds: np.ndarray, spacing: float) -> np.ndarray:
         """Positions (S', 3) of the seeds after the p-Laplacian evolution with ``known`` fixed."""
         positions = np.concatenate([known, seeds], axis=0)
         n_known = len(known)

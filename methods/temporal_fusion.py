@@ -98,8 +98,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    30.31 / 36.73, samba 17.80 / 27.11 -> 18.02 / 27.27; independent rows within 0.01 dB (seed 0),
    human occlusion 46.98 -> 47.12 (seed 0, 5 frames).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
-   fill alike) are moved to frame f by f-1's motion (steps 2a and 2c, computed even when f-1 failed
-   the coverage test) and, where they still fit the rim (points within 3 s of the rim and farther
+   fill alike, step 6e's membrane excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
+   computed even when f-1 failed the coverage test) and, where they still fit the rim (points within 3 s of the rim and farther
    than ``accept_spacings * s`` off its local plane are dropped, as in step 4), fill the parts of R
    that the copies left open. They *replace* the spatial fill there (step 6 fills only what is still
    open), so fills never pile up, and a persistent hole keeps the fill it had, moved with the body.
@@ -160,6 +160,27 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    Measured (occlusion holes, seed 0, 5 frames, D1 / D2): bunny small -7.68 / 2.61 -> 1.05 / 4.61 (its
    base, a 150-voxel opening, stayed open: fu-nonlocal -2.22 / 7.42), samba 11.06 / 28.17 -> 11.09 / 28.21,
    human small unchanged.
+6e. Membrane (``membrane``; `membrane_fill`): where steps 6-6d added nothing, the open parts of R are spanned by
+   `lozes_pde.LozesPDE`'s harmonic graph fill (p = 2) anchored at every point of frame f and of the accepted
+   points within 3 grid steps of R, inside R included: seeds on the anchors' PCA plane where no anchor
+   projects within 0.8 step, each moved to the weighted mean of its 10 graph neighbours, anchors fixed. It is
+   made for occlusion boxes, which keep captured points inside (60-1,200 in each D-FAUST box: an armpit, the
+   crotch, a sole): there the membrane interpolates between data a few spacings apart, while steps 6-6c
+   extrapolate the rim round the box and their hold-out tests refuse. Three tests, each a rule used above:
+   interpolation only (seeds inside the convex hull of frame f's points inside R, as step 6's grid; an
+   emptied disc gets no membrane: across one round a limb it lies 2 s inside the surface, and the two other
+   tests pass it); step 6's hold-out with its bound (the membrane of the anchors farther than 1.5 steps from
+   R must predict the anchors within that band, the box's inside data included, to
+   ``surface_holdout_spacings`` s RMS: two surfaces in one box, or one curving by more than a spacing across
+   it, are refused); step 4's agreement (`grown_agreeing`: grown from the anchors, each point within
+   ``accept_spacings`` s of their local plane). Why the last (D-FAUST occlusion, 10 frames, seed 0, the 39
+   fills the hold-out passed, each scored against the true frame): it let through a box at a fold (an
+   armpit, frames 4-7) whose membrane lay 1.1-1.8 s RMS off the truth and cost up to 1.9 dB of whole-frame
+   D2; the agreement rule cut it to 3-11 points 0.2-0.9 s off and kept 60-100 % of the other fills at the
+   same accuracy (0.06-0.6 s). Not reused by step 5: the membrane rests on frame f's own data inside the
+   box, so frame f + 1 builds its own (reused, moved by f-1's motion, it cost 1.9 dB D2 over 5 frames).
+   Measured (targets grid, 10 frames, D1 / D2; methods/NOTES.md "version 15"): D-FAUST occlusion 20.10 /
+   35.12 -> 23.71 / 35.98 (no fill 19.30 / 35.51, lozes-pde 27.35 / 33.46); every other row unchanged.
 6b. Advancing front (``front``, off by default): where steps 6 and 6c added nothing (its tests refused the
    hole, e.g. a hole round a limb, which is no height field over one plane), the open cells of R are
    grown from the rim and the copies one cell shell a round (`_front_fill.front_fill`; cell 1 voxel,
@@ -228,6 +249,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   cap               True: step 6d (voxelized input); its band, 2 s, is the rim's first rows of samples (one row
                     leaves gaps where the sampling is uneven); its flatness bound max(1 s, r / 20) is step 6's
                     hold-out bound, or on a wide opening a wobble of 3 degrees seen from the loop's centre.
+  membrane          True: step 6e; its ring (3 grid steps), graph and seeds are lozes-pde's defaults, its
+                    hold-out band half that ring, its bound step 6's, its agreement rule step 4's.
   front             False: step 6b (see there for the measurement that keeps it off); its cell, round
                     count and residual bound follow from s, mls_neighbours and the rim's own fits.
   revoxelize        True: step 4b (voxelized data only); its bound t is read from each hole's rim.
@@ -490,6 +513,16 @@ def snap_to_voxels(points: np.ndarray, occupied: np.ndarray) -> np.ndarray:
     return voxels
 
 
+def rows_in(points: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """(P,) bool: which rows of ``points`` (P, 3) occur exactly in ``table`` (T, 3)."""
+    if len(points) == 0 or len(table) == 0:
+        return np.zeros(len(points), dtype=bool)
+    both = np.ascontiguousarray(np.vstack([points, table]), dtype=np.float64)
+    _, code = np.unique(both, axis=0, return_inverse=True)
+    code = code.ravel()
+    return np.isin(code[:len(points)], code[len(points):])
+
+
 def far_from(points: np.ndarray, tree: cKDTree | None, distance: float) -> np.ndarray:
     """Mask (P,) of ``points`` farther than ``distance`` from every point of ``tree`` (all True
     without a tree)."""
@@ -686,6 +719,78 @@ def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spa
         return np.zeros((0, 3))
     return rim_surface_fill(loop, region, covered, spacing, voxelized=voxelized, step=step, max_steep=1.0,
                             gap_spacings=gap_spacings, degree=1)
+
+
+def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
+                  step: float, accepted: np.ndarray | None = None, gap_spacings: float = 1.0,
+                  ring_spacings: float = 3.0, max_holdout_spacings: float = 1.0,
+                  agree_spacings: float = 1.0) -> np.ndarray:
+    """Membrane fill (step 6e of the module docstring) of the parts of ``region`` that no point of
+    ``covered`` is within ``gap_spacings * spacing`` of: `lozes_pde.LozesPDE`'s harmonic (p = 2) graph fill
+    anchored at every point of ``captured`` (C, 3; the frame's own points round the hole) and ``accepted``
+    (A, 3; points other steps put there) within ``ring_spacings * step`` of the region, inside included.
+    Returns (P, 3) points; (0, 3) when the membrane is not trusted.
+
+    Seeds: LozesPDE's grid of step ``step`` on the anchors' PCA plane, where the plane is farther than 0.8
+    step from every projected anchor (the open part of the hole's footprint); each seed is then the
+    weighted mean of its graph neighbours (10-NN, Gaussian weights of one step), anchors fixed: the
+    membrane interpolates between the data round and inside the region.
+
+    Trust, three tests. (1) Interpolation: only the seeds inside the convex hull (on the anchors' plane) of
+    the ``captured`` points inside the region are kept, so the membrane spans gaps enclosed by data and
+    never extends it (step 6's rule for its grid); an emptied disc keeps no point inside, and there the
+    membrane is the flat patch Lozes' method leaves (2 spacings inside a cylinder of radius 8 under a hole
+    of radius 7, where the two tests below pass). (2) Hold-out (step 6's
+    test, with the same bound): the anchors within ``ring_spacings / 2`` steps of the region (the inner
+    band and every point inside the region) are left out, the membrane of the others is built the same
+    way, and the left-out points' RMS distance to the local planes of that membrane and its anchors (8
+    nearest within 3 s, `plane_offsets`; points with fewer are not judged) must be at most
+    ``max_holdout_spacings`` spacings: one that misses the data inside the box (two surfaces in one box)
+    is not trusted. (3) Agreement (step 4's rule, `grown_agreeing`): grown from the anchors, each point
+    must lie within ``agree_spacings`` spacings of their local plane; the others are dropped. Regions too
+    large for LozesPDE's seed cap are left open."""
+    from dpcbench.methods.lozes_pde import LozesPDE
+    from dpcbench.metrics.errors import UserError
+
+    membrane = LozesPDE(p=2.0, ring_spacings=ring_spacings)
+    captured = np.asarray(captured, dtype=np.float64)
+    support = captured if accepted is None or not len(accepted) else np.vstack([captured, accepted])
+    try:
+        seeds, anchors = membrane.seed_hole(support, region, step)
+        seeds = seeds[_within_hull_of(seeds, captured[region.contains(captured)], anchors)]
+        if len(seeds) == 0 or len(anchors) < 12:
+            return np.zeros((0, 3))
+        inner = region.contains(support, margin=ring_spacings * step / 2)
+        held_seeds, held_anchors = membrane.seed_hole(support[~inner], region, step)
+        if len(held_anchors) < 12 or len(held_seeds) == 0:
+            return np.zeros((0, 3))
+        outer_membrane = np.vstack([membrane.evolve(held_anchors, held_seeds, step), held_anchors])
+        judged, offset = plane_offsets(support[inner], outer_membrane, 3 * spacing)
+        if not judged.any() or float(np.sqrt(np.mean(offset[judged] ** 2))) > max_holdout_spacings * spacing:
+            return np.zeros((0, 3))
+        points = membrane.evolve(anchors, seeds, step)
+    except UserError:  # more seeds than LozesPDE's cap: a region that size is no gap to span
+        return np.zeros((0, 3))
+    points = points[region.contains(points)]
+    # step 4's rule: grown from the anchors, a point must continue their local surface
+    points = points[grown_agreeing(points, anchors, 3 * spacing, agree_spacings * spacing)]
+    return points[far_from(points, covered, gap_spacings * spacing)]
+
+
+def _within_hull_of(points: np.ndarray, inside: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+    """Mask (P,) of ``points`` whose projection on the PCA plane of ``anchors`` lies in the convex hull of
+    the projected ``inside`` points (all False with fewer than 3 of them, or when they are collinear)."""
+    if len(points) == 0 or len(inside) < 3:
+        return np.zeros(len(points), dtype=bool)
+    from scipy.spatial import ConvexHull, QhullError
+
+    centre = anchors.mean(axis=0)
+    tangent = np.linalg.svd(anchors - centre, full_matrices=False)[2][:2]
+    try:
+        edges = ConvexHull((inside - centre) @ tangent.T).equations  # a u + b v + c <= 0 inside
+    except QhullError:
+        return np.zeros(len(points), dtype=bool)
+    return ((points - centre) @ tangent.T @ edges[:, :2].T + edges[:, 2] <= 1e-9).all(axis=1)
 
 
 def sample_triangles(vertices: np.ndarray, triangles: np.ndarray, step: float) -> np.ndarray:
@@ -980,13 +1085,14 @@ class TemporalFusion(InpaintingMethod):
     summary = ("fills thin voxel gaps from the frame's own rim by the voxelization rule; elsewhere "
                "fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
-               "rim's surface where no frame saw it and the fit is trusted")
-    version = "14"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+               "rim's surface where no frame saw it and the fit is trusted; a graph membrane across the open "
+               "parts of occlusion boxes")
+    version = "15"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
     # 14: step 6c orients normals by its own spanning tree over the 16-NN graph (an edge leaving the tangent
-    # planes costs more), sign per component
+    # planes costs more), sign per component; 15: step 6e, the membrane fill of what steps 6-6d refused, not reused
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -996,7 +1102,7 @@ class TemporalFusion(InpaintingMethod):
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True,
-                 poisson_bodies: bool = True, cap: bool = True, front: bool = False, revoxelize: bool = True,
+                 poisson_bodies: bool = True, cap: bool = True, membrane: bool = True, front: bool = False, revoxelize: bool = True,
                  snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
@@ -1016,6 +1122,7 @@ class TemporalFusion(InpaintingMethod):
         self.poisson = poisson
         self.poisson_bodies = poisson_bodies
         self.cap = cap
+        self.membrane = membrane
         self.front = front
         self.revoxelize = revoxelize
         self.snap = snap
@@ -1044,7 +1151,7 @@ class TemporalFusion(InpaintingMethod):
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
-                     "cap", "front", "revoxelize"):
+                     "cap", "membrane", "front", "revoxelize"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1088,16 +1195,18 @@ class TemporalFusion(InpaintingMethod):
                 outputs.append(frame.copy())
                 previous_fill = np.zeros((0, 3))
                 continue
-            added = self._fill_frame(f, regions[f], previous_fill, context)
+            added, reusable = self._fill_frame(f, regions[f], previous_fill, context)
             outputs.append(np.vstack([frame, added]) if len(added) else frame.copy())
-            previous_fill = added
+            previous_fill = reusable
         return outputs
 
     # -- one frame -----------------------------------------------------------------------------
-    def _fill_frame(self, f, frame_regions, previous_fill, ctx) -> np.ndarray:
+    def _fill_frame(self, f, frame_regions, previous_fill, ctx) -> tuple[np.ndarray, np.ndarray]:
+        """(the points added to frame f, those of them that frame f + 1 may reuse: all but step 6e's)."""
         frames, spacing = ctx["frames"], ctx["spacing"]
         frame, tree = frames[f], ctx["tree_of"](f)
         new_parts: list[np.ndarray] = []
+        ctx["membrane_points"] = []
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             if len(fill):
@@ -1106,13 +1215,20 @@ class TemporalFusion(InpaintingMethod):
                     fill = fill[~earlier.contains(fill)]
                 new_parts.append(fill)
         if not new_parts:
-            return np.zeros((0, 3))
+            return np.zeros((0, 3)), np.zeros((0, 3))
         added = np.vstack(new_parts)
         if ctx["voxelized"]:
             added = snap_to_voxels(added, frame[self._near_regions(tree, frame_regions, spacing * 2)])
         else:
             added = added[far_from(added, tree, self.gap_spacings * spacing)]
-        return added
+        if not ctx["membrane_points"]:
+            return added, added
+        # step 6e's membrane rests on frame f's own data inside and round the hole, so frame f + 1 builds its
+        # own rather than reusing this one (step 5)
+        membrane = np.vstack(ctx["membrane_points"])
+        if ctx["voxelized"]:
+            membrane = np.floor(membrane + 0.5)
+        return added, added[~rows_in(added, membrane)]
 
     @staticmethod
     def _near_regions(tree, frame_regions, margin) -> np.ndarray:
@@ -1249,6 +1365,12 @@ class TemporalFusion(InpaintingMethod):
                 # step 6d: an opening no surface round it continues (a base, a sole), spanned by a membrane
                 spatial = cap_fill(local, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
                                    gap_spacings=self.fill_gap_spacings)
+            if self.membrane and not len(spatial):
+                # step 6e: a gap the membrane of the data round and inside it spans (an occlusion box's open parts)
+                spatial = membrane_fill(local, region, covered, spacing, step=ctx["step"], accepted=accepted,
+                                        gap_spacings=self.fill_gap_spacings, agree_spacings=self.accept_spacings,
+                                        max_holdout_spacings=self.surface_holdout_spacings)
+                ctx["membrane_points"].append(spatial)
             if self.front and not len(spatial):
                 # step 6b: what the one-surface fill refused, grown from the rim and copies chart by chart
                 spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"])

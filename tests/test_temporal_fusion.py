@@ -765,3 +765,132 @@ def test_poisson_fill_reconstructs_each_body_alone_so_it_never_bridges_two():
             assert off_surface(new).max() > 4.0
     with pytest.raises(ValueError, match="poisson_bodies"):
         TemporalFusion(poisson_bodies="yes").inpaint([kept], [[region]])
+
+
+# -- version 15: step 6e, the membrane of the data round and inside a hole --------------------------
+
+def jittered_sheet(half: float, height, seed: int) -> np.ndarray:
+    """A surface z = height(x, y) sampled on a unit grid over [-half, half]^2 with +-0.15 jitter."""
+    rng = np.random.default_rng(seed)
+    axis = np.arange(-half, half + 0.5)
+    xy = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1).reshape(-1, 2)
+    xy = xy + rng.uniform(-0.15, 0.15, xy.shape)
+    return np.column_stack([xy, height(xy[:, 0], xy[:, 1])])
+
+
+def occluded(points: np.ndarray, centres) -> np.ndarray:
+    """Mask of the points within 3 (in x, y) of any of ``centres``: the patches no camera saw."""
+    return np.any([np.hypot(points[:, 0] - cx, points[:, 1] - cy) < 3.0 for cx, cy in centres], axis=0)
+
+
+def test_membrane_fill_spans_the_open_parts_of_an_occlusion_box_on_the_surface():
+    """A gently curved sheet, z = 0.005 (x^2 + y^2); an oriented box (16 x 16 x 6) holds captured points and two
+    unseen patches (discs of radius 3, 138 points): the membrane anchored at the data round and inside the box
+    covers the patches (every hidden point within 1.5 spacings of a fill or kept point) and lies on the sheet
+    (every fill point within 0.3 spacings of it), with about the hidden point count; a box that held nothing
+    hidden gets nothing."""
+    from dpcbench.methods.lozes_pde import sampling_step
+    from dpcbench.methods.temporal_fusion import membrane_fill
+
+    def height(x, y):
+        return 0.005 * (x ** 2 + y ** 2)
+
+    sheet = jittered_sheet(20, height, seed=3)
+    region = HoleRegion.box([0.0, 0.0, 1.0], [8.0, 8.0, 3.0])
+    hidden_mask = occluded(sheet, [(-3.5, 0.0), (3.5, 1.0)])
+    kept, hidden = sheet[~hidden_mask], sheet[hidden_mask]
+    assert region.contains(kept).sum() > 100  # captured points inside the box: an occlusion box, not a disc
+    fill = membrane_fill(kept, region, cKDTree(kept), 1.0, step=sampling_step(kept))
+    assert 0.6 * len(hidden) <= len(fill) <= 1.6 * len(hidden), (len(fill), len(hidden))
+    assert np.abs(fill[:, 2] - height(fill[:, 0], fill[:, 1])).max() <= 0.3
+    assert cKDTree(np.vstack([kept, fill])).query(hidden)[0].max() <= 1.5
+    assert region.contains(fill).all()
+    assert len(membrane_fill(sheet, region, cKDTree(sheet), 1.0, step=sampling_step(sheet))) == 0
+
+
+def test_membrane_fill_refuses_a_box_that_holds_two_surfaces():
+    """Two parallel sheets 3 spacings apart (the two sides of a fold, an arm over the torso), each with an
+    unseen patch inside one box: a membrane seeded on one plane through both sheets' data lies between
+    them, and the hold-out test (the data inside the box, predicted from the band round it) refuses it;
+    each sheet alone is filled."""
+    from dpcbench.methods.lozes_pde import sampling_step
+    from dpcbench.methods.temporal_fusion import membrane_fill
+
+    lower = jittered_sheet(16, lambda x, y: 0.0 * x, seed=4)
+    upper = jittered_sheet(16, lambda x, y: 0.0 * x + 3.0, seed=5)
+    lower, upper = lower[~occluded(lower, [(-3.0, 0.0)])], upper[~occluded(upper, [(3.0, 0.0)])]
+    region = HoleRegion.box([0.0, 0.0, 1.5], [8.0, 8.0, 3.0])
+    both = np.vstack([lower, upper])
+    step = sampling_step(lower)
+    assert len(membrane_fill(both, region, cKDTree(both), 1.0, step=step)) == 0
+    for sheet, level in ((lower, 0.0), (upper, 3.0)):
+        fill = membrane_fill(sheet, region, cKDTree(sheet), 1.0, step=step)
+        assert len(fill) > 0 and np.abs(fill[:, 2] - level).max() <= 0.3
+
+
+def test_membrane_points_off_the_local_surface_of_the_data_are_dropped():
+    """Step 4's agreement rule inside step 6e: two parallel sheets 3 spacings apart with an unseen patch at
+    the same place in both; with the hold-out test bypassed the membrane spans the patch half-way between
+    the sheets (1-2 spacings off each), and the rule (a point must lie within ``agree_spacings`` of the local
+    plane of the anchors it is grown from) drops nearly all of it."""
+    from dpcbench.methods.lozes_pde import sampling_step
+    from dpcbench.methods.temporal_fusion import membrane_fill
+
+    lower = jittered_sheet(16, lambda x, y: 0.0 * x, seed=4)
+    upper = jittered_sheet(16, lambda x, y: 0.0 * x + 3.0, seed=5)
+    both = np.vstack([lower[~occluded(lower, [(-3.0, 0.0)])], upper[~occluded(upper, [(-3.0, 0.0)])]])
+    region = HoleRegion.box([0.0, 0.0, 1.5], [8.0, 8.0, 3.0])
+    step = sampling_step(lower)
+    between = membrane_fill(both, region, cKDTree(both), 1.0, step=step, max_holdout_spacings=1e9, agree_spacings=1e9)
+    assert len(between) >= 15 and (np.abs(between[:, 2] - 1.5) < 0.5).all()
+    agreeing = membrane_fill(both, region, cKDTree(both), 1.0, step=step, max_holdout_spacings=1e9)
+    assert len(agreeing) <= 0.1 * len(between)
+
+
+def test_membrane_fill_spans_only_gaps_enclosed_by_data_inside_the_region():
+    """Interpolation only: a flat sheet with a disc emptied by a ball region (no captured point inside) gets
+    no membrane, though the hold-out would pass there (steps 6-6c span such holes); with a few captured
+    points kept near the disc's centre, only the open parts within their convex hull are filled."""
+    from dpcbench.methods.lozes_pde import sampling_step
+    from dpcbench.methods.temporal_fusion import membrane_fill
+
+    sheet = jittered_sheet(16, lambda x, y: 0.0 * x, seed=8)
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 6.0)
+    emptied = sheet[~region.contains(sheet)]
+    step = sampling_step(emptied)
+    assert len(membrane_fill(emptied, region, cKDTree(emptied), 1.0, step=step)) == 0
+    centre = np.abs(sheet[:, :2]).max(axis=1) <= 2.6  # a square of captured points kept inside the ball
+    kept = np.vstack([emptied, sheet[centre][::3]])
+    fill = membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)
+    assert len(fill) > 0 and np.abs(fill[:, 2]).max() <= 0.3
+    assert np.abs(fill[:, :2]).max() <= 2.7  # within the kept square's hull, never out towards the rim
+
+
+def test_rows_in_matches_a_set_of_tuples():
+    from dpcbench.methods.temporal_fusion import rows_in
+
+    rng = np.random.default_rng(7)
+    points = rng.integers(0, 4, (300, 3)).astype(np.float64)
+    table = rng.integers(0, 4, (40, 3)).astype(np.float64)
+    keys = {tuple(row) for row in table}
+    assert np.array_equal(rows_in(points, table), np.array([tuple(row) in keys for row in points]))
+    assert not rows_in(points, np.zeros((0, 3))).any() and len(rows_in(np.zeros((0, 3)), table)) == 0
+
+
+def test_a_membrane_fill_is_built_afresh_each_frame_not_reused():
+    """A still trough (a flat floor, walls rising at slope 4 from |x| = 11.5) with the same occlusion box in
+    two frames: step 6 refuses the box (its support round the box holds the steep walls), step 6e fills
+    it, and frame 1 gets exactly frame 0's fill (rebuilt from the same data), not frame 0's fill moved and
+    re-projected by step 5. Step 6c is off so that step 6e is what runs."""
+    def height(x, y):
+        return 4.0 * np.maximum(np.abs(x) - 11.5, 0.0)
+
+    trough = jittered_sheet(22, height, seed=3)
+    region = HoleRegion.box([0.0, 0.0, 1.0], [8.0, 8.0, 3.0])
+    kept = trough[~occluded(trough, [(-3.5, 0.0), (3.5, 1.0)])]
+    frames, regions = [kept.copy(), kept.copy()], [[region], [region]]
+    assert len(quiet(TemporalFusion(poisson=False, membrane=False), frames, regions)[0]) == len(kept)
+    out = quiet(TemporalFusion(poisson=False), frames, regions)
+    first, second = out[0][len(kept):], out[1][len(kept):]
+    assert len(first) > 0 and np.abs(first[:, 2]).max() <= 0.3
+    assert np.array_equal(first, second)
