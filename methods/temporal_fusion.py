@@ -36,7 +36,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    Coverage test first: when one of g's own hole regions (moved to frame f by the motion of the
    frame one step nearer) comes within R's rim (centre distance < r + r_g + shell), g lacks part of
    the patch and its rim is holed (coherent holes drift by less than a hole per frame), so g is no
-   source; f-1 is still aligned for its motion (step 5). The others are motion-compensated to f:
+   full source: it is aligned the same way, and what it saw of R is used in step 5b only. The others
+   are motion-compensated to f:
    a. rigid: g's points within ``r + 2 shell`` of where R lies in g (under the motion of the frame
       one step nearer to f, so a far frame starts from the chained motion) are aligned onto frame
       f's points near R by point-to-point ICP of g's shell (`methods.reference.icp_align`, open3d;
@@ -98,11 +99,28 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    30.31 / 36.73, samba 17.80 / 27.11 -> 18.02 / 27.27; independent rows within 0.01 dB (seed 0),
    human occlusion 46.98 -> 47.12 (seed 0, 5 frames).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
-   fill alike, step 6e's membrane excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
-   computed even when f-1 failed the coverage test) and, where they still fit the rim (points within 3 s of the rim and farther
-   than ``accept_spacings * s`` off its local plane are dropped, as in step 4), fill the parts of R
-   that the copies left open. They *replace* the spatial fill there (step 6 fills only what is still
-   open), so fills never pile up, and a persistent hole keeps the fill it had, moved with the body.
+   fill alike, steps 5b and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
+   computed even when f-1 failed the coverage test) and, where they still fit the rim (points within
+   3 s of the rim and farther than ``accept_spacings * s`` off its local plane are dropped, as in step
+   4), fill the parts of R that the copies left open. They *replace* the spatial fill there (step 6
+   fills only what is still open), so fills never pile up, and a persistent hole keeps the fill it
+   had, moved with the body.
+5b. Partial sources (``partial_sources``): the frames that failed the coverage test only because of their
+   own hole near R (aligned and accepted as in step 2) saw part of R. Their points inside R, best rim
+   residual first, fill what is still open after steps 3-5: farther than ``fill_gap_spacings * s`` from
+   every point accepted so far, and through step 4's agreement (grown from the rim and the accepted
+   points). Step 7 treats them as it treats reused points (projected onto the surface, re-voxelized by
+   step 4b's rule on voxelized data: unprojected, 9-15 % of them lay 1.5-4 voxels off the truth on human
+   small coherent holes, beside the reused fill), and step 5 does not reuse them: moved on by each
+   frame's motion and topped up by the next frame's, they piled up in persistent occlusion boxes (samba
+   occlusion, 10 frames: D2 26.4 in frame 0 down to 13.6 in frame 9). The spatial steps (6-6e) still
+   run where no full candidate was accepted, on what is left open. Why: occlusion holes sit in every
+   frame at nearly the same place (armpits, crotch, soles), so the coverage test dropped every source
+   there, while the body's motion shows part of each box to the neighbours. Measured (targets grid, 10
+   frames, seeds 0-2 where the row has them, D1 / D2, version 15 -> 16; methods/NOTES.md "version 16"):
+   D-FAUST occlusion 23.71 / 35.98 -> 26.07 / 36.15, samba occlusion 11.32 / 27.55 -> 14.78 / 27.25, human
+   small occlusion 48.56 / 51.18 -> 63.74 / 66.39, D-FAUST coherent 25.26 / 31.04 -> 25.78 / 31.71; the
+   other rows within -0.15 / +0.5 dB.
 6. Spatial fill, only where no frame saw the surface and nothing was reused, and only where it can be
    put on the surface with confidence (`rim_surface_fill`): the support is R's rim plus the copied
    points; its PCA frame (u, v, n) must make it a height field (at most ``MAX_STEEP`` = 1/4 of the
@@ -251,6 +269,7 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     hold-out bound, or on a wide opening a wobble of 3 degrees seen from the loop's centre.
   membrane          True: step 6e; its ring (3 grid steps), graph and seeds are lozes-pde's defaults, its
                     hold-out band half that ring, its bound step 6's, its agreement rule step 4's.
+  partial_sources   True: step 5b; its tests are step 2's and step 4's, its treatment step 7's.
   front             False: step 6b (see there for the measurement that keeps it off); its cell, round
                     count and residual bound follow from s, mls_neighbours and the rim's own fits.
   revoxelize        True: step 4b (voxelized data only); its bound t is read from each hole's rim.
@@ -1087,12 +1106,13 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface where no frame saw it and the fit is trusted; a graph membrane across the open "
                "parts of occlusion boxes")
-    version = "15"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "16"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
     # 14: step 6c orients normals by its own spanning tree over the 16-NN graph (an edge leaving the tangent
-    # planes costs more), sign per component; 15: step 6e, the membrane fill of what steps 6-6d refused, not reused
+    # planes costs more), sign per component; 15: step 6e, the membrane fill of what steps 6-6d refused, not reused;
+    # 16: step 5b, copies from frames with their own hole near R, not reused
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -1102,7 +1122,8 @@ class TemporalFusion(InpaintingMethod):
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True,
-                 poisson_bodies: bool = True, cap: bool = True, membrane: bool = True, front: bool = False, revoxelize: bool = True,
+                 poisson_bodies: bool = True, cap: bool = True, membrane: bool = True, front: bool = False,
+                 partial_sources: bool = True, revoxelize: bool = True,
                  snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
@@ -1123,6 +1144,7 @@ class TemporalFusion(InpaintingMethod):
         self.poisson_bodies = poisson_bodies
         self.cap = cap
         self.membrane = membrane
+        self.partial_sources = partial_sources
         self.front = front
         self.revoxelize = revoxelize
         self.snap = snap
@@ -1151,7 +1173,7 @@ class TemporalFusion(InpaintingMethod):
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
-                     "cap", "membrane", "front", "revoxelize"):
+                     "cap", "membrane", "front", "partial_sources", "revoxelize"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1202,11 +1224,11 @@ class TemporalFusion(InpaintingMethod):
 
     # -- one frame -----------------------------------------------------------------------------
     def _fill_frame(self, f, frame_regions, previous_fill, ctx) -> tuple[np.ndarray, np.ndarray]:
-        """(the points added to frame f, those of them that frame f + 1 may reuse: all but step 6e's)."""
+        """(the points added to frame f, those of them that frame f + 1 may reuse: all but steps 5b and 6e's)."""
         frames, spacing = ctx["frames"], ctx["spacing"]
         frame, tree = frames[f], ctx["tree_of"](f)
         new_parts: list[np.ndarray] = []
-        ctx["membrane_points"] = []
+        ctx["not_reused"] = []
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             if len(fill):
@@ -1221,14 +1243,14 @@ class TemporalFusion(InpaintingMethod):
             added = snap_to_voxels(added, frame[self._near_regions(tree, frame_regions, spacing * 2)])
         else:
             added = added[far_from(added, tree, self.gap_spacings * spacing)]
-        if not ctx["membrane_points"]:
+        if not ctx["not_reused"]:
             return added, added
-        # step 6e's membrane rests on frame f's own data inside and round the hole, so frame f + 1 builds its
-        # own rather than reusing this one (step 5)
-        membrane = np.vstack(ctx["membrane_points"])
+        # step 5b's copies and step 6e's membrane rest on frames round f as they are, so frame f + 1 builds its
+        # own rather than reusing these (step 5): reused, they drift and pile up in a persistent occlusion box
+        fresh = np.vstack(ctx["not_reused"])
         if ctx["voxelized"]:
-            membrane = np.floor(membrane + 0.5)
-        return added, added[~rows_in(added, membrane)]
+            fresh = np.floor(fresh + 0.5)
+        return added, added[~rows_in(added, fresh)]
 
     @staticmethod
     def _near_regions(tree, frame_regions, margin) -> np.ndarray:
@@ -1262,6 +1284,7 @@ class TemporalFusion(InpaintingMethod):
         motions: dict[int, tuple] = {f: (np.eye(3), np.zeros(3), None)}
         local_plane = None  # `plane_target` of ``local`` (points, normals, tree), for step 2a's refinement
         candidates = []
+        partial = []
         for g in order:
             nearer = g - 1 if g > f else g + 1
             rotation0, translation0, _ = motions.get(nearer, motions[f])
@@ -1271,7 +1294,7 @@ class TemporalFusion(InpaintingMethod):
             # carries the previous fill (step 5), but it is no source of points
             own_hole = any(np.linalg.norm(other.center - centre_g) < region.bounding_radius + other.bounding_radius + shell
                            for other in ctx["regions"][g])
-            if own_hole and not (self.reuse_previous and g == f - 1):
+            if own_hole and not (self.reuse_previous and g == f - 1) and not self.partial_sources:
                 continue
             idx = np.asarray(tree_of(g).query_ball_point(centre_g, reach, return_sorted=True), dtype=np.int64)
             if len(idx) < 6:
@@ -1311,6 +1334,9 @@ class TemporalFusion(InpaintingMethod):
             motions[g] = (rotation, translation, field)
             if inside.any() and not own_hole:
                 candidates.append((residual, abs(g - f), g, self._deformed(moved[inside], field)))
+            elif inside.any() and self.partial_sources:
+                # a frame with its own hole near R: what it saw of R, used in step 5b
+                partial.append((residual, abs(g - f), g, self._deformed(moved[inside], field)))
 
         # steps 3-4: fusion, the best-agreeing frame first, later ones only where nothing is yet
         candidates.sort(key=lambda c: (round(c[0] / spacing, 2), c[1], c[2]))
@@ -1325,6 +1351,7 @@ class TemporalFusion(InpaintingMethod):
                                                self.accept_spacings * spacing)]
             if len(points):
                 accepted = np.vstack([accepted, points])
+        full_copy = len(accepted)
 
         if ctx["voxelized"] and self.revoxelize and len(accepted):
             k = max(int(self.mls_neighbours), 6)
@@ -1346,10 +1373,22 @@ class TemporalFusion(InpaintingMethod):
             if len(moved):
                 accepted = np.vstack([accepted, moved])
 
+        # step 5b: what the frames with their own hole near R saw of it, where the hole is still open
+        partial.sort(key=lambda c: (round(c[0] / spacing, 2), c[1], c[2]))
+        seen = np.zeros((0, 3))
+        for _, _, _, points in partial:
+            points = points[far_from(points, local_tree, self.gap_spacings * spacing)]
+            known = np.vstack([accepted, seen])
+            if len(known):
+                points = points[far_from(points, cKDTree(known), self.fill_gap_spacings * spacing)]
+            points = points[grown_agreeing(points, np.vstack([rim, known]), 3 * spacing, self.accept_spacings * spacing)]
+            if len(points):
+                seen = np.vstack([seen, points])
+
         # step 6: spatial fill, on the rim's surface, of what no frame saw (and nothing was reused)
         spatial = np.zeros((0, 3))
-        if self.fallback and not copied:  # a copied frame saw all of R (step 3): its gaps are the capture's
-            covered = cKDTree(np.vstack([local, accepted])) if len(accepted) else local_tree
+        if self.fallback and not full_copy:  # a copied frame saw all of R (step 3): its gaps are the capture's
+            covered = cKDTree(np.vstack([local, accepted, seen])) if len(accepted) or len(seen) else local_tree
             support = np.vstack([rim, accepted[:copied]]) if copied else rim
             spatial = rim_surface_fill(support, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
                                        max_holdout_spacings=self.surface_holdout_spacings, ring=shell / 2,
@@ -1370,11 +1409,11 @@ class TemporalFusion(InpaintingMethod):
                 spatial = membrane_fill(local, region, covered, spacing, step=ctx["step"], accepted=accepted,
                                         gap_spacings=self.fill_gap_spacings, agree_spacings=self.accept_spacings,
                                         max_holdout_spacings=self.surface_holdout_spacings)
-                ctx["membrane_points"].append(spatial)
+                ctx["not_reused"].append(spatial)
             if self.front and not len(spatial):
                 # step 6b: what the one-surface fill refused, grown from the rim and copies chart by chart
                 spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"])
-        if not len(accepted) and not len(spatial):
+        if not len(accepted) and not len(spatial) and not len(seen):
             return np.zeros((0, 3))
 
         # step 7: copies and reused points onto the surface of rim + fused points
@@ -1393,7 +1432,20 @@ class TemporalFusion(InpaintingMethod):
             accepted = np.vstack([accepted[:copied], reused])
         elif ctx["voxelized"] and copied < len(accepted):
             accepted = np.vstack([accepted[:copied], np.unique(np.floor(accepted[copied:] + 0.5), axis=0)])
-        accepted = np.vstack([accepted, spatial])
+        if len(seen):
+            # step 5b's copies as step 7 treats the reused points: onto the surface, re-voxelized; not reused
+            support = np.vstack([local, accepted, seen])
+            if self.mls_neighbours >= 6:
+                seen = mls_project(seen, support, int(self.mls_neighbours))
+            if ctx["voxelized"] and self.revoxelize:
+                k = max(int(self.mls_neighbours), 6)
+                bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
+                occupied = cKDTree(np.vstack([local, accepted])) if len(accepted) else local_tree
+                seen = surface_voxels(seen, region, support, occupied, k, bound)
+            elif ctx["voxelized"]:
+                seen = np.unique(np.floor(seen + 0.5), axis=0)
+            ctx["not_reused"].append(seen)
+        accepted = np.vstack([accepted, seen, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
 
     def _front(self, support, region, covered, rim, spacing, voxelized) -> np.ndarray:
