@@ -26,6 +26,7 @@ from dpcbench.methods.temporal_fusion import (
     refine_point_to_plane,
     rim_crossing_threshold,
     rim_displacement,
+    rim_sheet,
     rim_surface_fill,
     snap_to_voxels,
     surface_voxels,
@@ -904,7 +905,8 @@ def test_a_membrane_fill_is_built_afresh_each_frame_not_reused():
     """A still trough (a flat floor, walls rising at slope 4 from |x| = 11.5) with the same occlusion box in
     two frames: step 6 refuses the box (its support round the box holds the steep walls), step 6e fills
     it, and frame 1 gets exactly frame 0's fill (rebuilt from the same data), not frame 0's fill moved and
-    re-projected by step 5. Step 6c is off so that step 6e is what runs."""
+    re-projected by step 5. Steps 6c and 6f are off so that step 6e is what runs (step 6f fills a few points of
+    the box on the floor's own sheet)."""
     def height(x, y):
         return 4.0 * np.maximum(np.abs(x) - 11.5, 0.0)
 
@@ -912,8 +914,59 @@ def test_a_membrane_fill_is_built_afresh_each_frame_not_reused():
     region = HoleRegion.box([0.0, 0.0, 1.0], [8.0, 8.0, 3.0])
     kept = trough[~occluded(trough, [(-3.5, 0.0), (3.5, 1.0)])]
     frames, regions = [kept.copy(), kept.copy()], [[region], [region]]
-    assert len(quiet(TemporalFusion(poisson=False, membrane=False), frames, regions)[0]) == len(kept)
-    out = quiet(TemporalFusion(poisson=False), frames, regions)
+    assert len(quiet(TemporalFusion(poisson=False, membrane=False, sheet=False), frames, regions)[0]) == len(kept)
+    out = quiet(TemporalFusion(poisson=False, sheet=False), frames, regions)
     first, second = out[0][len(kept):], out[1][len(kept):]
     assert len(first) > 0 and np.abs(first[:, 2]).max() <= 0.3
     assert np.array_equal(first, second)
+
+
+def floor_and_wall(gap: float, scale: float = 1.0) -> np.ndarray:
+    """The floor z = 0 on a unit grid over [-30, 30]^2 and a wall x = -gap standing on it (z 1..30), times
+    ``scale``: a crop round a hole at the origin reaches the wall, a second surface across the floor."""
+    floor = paraboloid_patch(curvature=0.0)
+    y, z = np.meshgrid(np.arange(-30.0, 30.5), np.arange(1.0, 30.5), indexing="ij")
+    wall = np.column_stack([np.full(y.size, -gap), y.ravel(), z.ravel()])
+    return np.vstack([floor, wall]) * scale
+
+
+def test_rim_sheet_keeps_the_hole_s_own_sheet_and_step_6_then_fills_it():
+    """Step 6f: a hole of radius 10 on a floor, 2 spacings from a wall standing on it. Step 6 refuses the crop
+    (floor and wall are no one height field); `rim_sheet` keeps the floor's points only, and step 6 on
+    those fills the hole on the floor, covering every hidden point. A hole on a 90-degree fold (z = |x|) is
+    no one sheet: None."""
+    scene = floor_and_wall(12.0)
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 10.0)
+    kept = scene[~region.contains(scene)]
+    rim = kept[region.contains(kept, margin=8.0)]
+    assert (rim[:, 0] == -12.0).sum() > 200  # the wall is in the crop
+    assert len(rim_surface_fill(rim, region, cKDTree(kept), 1.0, voxelized=False, ring=4.0)) == 0
+    sheet = rim_sheet(rim, region, 4.0, 1.0)
+    # the floor's points only (those at the wall's foot, whose normals lean, may go too)
+    assert (sheet[:, 2] == 0.0).all() and len(sheet) >= 0.95 * (rim[:, 2] == 0.0).sum()
+    fill = rim_surface_fill(sheet, region, cKDTree(kept), 1.0, voxelized=False, ring=4.0)
+    assert region.contains(fill).all() and np.abs(fill[:, 2]).max() < 0.05
+    hidden = scene[region.contains(scene)]
+    assert cKDTree(np.vstack([fill, kept])).query(hidden)[0].max() < 1.2
+
+    fold = paraboloid_patch(curvature=0.0)
+    fold[:, 2] = np.abs(fold[:, 0])
+    kept = fold[~region.contains(fold)]
+    assert rim_sheet(kept[region.contains(kept, margin=8.0)], region, 4.0, 1.0) is None
+
+
+def test_a_hole_beside_a_second_surface_is_filled_on_its_own_sheet():
+    """The same scene (scaled by 1.1, so not voxelized) as a 3-frame sequence with the hole in every frame (no
+    frame saw it): with step 6f the hole is filled on the floor in every frame, every hidden point within a
+    spacing of the result; without it (``sheet=False``) steps 6-6e refuse it and it stays open."""
+    scene = floor_and_wall(12.0, scale=1.1)
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 11.0)
+    kept = scene[~region.contains(scene)]
+    hidden = scene[region.contains(scene)]
+    filled = quiet(TemporalFusion(), [kept.copy() for _ in range(3)], [[region]] * 3)
+    unfilled = quiet(TemporalFusion(sheet=False), [kept.copy() for _ in range(3)], [[region]] * 3)
+    for with_sheet, without in zip(filled, unfilled):
+        added = with_sheet[len(kept):]
+        assert len(added) > 0.8 * len(hidden) and np.abs(added[:, 2]).max() < 1e-6
+        assert cKDTree(with_sheet).query(hidden)[0].max() <= 1.1 + 1e-9
+        assert len(without) == len(kept)
