@@ -215,8 +215,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    surface stands within that (an arm against the chest, the torso where a limb leaves it) step 6's normal
    test refused the whole crop while the hole itself lay on a flat patch; step 6c's closed surface, or
    nothing, filled it. Found on seeds held out from those the defaults were judged on (D-FAUST, region
-   seeds 3 and 4, 10 frames; methods/NOTES.md "version 17"): coherent holes D1 21.95 -> 24.53 (seed 4:
-   21.91 -> 27.08; fu-nonlocal 24.76), independent 39.75 -> 40.14; the targets grid (seeds 0-2) unchanged
+   seeds 3 and 4, 10 frames; methods/NOTES.md "version 17"): coherent holes D1 21.95 -> 24.53 (fu-nonlocal
+   24.76; seed 4 alone 21.91 -> 27.08), independent 39.75 -> 40.14; the targets grid (seeds 0-2) unchanged
    but for bunny coherent (D1 / D2 32.98 / 35.83 -> 33.17 / 36.14). Without the one-sheet test the retry
    filled across a fold on samba coherent (seed 1) and the reused fill drifted into a flap (frames 7-9:
    D1 25.8 -> 20.4).
