@@ -190,10 +190,13 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    made for occlusion boxes, which keep captured points inside (60-1,200 in each D-FAUST box: an armpit, the
    crotch, a sole): there the membrane interpolates between data a few spacings apart, while steps 6-6c
    extrapolate the rim round the box and their hold-out tests refuse. Three tests, each a rule used above:
-   interpolation only (seeds inside the convex hull of frame f's points inside R, as step 6's grid; an
-   emptied disc gets no membrane: across one round a limb it lies 2 s inside the surface, and the two other
-   tests pass it); step 6's hold-out with its bound (the membrane of the anchors farther than 1.5 steps from
-   R must predict the anchors within that band, the box's inside data included, to
+   interpolation only (seeds inside the convex hull of frame f's points inside R, as step 6's grid), unless
+   the anchors' quadric says the membrane cannot sag far from the surface (`membrane_sag`: the harmonic
+   membrane departs from a quadric h by |c3 + c5| r^2 / 2 at the centre of a disc of radius r, and that must be
+   within ``surface_holdout_spacings`` s; version 19). So an emptied disc on a flat or saddle-shaped
+   patch is spanned, one round a limb is not (there the membrane lies 2 s inside the surface, the sag
+   1.5 s, and the two other tests pass it); step 6's hold-out with its bound (the membrane of the anchors
+   farther than 1.5 steps from R must predict the anchors within that band, the box's inside data included, to
    ``surface_holdout_spacings`` s RMS: two surfaces in one box, or one curving by more than a spacing across
    it, are refused); step 4's agreement (`grown_agreeing`: grown from the anchors, each point within
    ``accept_spacings`` s of their local plane). Why the last (D-FAUST occlusion, 10 frames, seed 0, the 39
@@ -204,6 +207,9 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    box, so frame f + 1 builds its own (reused, moved by f-1's motion, it cost 1.9 dB D2 over 5 frames).
    Measured (targets grid, 10 frames, D1 / D2; methods/NOTES.md "version 15"): D-FAUST occlusion 20.10 /
    35.12 -> 23.71 / 35.98 (no fill 19.30 / 35.51, lozes-pde 27.35 / 33.46); every other row unchanged.
+   Version 19 (open discs within the sag bound; NOTES "version 19"): D-FAUST occlusion 26.19 / 36.03 -> 26.71 /
+   35.95; held out: ricardo9 coherent 24.36 / 34.36 -> 25.59 / 34.62 (a disc beside a fold of the shirt, which
+   steps 6-6c refuse), D-FAUST coherent seeds 3-4 24.57 / 30.51 -> 24.79 / 30.45; every other row unchanged.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
@@ -815,11 +821,12 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     weighted mean of its graph neighbours (10-NN, Gaussian weights of one step), anchors fixed: the
     membrane interpolates between the data round and inside the region.
 
-    Trust, three tests. (1) Interpolation: only the seeds inside the convex hull (on the anchors' plane) of
-    the ``captured`` points inside the region are kept, so the membrane spans gaps enclosed by data and
-    never extends it (step 6's rule for its grid); an emptied disc keeps no point inside, and there the
-    membrane is the flat patch Lozes' method leaves (2 spacings inside a cylinder of radius 8 under a hole
-    of radius 7, where the two tests below pass). (2) Hold-out (step 6's
+    Trust, three tests. (1) Interpolation or a flat opening: where `membrane_sag` of the anchors exceeds
+    ``max_holdout_spacings`` spacings (the bound of test 2), only the seeds inside the convex hull (on the
+    anchors' plane) of the ``captured`` points inside the region are kept, so the membrane spans gaps
+    enclosed by data and never extends it (step 6's rule for its grid): across an emptied disc of radius 7
+    on a cylinder of radius 8 the membrane lies 1.5-2 spacings inside the surface (sag 1.5), and the two
+    tests below pass it. Where the sag is within the bound, every seed is kept. (2) Hold-out (step 6's
     test, with the same bound): the anchors within ``ring_spacings / 2`` steps of the region (the inner
     band and every point inside the region) are left out, the membrane of the others is built the same
     way, and the left-out points' RMS distance to the local planes of that membrane and its anchors (8
@@ -836,7 +843,8 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     support = captured if accepted is None or not len(accepted) else np.vstack([captured, accepted])
     try:
         seeds, anchors = membrane.seed_hole(support, region, step)
-        seeds = seeds[_within_hull_of(seeds, captured[region.contains(captured)], anchors)]
+        if len(anchors) >= 12 and membrane_sag(anchors, region) > max_holdout_spacings * spacing:
+            seeds = seeds[_within_hull_of(seeds, captured[region.contains(captured)], anchors)]
         if len(seeds) == 0 or len(anchors) < 12:
             return np.zeros((0, 3))
         inner = region.contains(support, margin=ring_spacings * step / 2)
@@ -854,6 +862,19 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     # step 4's rule: grown from the anchors, a point must continue their local surface
     points = points[grown_agreeing(points, anchors, 3 * spacing, agree_spacings * spacing)]
     return points[far_from(points, covered, gap_spacings * spacing)]
+
+
+def membrane_sag(anchors: np.ndarray, region: HoleRegion) -> float:
+    """How far (coordinate units) a harmonic membrane across ``region`` departs from the quadric through its
+    ``anchors`` (K, 3), K >= 6: |c3 + c5| r^2 / 2, with c3, c5 the u^2 and v^2 coefficients of
+    `fit_height_field` of the anchors and r the region's bounding radius.
+
+    Why: on a disc of radius r the quadric h has the constant Laplacian 2 (c3 + c5), and the harmonic
+    function with h's boundary values differs from h by (c3 + c5) (rho^2 - r^2) / 2, the most at the centre
+    (0 on a plane or a saddle; 1.53 for a hole of radius 7 on a cylinder of radius 8, where 1 / (2 * 8) =
+    c3). It is the part of the membrane's error that the rim shows before the membrane is built."""
+    _, _, coef, _, _ = fit_height_field(anchors)
+    return float(abs(coef[3] + coef[5]) * region.bounding_radius ** 2 / 2)
 
 
 def _within_hull_of(points: np.ndarray, inside: np.ndarray, anchors: np.ndarray) -> np.ndarray:
@@ -1172,14 +1193,15 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "18"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "19"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
     # 14: step 6c orients normals by its own spanning tree over the 16-NN graph (an edge leaving the tangent
     # planes costs more), sign per component; 15: step 6e, the membrane fill of what steps 6-6d refused, not reused;
     # 16: step 5b, copies from frames with their own hole near R, not reused; 17: step 6f, step 6 retried on the
-    # hole's own sheet of the crop; 18: step 5b's agreement tolerance widened by the copy's rim residual
+    # hole's own sheet of the crop; 18: step 5b's agreement tolerance widened by the copy's rim residual;
+    # 19: step 6e spans an open disc too where the anchors' quadric bounds the membrane's sag
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

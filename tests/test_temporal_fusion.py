@@ -871,23 +871,55 @@ def test_membrane_points_off_the_local_surface_of_the_data_are_dropped():
     assert len(agreeing) <= 0.1 * len(between)
 
 
-def test_membrane_fill_spans_only_gaps_enclosed_by_data_inside_the_region():
-    """Interpolation only: a flat sheet with a disc emptied by a ball region (no captured point inside) gets
-    no membrane, though the hold-out would pass there (steps 6-6c span such holes); with a few captured
-    points kept near the disc's centre, only the open parts within their convex hull are filled."""
+def test_membrane_sag_is_the_closed_form_departure_of_the_harmonic_membrane():
+    """|c3 + c5| r^2 / 2 of the anchors' quadric: 0 on a tilted plane and on a saddle (both harmonic), k r^2 on
+    the paraboloid z = k (x^2 + y^2), and about r^2 / (4 R) round a cylinder of radius R (its top, z = sqrt(R^2
+    - y^2) ~ R - y^2 / (2 R))."""
+    from dpcbench.methods.temporal_fusion import membrane_sag
+
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 6.0)
+
+    def ring(height):
+        sheet = jittered_sheet(10, height, seed=3)
+        return sheet[region.contains(sheet, margin=3.0) & ~region.contains(sheet)]
+    assert membrane_sag(ring(lambda x, y: 0.3 * x - 0.2 * y), region) < 0.05
+    assert membrane_sag(ring(lambda x, y: 0.04 * (x * x - y * y)), region) < 0.05
+    assert membrane_sag(ring(lambda x, y: 0.04 * (x * x + y * y)), region) == pytest.approx(0.04 * 36, rel=0.05)
+    limb = jittered_sheet(12, lambda x, y: np.sqrt(np.maximum(64.0 - y * y, 0.0)), seed=4)
+    limb = limb[np.abs(limb[:, 1]) < 7.9]
+    top = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
+    sag = membrane_sag(limb[top.contains(limb, margin=3.0) & ~top.contains(limb)], top)
+    assert 49 / 32 * 0.8 < sag < 49 / 32 * 1.5, sag
+
+
+def test_membrane_fill_spans_an_open_disc_only_where_the_membrane_cannot_sag():
+    """A ball region of radius 6 on a flat sheet and on the paraboloid z = 0.03 (x^2 + y^2) (sag 1.08 spacings,
+    above the bound of 1). Emptied (no captured point inside): the membrane spans the flat disc, on the plane,
+    and leaves the paraboloid's open. With an annulus of captured points kept inside (radius 3.5-4.5): on the
+    paraboloid only the open part within the annulus's convex hull (its centre) is filled, never the open band
+    outside it; on the flat sheet that band is filled too."""
     from dpcbench.methods.lozes_pde import sampling_step
     from dpcbench.methods.temporal_fusion import membrane_fill
 
-    sheet = jittered_sheet(16, lambda x, y: 0.0 * x, seed=8)
     region = HoleRegion.ball([0.0, 0.0, 0.0], 6.0)
-    emptied = sheet[~region.contains(sheet)]
-    step = sampling_step(emptied)
-    assert len(membrane_fill(emptied, region, cKDTree(emptied), 1.0, step=step)) == 0
-    centre = np.abs(sheet[:, :2]).max(axis=1) <= 2.6  # a square of captured points kept inside the ball
-    kept = np.vstack([emptied, sheet[centre][::3]])
-    fill = membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)
-    assert len(fill) > 0 and np.abs(fill[:, 2]).max() <= 0.3
-    assert np.abs(fill[:, :2]).max() <= 2.7  # within the kept square's hull, never out towards the rim
+    flat = jittered_sheet(16, lambda x, y: 0.0 * x, seed=8)
+    bowl = jittered_sheet(16, lambda x, y: 0.03 * (x * x + y * y), seed=8)
+    step = sampling_step(flat[~region.contains(flat)])
+
+    def fill_of(surface, keep_annulus):
+        radius = np.hypot(surface[:, 0], surface[:, 1])
+        kept = surface[~region.contains(surface) | (keep_annulus & (radius >= 3.5) & (radius <= 4.5))]
+        return membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)
+
+    fill = fill_of(flat, False)
+    assert len(fill) and np.abs(fill[:, 2]).max() <= 0.3
+    hidden = flat[region.contains(flat)]
+    assert np.mean(cKDTree(fill).query(hidden)[0] <= 1.0) >= 0.9  # the disc is spanned, not a ring of it
+    assert len(fill_of(bowl, False)) == 0
+    inside = fill_of(bowl, True)
+    assert len(inside) and np.hypot(inside[:, 0], inside[:, 1]).max() < 3.5
+    assert np.abs(inside[:, 2] - 0.03 * (inside[:, 0] ** 2 + inside[:, 1] ** 2)).max() < 0.6
+    assert np.hypot(*fill_of(flat, True)[:, :2].T).max() > 4.6
 
 
 def test_rows_in_matches_a_set_of_tuples():
@@ -958,13 +990,14 @@ def test_rim_sheet_keeps_the_hole_s_own_sheet_and_step_6_then_fills_it():
 def test_a_hole_beside_a_second_surface_is_filled_on_its_own_sheet():
     """The same scene (scaled by 1.1, so not voxelized) as a 3-frame sequence with the hole in every frame (no
     frame saw it): with step 6f the hole is filled on the floor in every frame, every hidden point within a
-    spacing of the result; without it (``sheet=False``) steps 6-6e refuse it and it stays open."""
+    spacing of the result; without it (``sheet=False``, and ``membrane=False``: step 6e's membrane spans this flat
+    disc too since version 19) steps 6-6d refuse it and it stays open."""
     scene = floor_and_wall(12.0, scale=1.1)
     region = HoleRegion.ball([0.0, 0.0, 0.0], 11.0)
     kept = scene[~region.contains(scene)]
     hidden = scene[region.contains(scene)]
     filled = quiet(TemporalFusion(), [kept.copy() for _ in range(3)], [[region]] * 3)
-    unfilled = quiet(TemporalFusion(sheet=False), [kept.copy() for _ in range(3)], [[region]] * 3)
+    unfilled = quiet(TemporalFusion(sheet=False, membrane=False), [kept.copy() for _ in range(3)], [[region]] * 3)
     for with_sheet, without in zip(filled, unfilled):
         added = with_sheet[len(kept):]
         assert len(added) > 0.8 * len(hidden) and np.abs(added[:, 2]).max() < 1e-6

@@ -98,7 +98,7 @@ def test_front_fill_on_voxels_gives_integer_surface_voxels():
 def test_a_hole_round_a_limb_is_refused_by_the_spline_and_filled_on_the_surface_by_the_front():
     """A cylinder of radius 8 (a limb) with a ball hole of radius 7 on its side: the rim wraps round
     it (not one height field, step 6 refuses it), so without steps 6c and 6b it stays open (step 6e's
-    membrane would lie 2 spacings inside the cylinder: it needs captured points inside the region); with
+    membrane would lie 2 spacings inside the cylinder: its sag bound refuses it); with
     ``front`` (step 6c off) the hole's edge is filled, within a fit radius of the rim, on the cylinder."""
     limb = cylinder()
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
