@@ -807,6 +807,17 @@ def occluded(points: np.ndarray, centres) -> np.ndarray:
     return np.any([np.hypot(points[:, 0] - cx, points[:, 1] - cy) < 3.0 for cx, cy in centres], axis=0)
 
 
+def bowl_in_a_box(curvature: float, centre, half_extents):
+    """z = curvature (x^2 + y^2) sampled by `jittered_sheet` (seed 3), an axis-aligned box, and two unseen
+    patches in it (`occluded` at (-3.5, 0) and (3.5, 1)): (height function, sheet, region, kept, hidden)."""
+    def height(x, y):
+        return curvature * (x ** 2 + y ** 2)
+
+    sheet = jittered_sheet(20, height, seed=3)
+    hidden_mask = occluded(sheet, [(-3.5, 0.0), (3.5, 1.0)])
+    return height, sheet, HoleRegion.box(centre, half_extents), sheet[~hidden_mask], sheet[hidden_mask]
+
+
 def test_membrane_fill_spans_the_open_parts_of_an_occlusion_box_on_the_surface():
     """A gently curved sheet, z = 0.005 (x^2 + y^2); an oriented box (16 x 16 x 6) holds captured points and two
     unseen patches (discs of radius 3, 138 points): the membrane anchored at the data round and inside the box
@@ -816,13 +827,7 @@ def test_membrane_fill_spans_the_open_parts_of_an_occlusion_box_on_the_surface()
     from dpcbench.methods.lozes_pde import sampling_step
     from dpcbench.methods.temporal_fusion import membrane_fill
 
-    def height(x, y):
-        return 0.005 * (x ** 2 + y ** 2)
-
-    sheet = jittered_sheet(20, height, seed=3)
-    region = HoleRegion.box([0.0, 0.0, 1.0], [8.0, 8.0, 3.0])
-    hidden_mask = occluded(sheet, [(-3.5, 0.0), (3.5, 1.0)])
-    kept, hidden = sheet[~hidden_mask], sheet[hidden_mask]
+    height, sheet, region, kept, hidden = bowl_in_a_box(0.005, [0.0, 0.0, 1.0], [8.0, 8.0, 3.0])
     assert region.contains(kept).sum() > 100  # captured points inside the box: an occlusion box, not a disc
     fill = membrane_fill(kept, region, cKDTree(kept), 1.0, step=sampling_step(kept))
     assert 0.6 * len(hidden) <= len(fill) <= 1.6 * len(hidden), (len(fill), len(hidden))
@@ -840,13 +845,7 @@ def test_membrane_hold_out_leaves_out_the_band_round_the_open_part_not_the_box()
     from dpcbench.methods.lozes_pde import LozesPDE, sampling_step
     from dpcbench.methods.temporal_fusion import membrane_fill
 
-    def height(x, y):
-        return 0.02 * (x ** 2 + y ** 2)
-
-    sheet = jittered_sheet(20, height, seed=3)
-    region = HoleRegion.box([0.0, 0.0, 2.0], [8.0, 8.0, 4.0])
-    hidden_mask = occluded(sheet, [(-3.5, 0.0), (3.5, 1.0)])
-    kept, hidden = sheet[~hidden_mask], sheet[hidden_mask]
+    height, _, region, kept, hidden = bowl_in_a_box(0.02, [0.0, 0.0, 2.0], [8.0, 8.0, 4.0])
     step = sampling_step(kept)
     lozes = LozesPDE(p=2.0, ring_spacings=3.0)
     box_and_band = region.contains(kept, margin=1.5 * step)
