@@ -157,7 +157,9 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    surface of the whole crop; version 21): a noisy capture misses any smooth surface by its noise, held out
    or not. Measured (MVUB ricardo9, a real capture held out from tuning, coherent holes): the ring's scatter is
    0.5 s there (0.1-0.2 s on D-FAUST), and a hole whose Poisson fill lay 0.64 s off the truth was refused
-   at a miss of 1.12 s (0.99 less the scatter). Each body of the crop (``poisson_bodies``: its connected
+   at a miss of 1.12 s (0.99 less the scatter). Grids (methods/NOTES.md, "version 21"): ricardo9 coherent
+   25.59 / 34.62 -> 27.78 / 34.77 (lozes-pde 27.26 / 31.76), bunny small coherent 33.25 / 36.22 -> 34.04 /
+   37.30; every other row within 0.1 dB. Each body of the crop (``poisson_bodies``: its connected
    components, points linked within 3 s, the attachment reach; those with at least 32 points and a point
    within 3 s of R) is reconstructed and tested on its own, and the fill is the union.
    Why bodies (version 13): one reconstruction of a crop holding two bodies closer than the hole's
