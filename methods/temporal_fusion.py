@@ -168,6 +168,18 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    a fill 1.4 / 4.1 voxels off the truth (p50 / p90) passed the hold-out at 0.91 s and, reused over the
    frames, took whole-frame D2 from 26.20 (no step 6c) to 16.95 dB; body by body the row gives D1 / D2
    25.60 / 28.27 (no fill 9.00 / 26.24). Rows: methods/NOTES.md, "version 13".
+   Except the two ends of a limb that the hole cuts through (version 22; ``poisson_bridges``, `limb_ends`):
+   bodies whose points next to R lie to one side of its centre (their mean unit direction from it at least
+   0.5 long; round a patch the body's surface encloses it is about 0, at the cut end of a tube of radius a
+   through a ball of radius r about sqrt(1 - (a / r)^2)), paired when they point apart. Body by body each end
+   was capped and the limb between left open; one Poisson surface of the two caps each short piece rather
+   than span a gap longer than its diameter. A pair is filled by step 6's spline in the tube's chart
+   (`tube_fill`: the radius over the axial position and the arc length round the axis through the two ends'
+   centroids, with step 6's normal, hold-out and interpolation tests in that chart) and, refused, body by
+   body as before. Measured (samba coherent, seed 0, 10 frames: an arm cut through at the elbow; row.py):
+   D1 / D2 18.68 / 22.72 -> 24.09 / 25.97. Grids (methods/NOTES.md "version 22"): targets (seeds 0-2) samba
+   coherent 23.57 / 26.58 -> 25.58 / 27.99 (no fill 9.02 / 27.84: D2 above no fill now), held-out seeds 3-4
+   bunny coherent 34.17 / 37.41 -> 34.14 / 37.39, every other row and the held-out data unchanged.
    Why step 6c at all: a hole left open costs whole-frame
    D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
    26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
@@ -305,6 +317,10 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     from step 4's reach (3 s).
   poisson_bodies    True: step 6c reconstructs each connected body of the crop alone (links of 3 s, the
                     attachment reach; False: one reconstruction of the whole crop, version 12).
+  poisson_bridges   True: step 6c fills across two bodies that are the ends of one limb the hole cuts through
+                    (`limb_ends`: near points to one side of the centre, |u| >= 0.5, the ends pointing apart;
+                    `tube_fill`); both bounds are geometry (a tube of radius up to 0.87 r; bent up to 90
+                    degrees), the tube's tests step 6's.
   cap               True: step 6d (voxelized input); its band, 2 s, is the rim's first rows of samples (one row
                     leaves gaps where the sampling is uneven); its flatness bound max(1 s, r / 20) is step 6's
                     hold-out bound, or on a wide opening a wobble of 3 degrees seen from the loop's centre.
@@ -973,7 +989,8 @@ def sample_triangles(vertices: np.ndarray, triangles: np.ndarray, step: float) -
 
 def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
                          voxelized: bool, step: float | None = None, gap_spacings: float = 1.0, ring: float = 0.0,
-                         max_holdout_spacings: float = 1.0, separate_bodies: bool = True) -> np.ndarray:
+                         max_holdout_spacings: float = 1.0, separate_bodies: bool = True,
+                         bridge_ends: bool = True) -> np.ndarray:
     """Closed-surface fill (step 6c of the module docstring) of the parts of ``region`` that no point of
     ``covered`` is within ``gap_spacings * spacing`` of, on the screened Poisson surface of ``support``
     (K, 3) (the points round the hole: the crop of step 1 and the reused points). Returns (P, 3) points;
@@ -997,7 +1014,8 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     (`_bodies`; the attachment reach); each component with at least 32 points and a point within 3 s of
     the region is reconstructed, tested and sampled alone, and the fill is the union (unique rows). One
     reconstruction of two bodies closer than the hole's diameter bridges the gap between them inside the
-    hole (module docstring, step 6c).
+    hole (module docstring, step 6c). With ``bridge_ends``, two bodies that are the ends of one limb the hole
+    cuts through (`limb_ends`) are filled by `tube_fill` instead, and alone when it refuses.
 
     Hold-out test (when ``ring`` > 0; step 6's test, with the same bound), per body: the support points within
     ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed, and
@@ -1014,21 +1032,146 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
         return np.zeros((0, 3))
     grid = spacing if voxelized else (step or spacing)
     free = (0.5 if voxelized else gap_spacings) * spacing
-    parts = []
-    for body in _bodies(support, 3 * spacing) if separate_bodies else [support]:
+    bodies = _bodies(support, 3 * spacing) if separate_bodies else [support]
+    groups = limb_ends(bodies, region, spacing) if separate_bodies and bridge_ends else [[body] for body in bodies]
+
+    def fill_of(body: np.ndarray) -> np.ndarray:
         if len(body) < 32 or not region.contains(body, margin=3 * spacing).any():
             # too few points to reconstruct; or no point within the attachment reach (3 s) of R, so no fill
             # point inside R could be attached to this body
-            continue
+            return np.zeros((0, 3))
         surface = _poisson_samples(body, grid)
         if ring > 0 and not _holds_out(body, region, ring, free, spacing, voxelized, grid, max_holdout_spacings,
                                        whole=surface):
-            continue
-        parts.append(_poisson_points(body, region.contains, covered, free, spacing, voxelized, grid, samples=surface))
+            return np.zeros((0, 3))
+        return _poisson_points(body, region.contains, covered, free, spacing, voxelized, grid, samples=surface)
+
+    parts = []
+    for group in groups:
+        if len(group) > 1:
+            # two ends of a limb the hole cuts through: the tube across; refused, each end on its own
+            tube = tube_fill(group[0], group[1], region, covered, spacing, voxelized=voxelized, step=step,
+                             gap_spacings=gap_spacings, ring=ring, max_holdout_spacings=max_holdout_spacings)
+            if len(tube):
+                parts.append(tube)
+                continue
+        parts.extend(fill_of(body) for body in group)
     parts = [p for p in parts if len(p)]
     if not parts:
         return np.zeros((0, 3))
     return parts[0] if len(parts) == 1 else np.unique(np.vstack(parts), axis=0)
+
+
+def limb_ends(bodies: list[np.ndarray], region: HoleRegion, spacing: float, one_sided: float = 0.5
+              ) -> list[list[np.ndarray]]:
+    """``bodies`` (each (K_i, 3), `_bodies` of a crop round ``region``) grouped for step 6c: pairs of ends of one
+    limb that the hole cuts through, the rest alone. Returns a list of groups (lists of bodies), every body in
+    exactly one group.
+
+    A body's near points are those within 3 s (the attachment reach) of the region and outside it; u the mean
+    of their unit directions from the region's centre. An end: |u| >= ``one_sided`` (its near points lie to one
+    side of the centre; round a patch the body's surface encloses, they surround it and |u| is about 0; at the
+    cut end of a tube of radius a through a ball of radius r, |u| is about sqrt(1 - (a / r)^2), 0.87 for a = r / 2,
+    and 0.5 at a = 0.87 r). Two ends pair when their directions u / |u| point apart (dot <= 0: on opposite
+    sides of the centre, a limb bent at the hole up to 90 degrees included), most opposite first, each end in
+    one pair at most. A pair may also be two bodies that merely lie on opposite sides of the hole: `tube_fill`'s
+    tests (radial normals, hold-out) then refuse it, and each body is filled alone."""
+    ends = []
+    for index, body in enumerate(bodies):
+        near = body[region.contains(body, margin=3 * spacing) & ~region.contains(body)]
+        if len(body) < 32 or len(near) < 6:
+            continue
+        directions = near - region.center
+        directions /= np.maximum(np.linalg.norm(directions, axis=1, keepdims=True), 1e-12)
+        mean = directions.mean(axis=0)
+        length = float(np.linalg.norm(mean))
+        if length >= one_sided:
+            ends.append((index, mean / length))
+    pairs = sorted((float(a @ b), i, j) for k, (i, a) in enumerate(ends) for j, b in ends[k + 1:])
+    paired: set[int] = set()
+    groups = []
+    for cosine, i, j in pairs:
+        if cosine <= 0.0 and i not in paired and j not in paired:
+            paired |= {i, j}
+            groups.append([bodies[i], bodies[j]])
+    return groups + [[body] for index, body in enumerate(bodies) if index not in paired]
+
+
+def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
+              voxelized: bool, step: float | None = None, gap_spacings: float = 1.0, ring: float = 0.0,
+              max_holdout_spacings: float = 1.0, max_steep: float = MAX_STEEP) -> np.ndarray:
+    """Step 6's fill in a cylinder's chart, across a hole that cuts a limb through (`limb_ends`): ``first`` and
+    ``second`` (K1, 3), (K2, 3) are the limb's two ends round ``region``. Returns (P, 3) points of the parts of
+    the region no point of ``covered`` is within ``gap_spacings * spacing`` of; (0, 3) when not trusted.
+
+    Chart: the axis a runs from the centroid of the first end's points next to the region (within 3 s, outside
+    it) to the second's, from their midpoint o; a point p has t = (p - o) . a, its radius rho = |w| and angle
+    phi of w = p - o - t a round a. The surface is the thin-plate spline rho(t, phi rho_m) (rho_m the median
+    radius, so both chart coordinates are lengths; units of s, smoothing 1, linear polynomial part), fitted to
+    at most `SURFACE_POINTS` evenly strided points of both ends, periodic in phi through copies of the points
+    within a quarter turn of the seam. Step 6 in the plane chart of a hole round a limb sees no height field
+    (the normals wrap round it); here the same tests hold in this chart: the normals must be radial (at most
+    ``max_steep`` of them more than 60 degrees off w), the spline of the points farther than ``ring`` from the
+    region must predict the radii of those within it to ``max_holdout_spacings`` spacings RMS, and the fill is
+    interpolation only (t between the two ends' centroids). Grid: t and the arc length phi rho_m at step g
+    (s / 2 on voxelized data, then rounded to voxels; else ``step``), lifted to the spline's radius, kept
+    inside the region and not covered.
+
+    Why not step 6c's Poisson surface of the two ends as one: the screened Poisson indicator closes each short
+    piece of tube with a cap rather than span a gap longer than its diameter. Measured on a voxelized tube of
+    radius 5 cut by a ball of radius 8 (`test_tube_fill_bridges_a_limb_the_hole_cuts_through`): the joint Poisson
+    fill covered half the hidden voxels (within 1.5) and lay up to 4.5 voxels off the wall; this fill covers
+    all of them, within 1.4 of the wall."""
+    from scipy.interpolate import RBFInterpolator
+
+    ends = [body[region.contains(body, margin=3 * spacing) & ~region.contains(body)].mean(axis=0)
+            for body in (first, second)]
+    axis = ends[1] - ends[0]
+    if not np.linalg.norm(axis) > 0:
+        return np.zeros((0, 3))
+    axis = axis / np.linalg.norm(axis)
+    origin = (ends[0] + ends[1]) / 2.0
+    across = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    across /= np.linalg.norm(across)
+    frame = np.array([across, np.cross(axis, across)])
+    support = even_subset(np.vstack([first, second]), SURFACE_POINTS)
+    normals = estimate_normals(support, 10, queries=support)
+    t = (support - origin) @ axis
+    radial = support - origin - t[:, None] * axis
+    rho = np.linalg.norm(radial, axis=1)
+    if float(np.mean(np.abs(np.einsum("ij,ij->i", normals, radial)) < 0.5 * np.maximum(rho, 1e-12))) > max_steep:
+        return np.zeros((0, 3))  # the normals are not radial: no tube round the axis
+    phi = np.arctan2(radial @ frame[1], radial @ frame[0])
+    arc = float(np.median(rho))
+
+    def spline_of(mask):
+        # periodic in phi: the points within a quarter turn of the seam are copied across it
+        upper, lower = mask & (phi > np.pi / 2), mask & (phi < -np.pi / 2)
+        tt = np.concatenate([t[mask], t[upper], t[lower]])
+        pp = np.concatenate([phi[mask], phi[upper] - 2 * np.pi, phi[lower] + 2 * np.pi])
+        rr = np.concatenate([rho[mask], rho[upper], rho[lower]])
+        # thin-plate spline in point-spacing units, smoothing 1, as step 6
+        return RBFInterpolator(np.column_stack([tt, pp * arc]) / spacing, rr / spacing, kernel="thin_plate_spline",
+                               smoothing=1.0, degree=1)
+
+    if ring > 0:
+        inner = region.contains(support, margin=ring)
+        if inner.sum() >= 6 and (~inner).sum() >= 12:
+            predicted = spline_of(~inner)(np.column_stack([t[inner], phi[inner] * arc]) / spacing)
+            if float(np.sqrt(np.mean((predicted - rho[inner] / spacing) ** 2))) > max_holdout_spacings:
+                return np.zeros((0, 3))
+    grid_step = spacing / 2.0 if voxelized else (step or spacing)
+    low, high = sorted(float((end - origin) @ axis) for end in ends)
+    tt, pp = np.meshgrid(np.arange(low, high + grid_step / 2, grid_step),
+                         np.arange(-np.pi, np.pi, grid_step / max(arc, grid_step)), indexing="ij")
+    tt, pp = tt.ravel(), pp.ravel()
+    radius = spline_of(np.ones(len(support), dtype=bool))(np.column_stack([tt, pp * arc]) / spacing) * spacing
+    points = origin + tt[:, None] * axis + radius[:, None] * (np.cos(pp)[:, None] * frame[0] + np.sin(pp)[:, None] * frame[1])
+    points = points[region.contains(points)]
+    points = points[far_from(points, covered, gap_spacings * spacing)]
+    if voxelized and len(points):
+        points = np.unique(np.floor(points + 0.5), axis=0)
+    return points
 
 
 def _link_components(points: np.ndarray, reach: float) -> tuple[int, np.ndarray]:
@@ -1276,7 +1419,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "21"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "22"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -1286,7 +1429,8 @@ class TemporalFusion(InpaintingMethod):
     # hole's own sheet of the crop; 18: step 5b's agreement tolerance widened by the copy's rim residual;
     # 19: step 6e spans an open disc too where the anchors' quadric bounds the membrane's sag; 20: step 6e's
     # hold-out leaves out the band round the open part (not the box), plus its height-field and two-layer tests;
-    # 21: step 6c's hold-out miss is judged less the ring's own scatter about the whole body's surface
+    # 21: step 6c's hold-out miss is judged less the ring's own scatter about the whole body's surface;
+    # 22: step 6c spans a hole that cuts a limb through by a spline in the tube's chart (`tube_fill`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -1296,7 +1440,7 @@ class TemporalFusion(InpaintingMethod):
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True,
-                 poisson_bodies: bool = True, cap: bool = True, membrane: bool = True, front: bool = False,
+                 poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True,
                  snap: bool | str = "auto") -> None:
         self.window = window
@@ -1316,6 +1460,7 @@ class TemporalFusion(InpaintingMethod):
         self.rim_fill = rim_fill
         self.poisson = poisson
         self.poisson_bodies = poisson_bodies
+        self.poisson_bridges = poisson_bridges
         self.cap = cap
         self.membrane = membrane
         self.partial_sources = partial_sources
@@ -1348,7 +1493,7 @@ class TemporalFusion(InpaintingMethod):
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
-                     "cap", "membrane", "front", "partial_sources", "sheet", "revoxelize"):
+                     "poisson_bridges", "cap", "membrane", "front", "partial_sources", "sheet", "revoxelize"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1588,7 +1733,8 @@ class TemporalFusion(InpaintingMethod):
                                                voxelized=ctx["voxelized"], step=ctx["step"],
                                                gap_spacings=self.fill_gap_spacings, ring=shell / 2,
                                                max_holdout_spacings=self.surface_holdout_spacings,
-                                               separate_bodies=self.poisson_bodies)
+                                               separate_bodies=self.poisson_bodies,
+                                               bridge_ends=self.poisson_bridges)
             if self.cap and ctx["voxelized"] and not len(spatial):
                 # step 6d: an opening no surface round it continues (a base, a sole), spanned by a membrane
                 spatial = cap_fill(local, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
