@@ -47,7 +47,16 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
       normal equations in a thread-parallel order, and version 4, which used it, gave a different
       fill from run to run), kept when the rim residual does not grow;
    b. accepted when the trimmed mean rim residual is at most ``accept_spacings * s`` (two samplings
-      of one surface lie about half a spacing apart; a wrong match lies a spacing or more off);
+      of one surface lie about half a spacing apart; a wrong match lies a spacing or more off).
+      Version 23: f-1 with its own hole near R that fails this bound is judged again on the rim
+      points it saw (`seen_rim_residual`: those whose place in f-1 lies outside f-1's holes; a rim
+      point where f-1 has a hole has no counterpart and measures the hole, not the motion); within the
+      same bound there, its motion carries f-1's fill (step 5), and f-1 is still no source (nor a
+      partial one: step 5b's agreement is widened by the whole rim's residual). Measured (one-off
+      row runs, 10 frames, D1 / D2): D-FAUST coherent seed 3 22.51 / 30.25 -> 24.25 / 30.87 (a hand
+      hole whose reused fill was lost at frame 4, f-1's whole-rim residual 1.07 s, then 1.25 s), seed
+      2 21.58 / 31.54 -> 21.53 / 32.07; the other coherent and independent rows (4 sequences,
+      seeds 0-2) within 0.05 dB (methods/NOTES.md "version 23");
    c. non-rigid (``deform``): each rim point q pairs with its nearest moved source point p within
       ``2 s`` and gives the normal residual v_q = ((q - p) . n_p) n_p (n_p: PCA normal of p's 10
       nearest source points); every candidate point inside R moves by the inverse-square-distance
@@ -100,7 +109,7 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    human occlusion 46.98 -> 47.12 (seed 0, 5 frames).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
    fill alike, steps 5b and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
-   computed even when f-1 failed the coverage test) and, where they still fit the rim (points within
+   computed even when f-1 failed the coverage test; accepted by step 2b, on the rim f-1 saw) and, where they still fit the rim (points within
    3 s of the rim and farther than ``accept_spacings * s`` off its local plane are dropped, as in step
    4), fill the parts of R that the copies left open. They *replace* the spatial fill there (step 6
    fills only what is still open), so fills never pile up, and a persistent hole keeps the fill it
@@ -391,6 +400,21 @@ def even_subset(points: np.ndarray, count: int) -> np.ndarray:
 
 
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
+
+def seen_rim_residual(source_tree: cKDTree, rim: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
+                      source_holes: list[HoleRegion]) -> float:
+    """`alignment_residual` of ``rim`` (K, 3) to the source moved by (R, t), over the rim points whose
+    place in the source's frame, (q - t) R, lies in none of ``source_holes`` (the source frame's own hole
+    regions, in its coordinates): a rim point where the source has a hole has no counterpart there, and
+    its distance measures the hole, not the alignment. inf when fewer than 6 rim points are left."""
+    back = (np.asarray(rim) - translation) @ rotation
+    seen = np.ones(len(back), dtype=bool)
+    for hole in source_holes:
+        seen &= ~hole.contains(back)
+    if seen.sum() < 6:
+        return float("inf")
+    return alignment_residual(source_tree, rim[seen], rotation, translation)
+
 
 def rim_displacement(rim: np.ndarray, moved_source: np.ndarray, max_distance: float) -> tuple[np.ndarray, np.ndarray]:
     """Normal residual of the rim after a rigid alignment: (rim points kept (K, 3), v (K, 3)).
@@ -1419,7 +1443,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "22"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "23"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -1430,7 +1454,8 @@ class TemporalFusion(InpaintingMethod):
     # 19: step 6e spans an open disc too where the anchors' quadric bounds the membrane's sag; 20: step 6e's
     # hold-out leaves out the band round the open part (not the box), plus its height-field and two-layer tests;
     # 21: step 6c's hold-out miss is judged less the ring's own scatter about the whole body's surface;
-    # 22: step 6c spans a hole that cuts a limb through by a spline in the tube's chart (`tube_fill`)
+    # 22: step 6c spans a hole that cuts a limb through by a spline in the tube's chart (`tube_fill`);
+    # 23: f-1's motion carries its fill when it passes step 2b on the rim f-1 saw (`seen_rim_residual`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -1605,6 +1630,7 @@ class TemporalFusion(InpaintingMethod):
         local_plane = None  # `plane_target` of ``local`` (points, normals, tree), for step 2a's refinement
         candidates = []
         partial = []
+        carried = None  # f-1's motion when it carries its fill only (step 2b)
         for g in order:
             nearer = g - 1 if g > f else g + 1
             rotation0, translation0, _ = motions.get(nearer, motions[f])
@@ -1644,13 +1670,23 @@ class TemporalFusion(InpaintingMethod):
                 refined_residual = alignment_residual(source_tree, rim, *refined)
                 if refined_residual <= residual:
                     (rotation, translation), residual = refined, refined_residual
+            carries_only = False
             if residual > self.accept_spacings * spacing:
-                continue
+                # f-1 with its own hole there: judged again on the rim it saw, its motion carries its fill
+                # (step 5) though it is no source (step 2b)
+                if not (own_hole and g == f - 1 and self.reuse_previous
+                        and seen_rim_residual(source_tree, rim, rotation, translation, ctx["regions"][g])
+                        <= self.accept_spacings * spacing):
+                    continue
+                carries_only = True
             moved = source @ rotation.T + translation
             inside = region.contains(moved)
             field = None
             if self.deform:
                 field = rim_displacement(rim, moved[~inside], 2 * spacing)
+            if carries_only:
+                carried = (rotation, translation, field)
+                continue
             motions[g] = (rotation, translation, field)
             if inside.any() and not own_hole:
                 candidates.append((residual, abs(g - f), g, self._deformed(moved[inside], field)))
@@ -1680,8 +1716,8 @@ class TemporalFusion(InpaintingMethod):
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
 
         # step 5: the previous frame's fill, moved with the body, where the hole is still open
-        if self.reuse_previous and len(previous_fill) and f - 1 in motions:
-            rotation, translation, field = motions[f - 1]
+        if self.reuse_previous and len(previous_fill) and (f - 1 in motions or carried is not None):
+            rotation, translation, field = motions.get(f - 1, carried)
             moved = previous_fill @ rotation.T + translation
             moved = self._deformed(moved[region.contains(moved)], field)
             moved = moved[far_from(moved, local_tree, self.gap_spacings * spacing)]
@@ -1808,7 +1844,7 @@ class TemporalFusion(InpaintingMethod):
         return points + interpolate_displacement(points, anchors, displacement, int(self.deform_neighbours))
 
 
-__all__ = ["TemporalFusion", "crossed_voxels", "crossing_offset", "disagreeing", "fit_height_field",
+__all__ = ["TemporalFusion", "crossed_voxels", "crossing_offset", "disagreeing", "fit_height_field", "seen_rim_residual",
            "interpolate_displacement", "mls_fit", "mls_project", "orient_along_surface", "PlaneTarget", "plane_target", "poisson_surface_fill",
            "refine_point_to_plane", "rim_crossing_threshold", "rim_displacement", "rim_surface_fill", "sample_triangles",
            "snap_to_voxels", "surface_voxels"]

@@ -1130,3 +1130,53 @@ def test_a_hole_beside_a_second_surface_is_filled_on_its_own_sheet():
         assert len(added) > 0.8 * len(hidden) and np.abs(added[:, 2]).max() < 1e-6
         assert cKDTree(with_sheet).query(hidden)[0].max() <= 1.1 + 1e-9
         assert len(without) == len(kept)
+
+
+# -- version 23: f-1's motion judged on the rim it saw carries its fill ------------------------------
+
+def test_seen_rim_residual_leaves_out_the_rim_the_source_had_a_hole_over():
+    """A plane rim; the source is the same plane with a hole of its own over part of the rim: the whole
+    rim's residual measures that hole, the seen rim's is the exact value on the rest, and the identity
+    of `alignment_residual` without holes."""
+    from dpcbench.methods._registration import alignment_residual
+    from dpcbench.methods.temporal_fusion import seen_rim_residual
+
+    g = np.arange(-20.0, 20.5, 1.0)
+    plane = np.stack(np.meshgrid(g, g, [0.0], indexing="ij"), axis=-1).reshape(-1, 3)
+    rim = plane[np.linalg.norm(plane[:, :2], axis=1) > 10] + np.array([0.0, 0.0, 0.3])  # 0.3 above the source
+    own = HoleRegion.ball([18.0, 0.0, 0.0], 12.0)
+    source = plane[~own.contains(plane)]
+    tree = cKDTree(source)
+    eye, zero = np.eye(3), np.zeros(3)
+    whole = alignment_residual(tree, rim, eye, zero)
+    seen = seen_rim_residual(tree, rim, eye, zero, [own])
+    assert whole > seen + 0.15  # the hole's points, past the trimmed 10 %
+    assert seen == pytest.approx(0.3, abs=1e-9)
+    assert seen_rim_residual(tree, rim, eye, zero, []) == pytest.approx(whole)
+    # the source moved by a known motion: the holes are placed in the source's own coordinates
+    rotation = Rotation.from_rotvec([0.0, 0.0, 0.4]).as_matrix()
+    shift = np.array([5.0, -3.0, 2.0])
+    moved_back = (source - shift) @ rotation  # the source in coordinates where (R, t) puts it on the rim's plane
+    own_back = HoleRegion.ball((own.center - shift) @ rotation, 12.0)
+    assert seen_rim_residual(cKDTree(moved_back), rim, rotation, shift, [own_back]) == pytest.approx(0.3, abs=1e-9)
+    assert seen_rim_residual(tree, rim[:3], eye, zero, []) == float("inf")
+
+
+def test_a_previous_fill_is_carried_when_the_previous_hole_covered_most_of_the_rim():
+    """A still body sampled afresh each frame; frame 0's hole (r = 14) covers most of frame 1's rim (r =
+    10, rim to r + 4 s). Frame 0's whole-rim residual is over step 2b's bound (1.4 s), on the rim it saw it
+    is a sampling's: frame 1 keeps frame 0's fill, moved (by the identity), where without reuse it gets a
+    spatial fill of its own."""
+    full = [bumpy(32000 + 37 * f) for f in range(2)]
+    centre = full[0][np.argmax(full[0][:, 2])]
+    regions = [[HoleRegion.ball(centre, 14.0)], [HoleRegion.ball(centre, 10.0)]]
+    frames = [x[~r[0].contains(x)] for x, r in zip(full, regions)]
+
+    def distance_to_frame_0_fill(method):
+        out = quiet(method, frames, regions)
+        fills = [o[len(f):] for o, f in zip(out, frames)]
+        assert len(fills[1]) > 0.5 * regions[1][0].contains(full[1]).sum()
+        return float(np.median(cKDTree(fills[0]).query(fills[1])[0]))
+
+    assert distance_to_frame_0_fill(TemporalFusion()) < 0.1
+    assert distance_to_frame_0_fill(TemporalFusion(reuse_previous=False)) > 0.25
