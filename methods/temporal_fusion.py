@@ -1630,7 +1630,7 @@ class TemporalFusion(InpaintingMethod):
         local_plane = None  # `plane_target` of ``local`` (points, normals, tree), for step 2a's refinement
         candidates = []
         partial = []
-        carried = None  # f-1's motion when it carries its fill only (step 2b)
+        carried: tuple | None = None  # f-1's motion when it carries its fill only (step 2b)
         for g in order:
             nearer = g - 1 if g > f else g + 1
             rotation0, translation0, _ = motions.get(nearer, motions[f])
@@ -1716,8 +1716,9 @@ class TemporalFusion(InpaintingMethod):
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
 
         # step 5: the previous frame's fill, moved with the body, where the hole is still open
-        if self.reuse_previous and len(previous_fill) and (f - 1 in motions or carried is not None):
-            rotation, translation, field = motions.get(f - 1, carried)
+        carrying = motions.get(f - 1, carried)
+        if self.reuse_previous and len(previous_fill) and carrying is not None:
+            rotation, translation, field = carrying
             moved = previous_fill @ rotation.T + translation
             moved = self._deformed(moved[region.contains(moved)], field)
             moved = moved[far_from(moved, local_tree, self.gap_spacings * spacing)]
