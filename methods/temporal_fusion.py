@@ -56,7 +56,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
       row runs, 10 frames, D1 / D2): D-FAUST coherent seed 3 22.51 / 30.25 -> 24.25 / 30.87 (a hand
       hole whose reused fill was lost at frame 4, f-1's whole-rim residual 1.07 s, then 1.25 s), seed
       2 21.58 / 31.54 -> 21.53 / 32.07; the other coherent and independent rows (4 sequences,
-      seeds 0-2) within 0.05 dB (methods/NOTES.md "version 23");
+      seeds 0-2) within 0.05 dB. Grids: D-FAUST coherent, held-out seeds 3-4, 24.79 / 30.46 -> 25.67
+      / 30.77; seeds 0-2 25.75 / 31.65 -> 25.73 / 31.83 (methods/NOTES.md "version 23");
    c. non-rigid (``deform``): each rim point q pairs with its nearest moved source point p within
       ``2 s`` and gives the normal residual v_q = ((q - p) . n_p) n_p (n_p: PCA normal of p's 10
       nearest source points); every candidate point inside R moves by the inverse-square-distance
@@ -109,11 +110,11 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    human occlusion 46.98 -> 47.12 (seed 0, 5 frames).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
    fill alike, steps 5b and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
-   computed even when f-1 failed the coverage test; accepted by step 2b, on the rim f-1 saw) and, where they still fit the rim (points within
-   3 s of the rim and farther than ``accept_spacings * s`` off its local plane are dropped, as in step
-   4), fill the parts of R that the copies left open. They *replace* the spatial fill there (step 6
-   fills only what is still open), so fills never pile up, and a persistent hole keeps the fill it
-   had, moved with the body.
+   computed even when f-1 failed the coverage test; accepted by step 2b, on the rim f-1 saw) and,
+   where they still fit the rim (points within 3 s of the rim and farther than ``accept_spacings * s``
+   off its local plane are dropped, as in step 4), fill the parts of R that the copies left open.
+   They *replace* the spatial fill there (step 6 fills only what is still open), so fills never pile
+   up, and a persistent hole keeps the fill it had, moved with the body.
 5b. Partial sources (``partial_sources``): the frames that failed the coverage test only because of their
    own hole near R (aligned and accepted as in step 2) saw part of R. Their points inside R, best rim
    residual first, fill what is still open after steps 3-5: farther than ``fill_gap_spacings * s`` from
