@@ -246,6 +246,13 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    Version 20 (the hold-out band round the open part, the height-field and two-layer tests; NOTES "version 20"):
    D-FAUST occlusion 26.71 / 35.95 -> 28.53 / 35.76 (lozes-pde 27.35 / 33.46), samba occlusion 14.84 / 27.35
    -> 15.26 / 27.70 (no fill 27.44); every other row within 0.03 dB.
+   Version 24 (on the hole's sheet; `_flat_anchors`, `_sheet_bounded`): a box whose anchors fail the height-field
+   test because a second surface crosses the hole's sheet (legs through the sheet that closes a skirt at its hem:
+   samba's widest box, refused by that test since version 20) is spanned on its sheet: the anchors whose normal is
+   within 60 degrees of their plane's normal (the test's angle, point by point) anchor the membrane; it is seeded
+   where no point of either surface projects within the seed gap, and an open part of that footprint is kept when
+   at least half of its seeds lie nearer (on the plane) to a sheet anchor than to the crossing surface (the inside
+   of a tube through the sheet borders the tube's wall alone); the four tests then judge the sheet's membrane.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
@@ -880,7 +887,12 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     Trust, four tests. (0) A height field over the seeds' plane: at most ``max_steep`` of the anchors' PCA
     normals more than 60 degrees off the plane's normal (`fit_height_field`'s fraction; step 6's test, with a
     majority bound): the seeds lie on that plane, and a box wrapped round a limb (samba's widest, 55 % steep)
-    got a membrane 2 spacings off the truth that the tests below pass. (1) Interpolation or a flat opening:
+    got a membrane 2 spacings off the truth that the tests below pass. Anchors that fail it are tried once on
+    their sheet: the anchors whose normal passes the test's 60 degrees (`_flat_anchors`) are the anchors, the
+    others a surface crossing the sheet (legs through a skirt's closing sheet), and of the seeds on the sheet's
+    plane only the open parts that border the sheet more than the crossing surface are kept (`_sheet_bounded`:
+    a tube's inside borders its wall alone); the tests below then judge that membrane, (0) included.
+    (1) Interpolation or a flat opening:
     where `membrane_sag` of the anchors exceeds ``max_holdout_spacings`` spacings (the bound of test 2), only
     the seeds inside the convex hull (on the anchors' plane) of the ``captured`` points inside the region are
     kept, so the membrane spans gaps enclosed by data and never extends it (step 6's rule for its grid):
@@ -906,6 +918,13 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     support = captured if accepted is None or not len(accepted) else np.vstack([captured, accepted])
     try:
         seeds, anchors = membrane.seed_hole(support, region, step)
+        crossing = None  # the anchors of a second surface through the hole's sheet
+        if len(anchors) >= 12 and fit_height_field(anchors)[4] > max_steep:
+            flat = _flat_anchors(anchors)
+            if flat.sum() >= 12:
+                crossing, support = anchors[~flat], anchors[flat]
+                seeds, anchors = membrane.seed_hole(support, region, step)
+                seeds = seeds[_sheet_bounded(seeds, anchors, crossing, membrane.gap_spacings * step, step)]
         if len(anchors) >= 12 and membrane_sag(anchors, region) > max_holdout_spacings * spacing:
             seeds = seeds[_within_hull_of(seeds, captured[region.contains(captured)], anchors)]
         if len(seeds) == 0 or len(anchors) < 12 or fit_height_field(anchors)[4] > max_steep:
@@ -918,6 +937,8 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
         distance = cKDTree((seeds - centre) @ tangent.T).query((support - centre) @ tangent.T, distance_upper_bound=reach)[0]
         inner = (distance <= reach) & region.contains(support, margin=ring_spacings * step)
         held_seeds, held_anchors = membrane.seed_hole(support[~inner], region, step)
+        if crossing is not None:
+            held_seeds = held_seeds[_sheet_bounded(held_seeds, held_anchors, crossing, membrane.gap_spacings * step, step)]
         if len(held_anchors) < 12 or len(held_seeds) == 0:
             return np.zeros((0, 3))
         outer_membrane = np.vstack([membrane.evolve(held_anchors, held_seeds, step), held_anchors])
@@ -932,6 +953,40 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     points = points[grown_agreeing(points, anchors, 3 * spacing, agree_spacings * spacing)]
     points = points[~between_layers(points, anchors, 3 * spacing, agree_spacings * spacing)]
     return points[far_from(points, covered, gap_spacings * spacing)]
+
+
+def _flat_anchors(anchors: np.ndarray) -> np.ndarray:
+    """Mask (K,) of the ``anchors`` whose PCA normal (10 neighbours) is within 60 degrees of their PCA plane's
+    normal: `fit_height_field`'s test, point by point."""
+    centre = anchors.mean(axis=0)
+    axis = np.linalg.svd(anchors - centre, full_matrices=False)[2][2]
+    return np.abs(estimate_normals(anchors, 10, queries=anchors) @ axis) >= 0.5
+
+
+def _sheet_bounded(seeds: np.ndarray, anchors: np.ndarray, crossing: np.ndarray, gap: float, step: float
+                   ) -> np.ndarray:
+    """Mask (S,) of ``seeds`` (on the PCA plane of ``anchors``) in open parts that border ``anchors`` more than
+    ``crossing``.
+
+    On that plane: seeds within ``gap`` of a projected ``crossing`` point are dropped; the others are linked
+    into open parts (grid neighbours, links of 1.5 ``step``), and a part is kept when at least half of its seeds
+    lie nearer to a projected anchor than to a projected crossing point. Seeds, not bordering points, are
+    counted: a wall across the plane projects many points onto one place."""
+    if len(seeds) == 0 or len(crossing) == 0:
+        return np.ones(len(seeds), dtype=bool)
+    centre = anchors.mean(axis=0)
+    tangent = np.linalg.svd(anchors - centre, full_matrices=False)[2][:2]
+    seeds_2d = (seeds - centre) @ tangent.T
+    to_crossing = cKDTree((crossing - centre) @ tangent.T).query(seeds_2d)[0]
+    to_anchor = cKDTree((anchors - centre) @ tangent.T).query(seeds_2d)[0]
+    keep = to_crossing > gap
+    rows = np.flatnonzero(keep)
+    if not len(rows):
+        return keep
+    _, labels = _link_components(np.column_stack([seeds_2d[rows], np.zeros(len(rows))]), 1.5 * step)
+    nearer = np.bincount(labels, weights=(to_anchor[rows] <= to_crossing[rows]).astype(float))
+    keep[rows] = (nearer >= 0.5 * np.bincount(labels))[labels]
+    return keep
 
 
 def between_layers(points: np.ndarray, anchors: np.ndarray, reach: float, tolerance: float,
@@ -1444,7 +1499,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "23"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "24"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -1456,7 +1511,8 @@ class TemporalFusion(InpaintingMethod):
     # hold-out leaves out the band round the open part (not the box), plus its height-field and two-layer tests;
     # 21: step 6c's hold-out miss is judged less the ring's own scatter about the whole body's surface;
     # 22: step 6c spans a hole that cuts a limb through by a spline in the tube's chart (`tube_fill`);
-    # 23: f-1's motion carries its fill when it passes step 2b on the rim f-1 saw (`seen_rim_residual`)
+    # 23: f-1's motion carries its fill when it passes step 2b on the rim f-1 saw (`seen_rim_residual`);
+    # 24: step 6e spans a box a second surface crosses on the hole's sheet (`_flat_anchors`, `_sheet_bounded`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

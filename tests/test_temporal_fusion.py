@@ -1180,3 +1180,47 @@ def test_a_previous_fill_is_carried_when_the_previous_hole_covered_most_of_the_r
 
     assert distance_to_frame_0_fill(TemporalFusion()) < 0.1
     assert distance_to_frame_0_fill(TemporalFusion(reuse_previous=False)) > 0.25
+
+
+def tubes_through_a_sheet(seed: int):
+    """A flat sheet z = 0 (`jittered_sheet`, half 14) with two vertical tubes of radius 5 through it at
+    (-6.5, 0) and (6.5, 0) (rings one spacing apart from z = -10 to 10; the sheet has no points inside
+    them: legs through a skirt's closing sheet), an unseen disc of radius 4 at (0, -8), and a box round it
+    all: (kept points, hidden points, region, tube centres, tube radius)."""
+    sheet = jittered_sheet(14, lambda x, y: 0.0 * x, seed=seed)
+    centres, radius = [(-6.5, 0.0), (6.5, 0.0)], 5.0
+    inside = np.any([np.hypot(sheet[:, 0] - cx, sheet[:, 1] - cy) < radius for cx, cy in centres], axis=0)
+    sheet = sheet[~inside]
+    angles = np.linspace(0.0, 2 * np.pi, int(round(2 * np.pi * radius)), endpoint=False)
+    walls = np.array([[cx + radius * np.cos(a), cy + radius * np.sin(a), z]
+                      for cx, cy in centres for a in angles for z in np.arange(-10.0, 10.5)])
+    hidden = np.hypot(sheet[:, 0], sheet[:, 1] + 8.0) < 4.0
+    region = HoleRegion.box([0.0, 0.0, 0.0], [11.0, 12.0, 4.0])
+    return np.vstack([sheet[~hidden], walls]), sheet[hidden], region, np.array(centres), radius
+
+
+def test_membrane_fill_spans_the_sheet_that_tubes_cross_and_not_the_tubes_insides():
+    """Version 24 (step 6e on the hole's sheet): a box holding a sheet that two tubes cross is no height field
+    (most of its anchors' normals lie in the sheet's plane), so version 23 refused it; its flat anchors span the
+    unseen disc (every hidden point within 1.5 spacings of a fill or kept point, every fill point within 0.3 of
+    the sheet, about the hidden count), and the open parts inside the tubes, bounded by tube wall alone, stay
+    open though the sheet's anchors alone seed them."""
+    from dpcbench.methods.lozes_pde import LozesPDE, sampling_step
+    from dpcbench.methods.temporal_fusion import _flat_anchors, fit_height_field, membrane_fill
+
+    kept, hidden, region, centres, radius = tubes_through_a_sheet(seed=6)
+    step = sampling_step(kept[np.abs(kept[:, 2]) < 0.5])
+    lozes = LozesPDE(p=2.0, ring_spacings=3.0)
+    seeds, anchors = lozes.seed_hole(kept, region, step)
+    assert fit_height_field(anchors)[4] > 0.5  # the test that refused the box
+    flat = _flat_anchors(anchors)
+    sheet_seeds, _ = lozes.seed_hole(anchors[flat], region, step)
+    axis_distance = np.hypot(sheet_seeds[:, None, 0] - centres[:, 0], sheet_seeds[:, None, 1] - centres[:, 1]).min(axis=1)
+    assert (axis_distance < radius - 1.5).sum() > 20  # the sheet's anchors alone seed the tubes' insides
+
+    fill = membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)
+    assert 0.4 * len(hidden) <= len(fill) <= 1.6 * len(hidden), (len(fill), len(hidden))
+    assert np.abs(fill[:, 2]).max() <= 0.3
+    assert cKDTree(np.vstack([kept, fill])).query(hidden)[0].max() <= 1.5
+    fill_axis_distance = np.hypot(fill[:, None, 0] - centres[:, 0], fill[:, None, 1] - centres[:, 1]).min(axis=1)
+    assert fill_axis_distance.min() > radius - 1.0
