@@ -1182,6 +1182,8 @@ def test_a_previous_fill_is_carried_when_the_previous_hole_covered_most_of_the_r
     assert distance_to_frame_0_fill(TemporalFusion(reuse_previous=False)) > 0.25
 
 
+# -- version 24: step 6e on the hole's sheet where a second surface crosses it -----------------------
+
 def tubes_through_a_sheet(seed: int):
     """A flat sheet z = 0 (`jittered_sheet`, half 14) with two vertical tubes of radius 5 through it at
     (-6.5, 0) and (6.5, 0) (rings one spacing apart from z = -10 to 10; the sheet has no points inside
