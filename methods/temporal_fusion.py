@@ -253,6 +253,9 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    where no point of either surface projects within the seed gap, and an open part of that footprint is kept when
    at least half of its seeds lie nearer (on the plane) to a sheet anchor than to the crossing surface (the inside
    of a tube through the sheet borders the tube's wall alone); the four tests then judge the sheet's membrane.
+   Measured (targets grid, 10 frames, D1 / D2; methods/NOTES.md "version 24"): samba occlusion 15.26 / 27.70 ->
+   21.15 / 28.46 (lozes-pde 15.33 / 16.12, temporal-copy 12.01 / 27.78; the hem box's fill 0.42-0.55 voxel RMS off
+   the truth); every other row, the held-out seeds and the held-out data unchanged.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
