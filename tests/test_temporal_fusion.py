@@ -11,23 +11,25 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from dpcbench.holes.regions import HoleRegion
-from dpcbench.methods.temporal_fusion import (
-    TemporalFusion,
+from dpcbench.methods._spatial_fill import (
     cap_fill,
-    crossed_voxels,
-    disagreeing,
     fit_height_field,
     grown_agreeing,
+    plane_offsets,
+    rim_sheet,
+    rim_surface_fill,
+)
+from dpcbench.methods.temporal_fusion import (
+    TemporalFusion,
+    crossed_voxels,
+    disagreeing,
     interpolate_displacement,
     mls_fit,
     mls_project,
-    plane_offsets,
     plane_target,
     refine_point_to_plane,
     rim_crossing_threshold,
     rim_displacement,
-    rim_sheet,
-    rim_surface_fill,
     snap_to_voxels,
     surface_voxels,
 )
@@ -761,7 +763,7 @@ def test_poisson_fill_reconstructs_each_body_alone_so_it_never_bridges_two():
     voxels off both surfaces; the hold-out ring, shell / 2, passes it). Body by body, the tube's
     bottom and the other body's top are closed on their own surfaces: every fill point within the voxel
     rounding of one of them, and the hidden voxels are restored (each within 1.5 of a fill point)."""
-    from dpcbench.methods.temporal_fusion import poisson_surface_fill
+    from dpcbench.methods._spatial_fill import poisson_surface_fill
 
     points, axes = _tube_over_a_body(8.0)
     region = HoleRegion.ball([0.0, 0.0, -11.0], 10.6)
@@ -809,7 +811,7 @@ def test_limb_ends_pairs_the_two_ends_of_a_limb_the_hole_cuts_through_only():
     """`limb_ends`: a ball of radius 10 on the axis of a tube of radius 5 cuts it in two bodies whose points next to
     the hole lie to one side of the centre (|u| about 0.87), pointing apart: one pair. A ball on the tube's wall
     (a patch its surface encloses, |u| 0.28) and a ball on a plane leave every body alone."""
-    from dpcbench.methods.temporal_fusion import _bodies, limb_ends
+    from dpcbench.methods._spatial_fill import _bodies, limb_ends
 
     def groups(points, region):
         kept = points[~region.contains(points)]
@@ -833,7 +835,7 @@ def test_tube_fill_bridges_a_limb_the_hole_cuts_through(radius, hole, bend):
     bends, a corner no smooth chart follows exactly, 95 % within 1.5 and all within 2.5). Body by body, or as one Poisson reconstruction (what
     the docstring of `tube_fill` measured), the ends are capped or refused, and hidden voxels stay 3 or more
     from the fill."""
-    from dpcbench.methods.temporal_fusion import _bodies, poisson_surface_fill, tube_fill
+    from dpcbench.methods._spatial_fill import _bodies, poisson_surface_fill, tube_fill
 
     points = _voxel_tube(radius, bend=bend)
     region = HoleRegion.ball([0.0, 0.0, 0.0], hole)
@@ -863,7 +865,7 @@ def test_tube_fill_bridges_a_limb_the_hole_cuts_through(radius, hole, bend):
 def test_tube_fill_refuses_ends_that_are_no_tube():
     """`tube_fill` of two flat discs facing each other across a ball (ends by `limb_ends`'s rule, but their normals
     run along the axis, not round it): refused, (0, 3)."""
-    from dpcbench.methods.temporal_fusion import tube_fill
+    from dpcbench.methods._spatial_fill import tube_fill
 
     xx, yy = np.meshgrid(np.arange(-12.0, 13.0), np.arange(-12.0, 13.0), indexing="ij")
     disc = np.column_stack([xx.ravel(), yy.ravel()])
@@ -908,8 +910,8 @@ def test_membrane_fill_spans_the_open_parts_of_an_occlusion_box_on_the_surface()
     covers the patches (every hidden point within 1.5 spacings of a fill or kept point) and lies on the sheet
     (every fill point within 0.3 spacings of it), with about the hidden point count; a box that held nothing
     hidden gets nothing."""
+    from dpcbench.methods._spatial_fill import membrane_fill
     from dpcbench.methods.lozes_pde import sampling_step
-    from dpcbench.methods.temporal_fusion import membrane_fill
 
     height, sheet, region, kept, hidden = bowl_in_a_box(0.005, [0.0, 0.0, 1.0], [8.0, 8.0, 3.0])
     assert region.contains(kept).sum() > 100  # captured points inside the box: an occlusion box, not a disc
@@ -926,8 +928,8 @@ def test_membrane_hold_out_leaves_out_the_band_round_the_open_part_not_the_box()
     the data round the box alone misses the data inside it by 1.3 spacings RMS (leaving the whole box out, the
     hold-out of version 15-19 refused it), while the fill spans only the patches between data: it lies within
     0.35 spacings of the bowl and covers them (every hidden point within 1.5 of a fill or kept point)."""
+    from dpcbench.methods._spatial_fill import membrane_fill
     from dpcbench.methods.lozes_pde import LozesPDE, sampling_step
-    from dpcbench.methods.temporal_fusion import membrane_fill
 
     height, _, region, kept, hidden = bowl_in_a_box(0.02, [0.0, 0.0, 2.0], [8.0, 8.0, 4.0])
     step = sampling_step(kept)
@@ -948,8 +950,8 @@ def test_membrane_fill_refuses_a_box_that_holds_two_surfaces():
     seeds are gaps in the two samplings' joint projection, half-way between the sheets, and the agreement
     rules drop them (`between_layers`: the anchors round such a point lie on both sides of it); each sheet
     alone is filled, on its plane."""
+    from dpcbench.methods._spatial_fill import membrane_fill
     from dpcbench.methods.lozes_pde import sampling_step
-    from dpcbench.methods.temporal_fusion import membrane_fill
 
     lower = jittered_sheet(16, lambda x, y: 0.0 * x, seed=4)
     upper = jittered_sheet(16, lambda x, y: 0.0 * x + 3.0, seed=5)
@@ -966,7 +968,7 @@ def test_membrane_fill_refuses_a_box_that_holds_two_surfaces():
 def test_between_layers_flags_a_point_between_two_sheets_only():
     """Half-way between two sheets 3 apart: flagged; on one sheet tilted by 40 degrees, on a bowl, and at the
     inner corner of a 90-degree fold (anchors all on one side): not flagged."""
-    from dpcbench.methods.temporal_fusion import between_layers
+    from dpcbench.methods._spatial_fill import between_layers
 
     lower = jittered_sheet(10, lambda x, y: 0.0 * x, seed=1)
     upper = jittered_sheet(10, lambda x, y: 0.0 * x + 3.0, seed=2)
@@ -984,8 +986,8 @@ def test_membrane_points_off_the_local_surface_of_the_data_are_dropped():
     the same place in both; with the hold-out test bypassed the membrane spans the patch half-way between
     the sheets (1-2 spacings off each), and the rule (a point must lie within ``agree_spacings`` of the local
     plane of the anchors it is grown from) drops nearly all of it."""
+    from dpcbench.methods._spatial_fill import membrane_fill
     from dpcbench.methods.lozes_pde import sampling_step
-    from dpcbench.methods.temporal_fusion import membrane_fill
 
     lower = jittered_sheet(16, lambda x, y: 0.0 * x, seed=4)
     upper = jittered_sheet(16, lambda x, y: 0.0 * x + 3.0, seed=5)
@@ -1002,7 +1004,7 @@ def test_membrane_sag_is_the_closed_form_departure_of_the_harmonic_membrane():
     """|c3 + c5| r^2 / 2 of the anchors' quadric: 0 on a tilted plane and on a saddle (both harmonic), k r^2 on
     the paraboloid z = k (x^2 + y^2), and about r^2 / (4 R) round a cylinder of radius R (its top, z = sqrt(R^2
     - y^2) ~ R - y^2 / (2 R))."""
-    from dpcbench.methods.temporal_fusion import membrane_sag
+    from dpcbench.methods._spatial_fill import membrane_sag
 
     region = HoleRegion.ball([0.0, 0.0, 0.0], 6.0)
 
@@ -1025,8 +1027,8 @@ def test_membrane_fill_spans_an_open_disc_only_where_the_membrane_cannot_sag():
     and leaves the paraboloid's open. With an annulus of captured points kept inside (radius 3.5-4.5): on the
     paraboloid only the open part within the annulus's convex hull (its centre) is filled, never the open band
     outside it; on the flat sheet that band is filled too."""
+    from dpcbench.methods._spatial_fill import membrane_fill
     from dpcbench.methods.lozes_pde import sampling_step
-    from dpcbench.methods.temporal_fusion import membrane_fill
 
     region = HoleRegion.ball([0.0, 0.0, 0.0], 6.0)
     flat = jittered_sheet(16, lambda x, y: 0.0 * x, seed=8)
@@ -1207,8 +1209,8 @@ def test_membrane_fill_spans_the_sheet_that_tubes_cross_and_not_the_tubes_inside
     unseen disc (every hidden point within 1.5 spacings of a fill or kept point, every fill point within 0.3 of
     the sheet, about the hidden count), and the open parts inside the tubes, bounded by tube wall alone, stay
     open though the sheet's anchors alone seed them."""
+    from dpcbench.methods._spatial_fill import _flat_anchors, fit_height_field, membrane_fill
     from dpcbench.methods.lozes_pde import LozesPDE, sampling_step
-    from dpcbench.methods.temporal_fusion import _flat_anchors, fit_height_field, membrane_fill
 
     kept, hidden, region, centres, radius = tubes_through_a_sheet(seed=6)
     step = sampling_step(kept[np.abs(kept[:, 2]) < 0.5])

@@ -12,12 +12,14 @@ from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._front_fill import front_fill, local_quadric, rim_residual_bound
-from dpcbench.methods.temporal_fusion import (
-    TemporalFusion,
+from dpcbench.methods._spatial_fill import (
     orient_along_surface,
     poisson_surface_fill,
     rim_surface_fill,
     sample_triangles,
+)
+from dpcbench.methods.temporal_fusion import (
+    TemporalFusion,
 )
 
 
@@ -204,7 +206,7 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     limb hole, with the bound just above and just below the exact miss (the inner ring's RMS distance to
     the held-out surface's samples, in full, less in quadrature its RMS distance to the surface of all
     the points), it passes and fails."""
-    from dpcbench.methods.temporal_fusion import _holds_out, _poisson_points
+    from dpcbench.methods._spatial_fill import _holds_out, _poisson_points
 
     limb = cylinder(8.0, 60.0)
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
@@ -251,7 +253,7 @@ def test_the_hold_out_allows_for_the_capture_s_own_scatter():
 
 
 def _poisson_points_for_test(points, region, ring):
-    from dpcbench.methods.temporal_fusion import _poisson_points
+    from dpcbench.methods._spatial_fill import _poisson_points
 
     return _poisson_points(points, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0, surface=True)
 
@@ -259,7 +261,7 @@ def _poisson_points_for_test(points, region, ring):
 def test_native_stderr_is_silenced_for_the_block_only(capfd):
     """What native code writes to descriptor 2 inside the block (PoissonRecon's warnings) is dropped; the
     descriptor is restored after it, also when the block raises."""
-    from dpcbench.methods.temporal_fusion import _native_stderr_silenced
+    from dpcbench.methods._spatial_fill import _native_stderr_silenced
 
     os.write(2, b"before\n")
     with _native_stderr_silenced():
