@@ -25,7 +25,7 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    plane-cube test, the rule voxelized captures and our stand-ins are made by). When the growth
    closes (a round accepts nothing, or nothing is left to judge) within ceil(sqrt(k / pi)) rounds
    (k = ``mls_neighbours``: the radius, in spacings, of the disc the fit's k points cover; 3 for
-   k = 20), the gap is thin, every new voxel lies within one fit radius of captured points, and the
+   k = 20 and 28), the gap is thin, every new voxel lies within one fit radius of captured points, and the
    result is R's fill: steps 2-8 are skipped for R. Otherwise the growth is discarded and R is filled
    by steps 2-8. Why: occlusion holes (armpits, crotch, crown, soles) are thin gaps between captured
    points in places no camera saw in any frame; there a motion-compensated copy of a neighbour sits
@@ -332,8 +332,19 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     is a wrong surface (the same rule as ``accept_spacings``). Seen (human small and
                     dfaust, medium coherent holes, seed 0, frame 0): hold-out 0.09-0.75 s where the
                     fill's true D2 RMS error was 0.18-0.61 s; 4.2 and 5.1 s where it was 1.3 and 2.0 s.
-  mls_neighbours    20: a quadric has 6 coefficients; 20 points over-determine it ~3 times while
-                    spanning about 2.5 s, so the fit follows the surface, not the noise.
+  mls_neighbours    "auto": 20, and 28 for the voxel decisions of steps 1b and 4b on voxelized input
+                    (`FIT_NEIGHBOURS`, `VOXEL_FIT_NEIGHBOURS`; an integer sets every fit). A quadric has 6
+                    coefficients; 20 points over-determine it ~3 times while spanning about 2.5 s, so on exact
+                    surface samples the fit follows the surface, not the noise. Captured voxel centres are the
+                    surface rounded by up to half a voxel on each axis, so where a fit decides which voxels a
+                    captured surface crosses (the rim's in step 1b, the copies' in step 4b) it takes the points of
+                    a disc of step 4's reach, 3 s: pi 3^2 ~ 28 (step 1b's round count, ceil(sqrt(k / pi)), stays
+                    3). Step 7 keeps 20: inside a persistent hole its support is mostly the reused fill itself,
+                    and with 28 there a fill's drift grew into a flap (human small coherent seed 3, held out,
+                    frames 6-9: the fill 0.97 -> 2.02 s RMS off the truth, D1 25.09 -> 23.84 over 10 frames).
+                    Measured (version 24 -> 25, 10 frames, D1; methods/NOTES.md "version 25"): samba
+                    independent seed 0 33.59 -> 33.72, human small independent seed 0 29.62 -> 29.75, bunny small
+                    independent seed 0 36.31 -> 36.87; coherent rows unchanged; D-FAUST (float) unchanged.
   rim_fill          True: step 1b (voxelized data only); its round count follows from mls_neighbours.
   poisson           True: step 6c; its octree depth and sampling follow from the grid step, its trust rule
                     from step 4's reach (3 s).
@@ -393,6 +404,13 @@ ICP_POINTS = 2000
 #: most rim voxels step 4b's bound is read from (with their free neighbours): a statistic of the rim,
 #: so an evenly strided subset gives it at a fixed cost per hole
 CALIBRATION_POINTS = 1000
+
+#: points of an MLS quadric fit (``mls_neighbours="auto"``): 20, the quadric's 6 coefficients over-determined
+#: about 3 times (a disc of ~2.5 s); for the voxel decisions of steps 1b and 4b (and 6b) on voxelized input 28,
+#: the points of a disc of step 4's reach, 3 s (pi 3^2): captured voxel centres carry the capture's rounding, up
+#: to half a voxel on each axis, which a fit averages out over more points (methods/NOTES.md "version 25")
+FIT_NEIGHBOURS = 20
+VOXEL_FIT_NEIGHBOURS = 28
 
 
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
@@ -689,7 +707,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "24"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "25"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -702,7 +720,8 @@ class TemporalFusion(InpaintingMethod):
     # 21: step 6c's hold-out miss is judged less the ring's own scatter about the whole body's surface;
     # 22: step 6c spans a hole that cuts a limb through by a spline in the tube's chart (`tube_fill`);
     # 23: f-1's motion carries its fill when it passes step 2b on the rim f-1 saw (`seen_rim_residual`);
-    # 24: step 6e spans a box a second surface crosses on the hole's sheet (`_flat_anchors`, `_sheet_bounded`)
+    # 24: step 6e spans a box a second surface crosses on the hole's sheet (`_flat_anchors`, `_sheet_bounded`);
+    # 25: steps 1b and 4b's voxel decisions on voxelized input fit 28 points (a disc of 3 s), not 20
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -711,7 +730,7 @@ class TemporalFusion(InpaintingMethod):
                  icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
-                 mls_neighbours: int = 20, rim_fill: bool = True, poisson: bool = True,
+                 mls_neighbours: int | str = "auto", rim_fill: bool = True, poisson: bool = True,
                  poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True,
                  snap: bool | str = "auto") -> None:
@@ -757,7 +776,9 @@ class TemporalFusion(InpaintingMethod):
         integer("window", 0)
         integer("icp_iterations", 0)
         integer("deform_neighbours", 1)
-        integer("mls_neighbours", 0)
+        if self.mls_neighbours != "auto" and (not isinstance(self.mls_neighbours, (int, np.integer))
+                                              or isinstance(self.mls_neighbours, bool) or self.mls_neighbours < 0):
+            raise ValueError(f"{self.name}: mls_neighbours must be 'auto' or an integer >= 0, got {self.mls_neighbours!r}")
         number("shell_factor", False)
         number("shell_spacings", True)
         number("accept_spacings", True)
@@ -799,7 +820,8 @@ class TemporalFusion(InpaintingMethod):
         # frame's density (the median nearest-neighbour distance of an uneven sampling is about half that,
         # and a grid of that step put ~4 points where one was missing on D-FAUST)
         step = spacing if integer else sampling_step(frames[largest])
-        context = dict(step=step, frames=frames, regions=regions, tree_of=tree_of, spacing=spacing, voxelized=voxelized)
+        context = dict(step=step, frames=frames, regions=regions, tree_of=tree_of, spacing=spacing, voxelized=voxelized,
+                       neighbours=self._fit_neighbours(voxelized), projection_neighbours=self._fit_neighbours(False))
         outputs: list[np.ndarray] = []
         previous_fill = np.zeros((0, 3))
         for f, frame in enumerate(frames):
@@ -864,8 +886,8 @@ class TemporalFusion(InpaintingMethod):
             return np.zeros((0, 3))  # nothing around the hole to align to or to continue
         if ctx["voxelized"] and self.rim_fill:
             # step 1b: a thin gap (the rim's own fit closes it) is filled from frame f's rim alone
-            thin, closed = crossed_voxels(region, local, cKDTree(local), neighbours=max(int(self.mls_neighbours), 6),
-                                          max_rounds=self._rim_fill_rounds(), with_closed=True)
+            thin, closed = crossed_voxels(region, local, cKDTree(local), neighbours=max(ctx["neighbours"], 6),
+                                          max_rounds=self._rim_fill_rounds(ctx["neighbours"]), with_closed=True)
             if closed:
                 return thin
         local_tree = cKDTree(local)
@@ -957,7 +979,7 @@ class TemporalFusion(InpaintingMethod):
         full_copy = len(accepted)
 
         if ctx["voxelized"] and self.revoxelize and len(accepted):
-            k = max(int(self.mls_neighbours), 6)
+            k = max(ctx["neighbours"], 6)
             bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
             accepted = surface_voxels(accepted, region, np.vstack([local, accepted]), local_tree, k, bound)
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
@@ -1031,7 +1053,7 @@ class TemporalFusion(InpaintingMethod):
                 ctx["not_reused"].append(spatial)
             if self.front and not len(spatial):
                 # step 6b: what the one-surface fill refused, grown from the rim and copies chart by chart
-                spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"])
+                spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"], ctx["neighbours"])
             spatial = np.vstack([sheet_fill, spatial])
         if not len(accepted) and not len(spatial) and not len(seen):
             return np.zeros((0, 3))
@@ -1040,12 +1062,12 @@ class TemporalFusion(InpaintingMethod):
         # (on voxelized data the copies are voxels of a captured surface already: projecting them
         # onto a smooth fit and rounding back thins the staircase, measured -0.8 dB D1)
         first = copied if ctx["voxelized"] else 0
-        if self.mls_neighbours >= 6 and first < len(accepted):
+        if ctx["projection_neighbours"] >= 6 and first < len(accepted):
             support = np.vstack([local, accepted])
-            accepted[first:] = mls_project(accepted[first:], support, int(self.mls_neighbours))
+            accepted[first:] = mls_project(accepted[first:], support, ctx["projection_neighbours"])
         if ctx["voxelized"] and copied < len(accepted) and self.revoxelize:
             # step 4b's rule for the reused points too (moved by f-1's motion: sub-voxel positions)
-            k = max(int(self.mls_neighbours), 6)
+            k = max(ctx["projection_neighbours"], 6)
             bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
             occupied = cKDTree(np.vstack([local, accepted[:copied]])) if copied else local_tree
             reused = surface_voxels(accepted[copied:], region, np.vstack([local, accepted]), occupied, k, bound)
@@ -1055,10 +1077,10 @@ class TemporalFusion(InpaintingMethod):
         if len(seen):
             # step 5b's copies as step 7 treats the reused points: onto the surface, re-voxelized; not reused
             support = np.vstack([local, accepted, seen])
-            if self.mls_neighbours >= 6:
-                seen = mls_project(seen, support, int(self.mls_neighbours))
+            if ctx["projection_neighbours"] >= 6:
+                seen = mls_project(seen, support, ctx["projection_neighbours"])
             if ctx["voxelized"] and self.revoxelize:
-                k = max(int(self.mls_neighbours), 6)
+                k = max(ctx["projection_neighbours"], 6)
                 bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
                 occupied = cKDTree(np.vstack([local, accepted])) if len(accepted) else local_tree
                 seen = surface_voxels(seen, region, support, occupied, k, bound)
@@ -1068,22 +1090,31 @@ class TemporalFusion(InpaintingMethod):
         accepted = np.vstack([accepted, seen, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
 
-    def _front(self, support, region, covered, rim, spacing, voxelized) -> np.ndarray:
+    def _front(self, support, region, covered, rim, spacing, voxelized, neighbours) -> np.ndarray:
         """Step 6b (`_front_fill.front_fill`): cell 1 voxel / s, `_rim_fill_rounds` rounds, residual bound
         the 90th percentile of the rim's own fit residual (`_front_fill.rim_residual_bound`)."""
-        k = max(int(self.mls_neighbours), 6)
+        k = max(neighbours, 6)
         points = front_fill(support, region, covered, spacing, voxelized=voxelized, max_residual=rim_residual_bound(rim, k),
-                            neighbours=k, max_rounds=self._rim_fill_rounds(),
+                            neighbours=k, max_rounds=self._rim_fill_rounds(k),
                             free_distance=spacing / 2 if voxelized else self.fill_gap_spacings * spacing)
         if voxelized and len(points):
             points = np.unique(np.floor(points + 0.5), axis=0)
         return points
 
-    def _rim_fill_rounds(self) -> int:
+    def _fit_neighbours(self, voxelized: bool) -> int:
+        """``mls_neighbours`` resolved: "auto" is `VOXEL_FIT_NEIGHBOURS` for the voxel decisions of steps 1b
+        and 4b on voxelized input (``voxelized``), else `FIT_NEIGHBOURS` (step 7's projections, float input;
+        the parameter list of the module docstring says why)."""
+        if self.mls_neighbours == "auto":
+            return VOXEL_FIT_NEIGHBOURS if voxelized else FIT_NEIGHBOURS
+        return int(self.mls_neighbours)
+
+    @staticmethod
+    def _rim_fill_rounds(neighbours: int) -> int:
         """Rounds of step 1b: one fit radius, ceil(sqrt(k / pi)) spacings, the radius of the disc that
-        the k = ``mls_neighbours`` (at least 6) points a fit rests on cover at one point per s^2 (3 for
-        k = 20): the rim's surface is extrapolated no farther than the data it is fitted to spans."""
-        return max(1, int(np.ceil(np.sqrt(max(int(self.mls_neighbours), 6) / np.pi))))
+        the k = ``neighbours`` (at least 6) points a fit rests on cover at one point per s^2 (3 for k = 20
+        and for k = 28): the rim's surface is extrapolated no farther than the data it is fitted to spans."""
+        return max(1, int(np.ceil(np.sqrt(max(int(neighbours), 6) / np.pi))))
 
     def _deformed(self, points, field) -> np.ndarray:
         if field is None or len(field[0]) == 0 or len(points) == 0:
