@@ -32,6 +32,7 @@ from dpcbench.methods.temporal_fusion import (
     rim_displacement,
     snap_to_voxels,
     surface_voxels,
+    unique_voxels,
 )
 
 
@@ -1262,3 +1263,15 @@ def test_voxelized_fits_take_more_points_and_misplace_fewer_voxels():
             found_set = {tuple(v) for v in found.astype(int)}
             errors[k] += len(hidden - found_set) + len(found_set - hidden)
     assert errors[28] < 0.85 * errors[20], errors
+
+
+def test_unique_voxels_is_numpy_unique_on_rows():
+    """The int64-key shortcut gives np.unique(axis=0)'s rows, values and order, on random integer-valued
+    clouds (negative, spread, repeated), an empty one, and a spread past the keys' range (np.unique's path)."""
+    rng = np.random.default_rng(5)
+    for low, high, n in [(-3, 4, 500), (-1000, 3000, 20000), (0, 2, 50), (0, 1, 1)]:
+        voxels = rng.integers(low, high, size=(n, 3)).astype(np.float64)
+        np.testing.assert_array_equal(unique_voxels(voxels), np.unique(voxels, axis=0))
+    wide = np.array([[0.0, 0.0, 0.0], [3e6, -2.0, 1.0], [0.0, 0.0, 0.0], [-5.0, 7.0, 2e6]])
+    np.testing.assert_array_equal(unique_voxels(wide), np.unique(wide, axis=0))
+    assert unique_voxels(np.zeros((0, 3))).shape == (0, 3)

@@ -33,6 +33,12 @@ voxels that no frame sees), both frames damaged, so every opening goes through t
 This benchmark, 2026-11-26, version 14, --benchmark-timer=time.process_time, one run each: human-800k
 3.3 s (880 / 1,154 points added), bunny-635k 81.9 s (~41 s a frame; 25,097 / 45,955 added), most of it
 screened Poisson on the base's crop, whose hold-out test then refuses it.
+2026-11-26/27, version 25, CPU time, on a machine slower than the earlier ones (version 24 measured here 9.7-11.6 s
+at 800k, where it had measured 5.94 s): three runs of version 25 at 1dfd12c gave 10.18 / 12.64 / 12.13 s (800k),
+then with `unique_voxels` (np.unique on rows replaced by int64 keys, the same output; 1.1 s of np.unique at 800k in
+a cProfile run) two runs each, alternated with 1dfd12c: 800k 10.45 / 10.94 against 10.72 / 12.18 s, 290k 6.79 /
+5.43 against 6.96 / 7.40, 100k 2.92 / 2.35 against 2.59 / 2.72, occlusion human-800k 10.66 / 10.19 against 11.56 /
+11.24. Spread between runs of the same code here: up to 2.5 s at 800k.
 """
 
 from __future__ import annotations
