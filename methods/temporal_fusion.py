@@ -110,6 +110,19 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    D1 / D2 means, 8 -> 9: human small 19.02 / 26.55 -> 20.11 / 27.05, bunny small 28.54 / 35.61 ->
    30.31 / 36.73, samba 17.80 / 27.11 -> 18.02 / 27.27; independent rows within 0.01 dB (seed 0),
    human occlusion 46.98 -> 47.12 (seed 0, 5 frames).
+   Version 26 (``pool_adjacent``): the fit's support also holds the copies of f-1 and f+1 where they were
+   sources (step 3) other than the one fused first, and the fit takes ``mls_neighbours`` points a copy (28 on
+   voxelized input: the same disc of 3 s, each copy's points in it). Each adjacent copy is another capture of
+   R's surface, aligned on its own, and the copies' alignment errors, not the voxel rounding, are what is left
+   of the independent rows' error (methods/NOTES.md "version 17": 0.18 voxel RMS on samba); a fit through
+   several copies averages them. Only f-1 and f+1: frames farther off moved more, and with every source
+   pooled samba independent (seed 0) lost (33.71 -> 33.32 D1) where f-1 and f+1 alone gained (-> 34.11).
+   Coherent holes leave f-1 and f+1 no sources there (their own hole is near R): those rows are unchanged.
+   Grid, version 25 -> 26 (10 frames, D1 / D2 means; methods/NOTES.md "version 26"): independent holes, seeds
+   0-2, bunny small 37.02 / 41.09 -> 37.95 / 42.21, human small 29.92 / 33.49 -> 30.52 / 34.15, samba 33.24 /
+   37.43 -> 33.55 / 37.82; held-out seeds 3-4 37.39 -> 37.75, 29.86 -> 30.33, 33.12 -> 33.23 (D1); every
+   coherent and occlusion row and D-FAUST (not voxelized) unchanged. Cost: about 1.4 s CPU of ~10 at 800k
+   points with 5 holes (the 56-point fits).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
    fill alike, steps 5b and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
    computed even when f-1 failed the coverage test; accepted by step 2b, on the rim f-1 saw) and,
@@ -365,6 +378,7 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   front             False: step 6b (see there for the measurement that keeps it off); its cell, round
                     count and residual bound follow from s, mls_neighbours and the rim's own fits.
   revoxelize        True: step 4b (voxelized data only); its bound t is read from each hole's rim.
+  pool_adjacent     True: step 4b's fit also takes the copies of f-1 and f+1 (see there); no constant of its own.
   snap              "auto": voxelize when the input is voxelized (True/False force it).
 """
 
@@ -723,7 +737,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "25"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "26"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -737,7 +751,8 @@ class TemporalFusion(InpaintingMethod):
     # 22: step 6c spans a hole that cuts a limb through by a spline in the tube's chart (`tube_fill`);
     # 23: f-1's motion carries its fill when it passes step 2b on the rim f-1 saw (`seen_rim_residual`);
     # 24: step 6e spans a box a second surface crosses on the hole's sheet (`_flat_anchors`, `_sheet_bounded`);
-    # 25: steps 1b and 4b's voxel decisions on voxelized input fit 28 points (a disc of 3 s), not 20
+    # 25: steps 1b and 4b's voxel decisions on voxelized input fit 28 points (a disc of 3 s), not 20;
+    # 26: step 4b's fit pools the copies of f-1 and f+1 (`pool_adjacent`), 28 points a copy
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -748,7 +763,7 @@ class TemporalFusion(InpaintingMethod):
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int | str = "auto", rim_fill: bool = True, poisson: bool = True,
                  poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, membrane: bool = True, front: bool = False,
-                 partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True,
+                 partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
@@ -774,6 +789,7 @@ class TemporalFusion(InpaintingMethod):
         self.sheet = sheet
         self.front = front
         self.revoxelize = revoxelize
+        self.pool_adjacent = pool_adjacent
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -802,7 +818,8 @@ class TemporalFusion(InpaintingMethod):
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
-                     "poisson_bridges", "cap", "membrane", "front", "partial_sources", "sheet", "revoxelize"):
+                     "poisson_bridges", "cap", "membrane", "front", "partial_sources", "sheet", "revoxelize",
+                     "pool_adjacent"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -997,7 +1014,16 @@ class TemporalFusion(InpaintingMethod):
         if ctx["voxelized"] and self.revoxelize and len(accepted):
             k = max(ctx["neighbours"], 6)
             bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
-            accepted = surface_voxels(accepted, region, np.vstack([local, accepted]), local_tree, k, bound)
+            fit_support, copies = [local, accepted], 1
+            if self.pool_adjacent:
+                # f-1's and f+1's copies when they were sources and not the one fused first: each is another
+                # capture of R's surface aligned on its own, so one fit over all of them (k points a copy, the
+                # same disc) averages their alignment errors; farther frames moved more and are left out
+                for _, gap, _, points in candidates[1:]:
+                    points = points[far_from(points, local_tree, self.gap_spacings * spacing)] if gap == 1 else points[:0]
+                    if len(points):
+                        fit_support, copies = fit_support + [points], copies + 1
+            accepted = surface_voxels(accepted, region, np.vstack(fit_support), local_tree, k * copies, bound)
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
 
         # step 5: the previous frame's fill, moved with the body, where the hole is still open

@@ -1275,3 +1275,33 @@ def test_unique_voxels_is_numpy_unique_on_rows():
     wide = np.array([[0.0, 0.0, 0.0], [3e6, -2.0, 1.0], [0.0, 0.0, 0.0], [-5.0, 7.0, 2e6]])
     np.testing.assert_array_equal(unique_voxels(wide), np.unique(wide, axis=0))
     assert unique_voxels(np.zeros((0, 3))).shape == (0, 3)
+
+
+def test_pooled_adjacent_copies_misplace_fewer_voxels():
+    """Step 4b with ``pool_adjacent`` (version 26): the fit that re-voxelizes the fused copy also takes the other
+    adjacent frame's copy, ``mls_neighbours`` points a copy. Each copy is another voxelization of the surface
+    (`crossed_sphere_voxels` at a random sub-voxel shift), moved back with its own alignment error (0.2 voxel
+    per axis, about what samba's copies keep, methods/NOTES.md "version 17"). On a sphere of radius 30 with a
+    hole of radius 8, six holes: voxels missed plus voxels added fall from 569 (one copy, 28 points) to 285 (two
+    copies, 56 points; each hole 137 / 55 / 117 / 119 / 117 / 24 -> 31 / 42 / 83 / 65 / 41 / 23)."""
+    assert TemporalFusion().pool_adjacent is True
+    with pytest.raises(ValueError, match="pool_adjacent must be true or false"):
+        TemporalFusion(pool_adjacent="yes").inpaint([np.zeros((10, 3))] * 2, None)
+
+    truth = crossed_sphere_voxels(30.0, np.zeros(3))
+    errors = {1: 0, 2: 0}
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        region = HoleRegion.ball(truth[rng.integers(len(truth))], 8.0)
+        kept = truth[~region.contains(truth)]
+        hidden = {tuple(v) for v in truth[region.contains(truth)].astype(int)}
+        copies = []
+        for _ in range(2):
+            shift = rng.uniform(-0.5, 0.5, 3)
+            moved = crossed_sphere_voxels(30.0, shift) - shift + rng.normal(0.0, 0.2, 3)
+            copies.append(moved[region.contains(moved)])
+        for count in errors:
+            support = np.vstack([kept] + copies[:count])
+            found = {tuple(v) for v in surface_voxels(copies[0], region, support, cKDTree(kept), 28 * count, 1.0).astype(int)}
+            errors[count] += len(hidden - found) + len(found - hidden)
+    assert errors[2] < 0.7 * errors[1], errors

@@ -39,6 +39,10 @@ then with `unique_voxels` (np.unique on rows replaced by int64 keys, the same ou
 a cProfile run) two runs each, alternated with 1dfd12c: 800k 10.45 / 10.94 against 10.72 / 12.18 s, 290k 6.79 /
 5.43 against 6.96 / 7.40, 100k 2.92 / 2.35 against 2.59 / 2.72, occlusion human-800k 10.66 / 10.19 against 11.56 /
 11.24. Spread between runs of the same code here: up to 2.5 s at 800k.
+Version 26 (step 4b's fit pools f-1's and f+1's copies, 56 points where both are sources, as here), same machine:
+this benchmark 10.88 / 10.37 s at 800k (version 25 alternated with it: 11.07 / 9.12), 290k 6.54 / 7.33, 100k 3.05 /
+2.85, occlusion human-800k 10.35 / 9.09; in one process, alternating (`pool_adjacent` True / False, after a warm-up
+call), CPU 10.64 / 10.89 / 10.68 s against 8.63 / 10.04 / 9.26: the pooled fit costs about 1.4 s at 800k.
 """
 
 from __future__ import annotations
