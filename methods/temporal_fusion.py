@@ -737,7 +737,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "26"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "27"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -752,7 +752,8 @@ class TemporalFusion(InpaintingMethod):
     # 23: f-1's motion carries its fill when it passes step 2b on the rim f-1 saw (`seen_rim_residual`);
     # 24: step 6e spans a box a second surface crosses on the hole's sheet (`_flat_anchors`, `_sheet_bounded`);
     # 25: steps 1b and 4b's voxel decisions on voxelized input fit 28 points (a disc of 3 s), not 20;
-    # 26: step 4b's fit pools the copies of f-1 and f+1 (`pool_adjacent`), 28 points a copy
+    # 26: step 4b's fit pools the copies of f-1 and f+1 (`pool_adjacent`), 28 points a copy;
+    # 27: `local_quadric` sums by rows (faster; the same fits to 1e-13, so a decision at a threshold may flip)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

@@ -56,6 +56,43 @@ def test_local_quadric_is_exact_on_a_quadric_and_its_residual_measures_the_scatt
     assert 0.1 < bound < 0.35, bound
 
 
+def naive_local_quadric(point, support, neighbours):
+    """One point's fit written out plainly: PCA frame by SVD, weighted least squares by lstsq."""
+    dist = np.linalg.norm(support - point, axis=1)
+    order = np.argsort(dist, kind="stable")[:neighbours]
+    near, dist = support[order], dist[order]
+    centre = near.mean(axis=0)
+    normal = np.linalg.svd(near - centre)[2][2]  # the direction of least spread
+    tangent = np.linalg.svd(near - centre)[2][:2]
+    u, v = ((near - centre) @ tangent.T).T
+    h = (near - centre) @ normal
+    weight = np.exp(-(dist / (dist[-1] / 2)) ** 2 / 2)
+    design = np.column_stack([np.ones_like(u), u, v, u * u, u * v, v * v])
+    root = np.sqrt(weight)
+    coef = np.linalg.lstsq(design * root[:, None], h * root, rcond=None)[0]
+    residual = np.sqrt(np.sum(weight * (design @ coef - h) ** 2) / weight.sum())
+    pu, pv = (point - centre) @ tangent.T
+    foot = centre + pu * tangent[0] + pv * tangent[1] + (coef @ [1, pu, pv, pu * pu, pu * pv, pv * pv]) * normal
+    return foot, normal, residual
+
+
+@pytest.mark.parametrize("neighbours", [20, 56])
+def test_local_quadric_matches_a_naive_per_point_fit_on_random_surfaces(neighbours):
+    rng = np.random.default_rng(neighbours)
+    # a bumpy, tilted sheet with noise: every fit has a distinct PCA frame and a non-zero residual
+    uv = rng.uniform(-10, 10, size=(3000, 2))
+    sheet = np.column_stack([uv, np.sin(uv[:, 0] / 3) * 2 + 0.05 * uv[:, 1] ** 2 + rng.normal(0, 0.1, len(uv))])
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    support = sheet @ rotation.T + [5.0, -3.0, 2.0]
+    queries = support[rng.choice(len(support), 200, replace=False)] + rng.normal(0, 0.5, size=(200, 3))
+    foot, normal, residual = local_quadric(queries, support, neighbours)
+    for i, query in enumerate(queries):
+        ref_foot, ref_normal, ref_residual = naive_local_quadric(query, support, neighbours)
+        np.testing.assert_allclose(foot[i], ref_foot, atol=1e-9)
+        np.testing.assert_allclose(residual[i], ref_residual, rtol=1e-9)
+        assert abs(abs(normal[i] @ ref_normal) - 1.0) < 1e-9  # the same normal, up to its sign
+
+
 def test_front_fill_closes_a_plane_hole_on_the_plane_at_the_data_density():
     plane = grid_plane()
     region = HoleRegion.ball([0.3, -0.2, 0.0], 4.0)
