@@ -1307,3 +1307,33 @@ def test_pooled_adjacent_copies_misplace_fewer_voxels():
             found = {tuple(v) for v in surface_voxels(copies[0], region, support, cKDTree(kept), 28 * count, 1.0).astype(int)}
             errors[count] += len(hidden - found) + len(found - hidden)
     assert errors[2] < 0.7 * errors[1], errors
+
+
+def test_farther_frames_are_aligned_only_where_the_adjacent_ones_did_not_both_see_the_hole(monkeypatch):
+    """``adjacent_first`` (version 28): with f-1 and f+1 both sources, frames beyond them are not aligned (3 ICP
+    rounds a frame: 6 calls, not 12) and the fill still lies on the hidden surface; at the last frame only f-1 is
+    adjacent, so f-2 and f-3 are aligned and the output is the same as without the rule."""
+    import dpcbench.methods.temporal_fusion as module
+
+    calls = []
+    real = module.icp_align
+    monkeypatch.setattr(module, "icp_align", lambda *a, **k: calls.append(1) or real(*a, **k))
+    frames, regions, hidden = rigid_sequence(n_frames=5, hole_frame=2)
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    counts = {}
+    for first in (True, False):
+        calls.clear()
+        out = quiet(TemporalFusion(window=2, adjacent_first=first), frames, regions)
+        counts[first] = len(calls)
+        fill = out[2][len(frames[2]):]
+        assert len(fill) > 0.7 * len(hidden)
+        assert np.median(cKDTree(hidden).query(fill)[0]) < 0.3 * spacing
+    assert counts == {True: 6, False: 12}, counts
+
+    frames, regions, _ = rigid_sequence(n_frames=5, hole_frame=4)
+    calls.clear()
+    outputs = [quiet(TemporalFusion(window=3, adjacent_first=first), frames, regions)[4] for first in (True, False)]
+    assert len(calls) == 2 * 9  # frames 1, 2 and 3 aligned in both runs
+    np.testing.assert_array_equal(outputs[0], outputs[1])
+    with pytest.raises(ValueError, match="adjacent_first must be true or false"):
+        TemporalFusion(adjacent_first=1).inpaint([np.zeros((10, 3))] * 2, None)
