@@ -68,11 +68,12 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
       the rigid copy is bent with it). The candidate is g's moved points inside R.
    Version 28 (``adjacent_first``): frames beyond f+-1 are aligned only when f-1 and f+1 are not both
    sources. Where both saw R, a farther frame adds a copy that moved more (the reason step 4b pools only
-   the adjacent copies) and costs as much again to align: skipping them halves the 800k-point benchmark
-   (CPU 10.1 -> 5.1 s on one machine, the same minutes) and changed the independent rows' D1 by
-   -0.04 (samba), -0.10 (bunny small), +0.05 (human small) dB (10 frames, seeds 0-2; methods/NOTES.md
-   "version 28"). A farther frame with a lower rim residual than both adjacent ones is no longer found
-   there (samba seed 1: 3 of 40 holes).
+   the adjacent copies) and costs as much again to align: skipping them more than halves the 800k-point
+   benchmark (CPU 10.4 / 11.5 -> 4.5 / 5.0 s, versions 26 and 28 alternated on one machine) and moved the
+   independent rows' D1 by -0.11 (bunny small), +0.05 (D-FAUST), +0.04 (human small), -0.04 (samba) dB
+   (10 frames, seeds 0-2; held-out seeds 3-4: -0.08, -0.01, -0.04, -0.03; methods/NOTES.md "version 28");
+   the coherent and occlusion rows, where f-1 and f+1 have their own hole, are unchanged. A farther frame
+   with a lower rim residual than both adjacent ones is no longer found (samba seed 1: 2 of 40 holes).
 3. Fusion, per part of the hole: candidates in order of rim residual (the best-agreeing frame
    first; equal residuals: the nearer frame). The first contributes its points farther than
    ``gap_spacings * s`` from frame f's points (a partially emptied region is not filled twice).

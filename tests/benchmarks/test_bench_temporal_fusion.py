@@ -43,6 +43,12 @@ Version 26 (step 4b's fit pools f-1's and f+1's copies, 56 points where both are
 this benchmark 10.88 / 10.37 s at 800k (version 25 alternated with it: 11.07 / 9.12), 290k 6.54 / 7.33, 100k 3.05 /
 2.85, occlusion human-800k 10.35 / 9.09; in one process, alternating (`pool_adjacent` True / False, after a warm-up
 call), CPU 10.64 / 10.89 / 10.68 s against 8.63 / 10.04 / 9.26: the pooled fit costs about 1.4 s at 800k.
+2026-11-27, versions 27 (`local_quadric` summed by rows) and 28 (`adjacent_first`: frames beyond f+-1 are not
+aligned where f-1 and f+1 both saw the hole, as here), CPU time, `-k size`, two runs each alternated with version
+26 (70536cd) on one machine: 800k 4.54 / 4.97 s against 10.41 / 11.50 (target < 10 s: met), 290k 2.61 / 2.97
+against 6.07 / 7.03, 100k 1.52 / 1.65 against 2.18 / 2.50 (the first case of a run also imports open3d). Version 28,
+`-k "size or human or holes"`, one run: 1 / 3 / 5 holes at ~280k 0.57 / 1.64 / 3.13 s (about 0.55 s a hole),
+occlusion human-800k 10.46 s (its adjacent frames have their own holes: every frame of the window is aligned).
 """
 
 from __future__ import annotations
