@@ -942,7 +942,7 @@ class TemporalFusion(InpaintingMethod):
                        key=lambda g: (abs(g - f), g))
         motions: dict[int, tuple] = {f: (np.eye(3), np.zeros(3), None)}
         local_plane = None  # `plane_target` of ``local`` (points, normals, tree), for step 2a's refinement
-        candidates = []
+        candidates: list[tuple[float, int, int, np.ndarray]] = []  # (rim residual, |g - f|, g, points)
         partial = []
         carried: tuple | None = None  # f-1's motion when it carries its fill only (step 2b)
         for g in order:
