@@ -7,7 +7,7 @@ with the copies. Step 6b, the advancing front, is `methods._front_fill`.
   narrows its support to the hole's own sheet.
 - `poisson_surface_fill` (step 6c): screened Poisson of the crop, body by body (`tube_fill` across a limb the
   hole cuts through).
-- `cap_fill` (step 6d): the membrane spanning an opening's boundary loop.
+- `cap_fill` (step 6d): the membrane spanning an opening's boundary loop (`harmonic_height_field`).
 - `membrane_fill` (step 6e): lozes-pde's harmonic graph fill anchored at the data round and inside the hole.
 - `grown_agreeing` / `plane_offsets` (step 4): a point is kept when it continues its neighbours' local plane.
 
@@ -258,7 +258,7 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
 
 def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
              voxelized: bool, step: float | None = None, gap_spacings: float = 1.0, band_spacings: float = 2.0,
-             max_loop_spacings: float = 1.0, max_loop_fraction: float = 1 / 20) -> np.ndarray:
+             max_loop_spacings: float = 1.0, max_loop_fraction: float = 1 / 20, harmonic: bool = True) -> np.ndarray:
     """Cap fill (step 6d of `methods.temporal_fusion`): the membrane spanning ``region``'s boundary loop.
     Returns (P, 3) points; (0, 3) when the loop is not flat enough to span.
 
@@ -267,10 +267,16 @@ def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spa
     RMS of at most max(``max_loop_spacings * spacing``, ``max_loop_fraction * r``) (r the region's bounding
     radius), so the loop bounds one opening (the base of a body,
     a sole, a crown cut off by the cameras' horizon); two rims of a band round a limb, or a rim bent
-    round a fold, lie at different heights and are refused. Surface: `rim_surface_fill` of the loop with
-    the normals test off (a cap's rim is the edge of the walls round it, steep by nature) and a linear,
-    not quadratic, polynomial part: on a closed loop u^2 + v^2 is nearly constant, so a quadratic part
-    is not determined by the loop; the thin-plate spline with a plane is the least-bending membrane."""
+    round a fold, lie at different heights and are refused.
+
+    Surface (``harmonic``, version 29): the harmonic height field over the loop's plane with the loop's
+    heights fixed (`harmonic_height_field`, cells of step 6's grid step: the least-area membrane; by the
+    maximum principle it never leaves the range of the loop's heights), from the loop's points on its sheet
+    (`_flat_anchors`, when 12 or more: a wall's points project onto a few cells, whose mean height would be
+    the middle of the wall's column). False (version 28): `rim_surface_fill` of the loop with the normals
+    test off and a linear polynomial part, the least-bending thin plate, which continues the slope the loop
+    has at its edge: at the bunny's base, whose rim rises from the body's walls, it rose 2-3 voxels above the
+    rim and out of the box, and the middle of the opening stayed open (methods/NOTES.md "version 29")."""
     loop = local[region.contains(local, margin=band_spacings * spacing)]
     if len(loop) < 12:
         return np.zeros((0, 3))
@@ -278,8 +284,84 @@ def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spa
     normal = np.linalg.eigh(spread.T @ spread)[1][:, 0]
     if float(np.sqrt(np.mean((spread @ normal) ** 2))) > max(max_loop_spacings * spacing, max_loop_fraction * region.bounding_radius):
         return np.zeros((0, 3))
-    return rim_surface_fill(loop, region, covered, spacing, voxelized=voxelized, step=step, max_steep=1.0,
-                            gap_spacings=gap_spacings, degree=1)
+    if not harmonic:
+        return rim_surface_fill(loop, region, covered, spacing, voxelized=voxelized, step=step, max_steep=1.0,
+                                gap_spacings=gap_spacings, degree=1)
+    flat = _flat_anchors(loop)
+    if flat.sum() >= 12:
+        loop = loop[flat]
+    centre = loop.mean(axis=0)
+    axes = np.linalg.svd(loop - centre, full_matrices=False)[2]  # rows u, v, n
+    uv, heights = (loop - centre) @ axes[:2].T, (loop - centre) @ axes[2]
+    cells, cell_heights = harmonic_height_field(uv, heights, spacing / 2.0 if voxelized else (step or spacing))
+    points = centre + cells @ axes[:2] + cell_heights[:, None] * axes[2]
+    points = points[region.contains(points)]
+    points = points[far_from(points, covered, gap_spacings * spacing)]
+    if voxelized and len(points):
+        points = np.unique(np.floor(points + 0.5), axis=0)
+    return points
+
+
+def harmonic_height_field(uv: np.ndarray, heights: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """The harmonic interpolant of scattered heights over their plane, on a square grid: (centres (M, 2), heights
+    (M,)) of the grid cells inside the convex hull of ``uv`` (K, 2) that hold none of the K points.
+
+    Cells of side ``cell``; a cell holding points is fixed at their mean ``heights`` (K,). The others, inside the
+    hull, solve the discrete Laplace equation (5-point stencil: each is the mean of its neighbours in the hull;
+    cells outside the hull are left out, a zero-slope boundary), one sparse solve (scipy's ``spsolve``); a group
+    of cells that no fixed cell borders has no solution and is left out. The grid, not a graph of the points:
+    the stencil's Laplacian is exact for a height field, where a k-nearest-neighbour graph's is biased by the
+    points' uneven spacing."""
+    import scipy.sparse as sp
+    from scipy.ndimage import label
+    from scipy.sparse.linalg import spsolve
+    from scipy.spatial import ConvexHull, QhullError
+
+    empty = np.zeros((0, 2)), np.zeros(0)
+    try:
+        edges = ConvexHull(uv).equations  # rows (a, b, c): a u + b v + c <= 0 inside
+    except QhullError:
+        return empty
+    origin = uv.min(axis=0) - 1.5 * cell  # the lowest point at the centre of cell 1: cell 0 pads np.roll below
+    ij = np.floor((uv - origin) / cell).astype(np.int64)
+    shape = tuple(ij.max(axis=0) + 2)
+    flat = np.ravel_multi_index((ij[:, 0], ij[:, 1]), shape)
+    count = np.bincount(flat, minlength=shape[0] * shape[1]).reshape(shape)
+    fixed = count > 0
+    value = np.zeros(shape)
+    value[fixed] = (np.bincount(flat, weights=heights, minlength=count.size).reshape(shape)[fixed] / count[fixed])
+    centres = origin + (np.stack(np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij"), axis=-1) + 0.5) * cell
+    inside = (centres.reshape(-1, 2) @ edges[:, :2].T + edges[:, 2] <= 1e-9 * cell).all(axis=1).reshape(shape)
+    free = inside & ~fixed
+    # the free cells' groups (4-connected) that border a fixed cell: the others' Laplace problem is singular
+    groups, _ = label(free)
+    bordered = np.zeros(shape, dtype=bool)
+    for axis in (0, 1):
+        for shift in (1, -1):
+            bordered |= np.roll(fixed, shift, axis=axis)  # the padding row keeps np.roll from wrapping onto data
+    keep = np.unique(groups[free & bordered])
+    free &= np.isin(groups, keep[keep > 0])
+    rows_i, rows_j = np.nonzero(free)
+    if not len(rows_i):
+        return empty
+    index = np.full(shape, -1, dtype=np.int64)
+    index[rows_i, rows_j] = np.arange(len(rows_i))
+    degree, rhs = np.zeros(len(rows_i)), np.zeros(len(rows_i))
+    pair_rows, pair_cols = [], []
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        ni, nj = rows_i + di, rows_j + dj
+        valid = (ni >= 0) & (nj >= 0) & (ni < shape[0]) & (nj < shape[1])
+        ni, nj = np.where(valid, ni, 0), np.where(valid, nj, 0)
+        to_fixed, to_free = valid & fixed[ni, nj], valid & free[ni, nj]
+        degree += to_fixed | to_free
+        rhs += np.where(to_fixed, value[ni, nj], 0.0)
+        pair_rows.append(np.flatnonzero(to_free))
+        pair_cols.append(index[ni, nj][to_free])
+    n = len(rows_i)
+    pr, pc = np.concatenate(pair_rows), np.concatenate(pair_cols)
+    laplacian = sp.csc_matrix((np.concatenate([degree, -np.ones(len(pr))]),
+                               (np.concatenate([np.arange(n), pr]), np.concatenate([np.arange(n), pc]))), shape=(n, n))
+    return centres[rows_i, rows_j], np.atleast_1d(spsolve(laplacian, rhs))
 
 
 def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,

@@ -132,7 +132,7 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    coherent and occlusion row and D-FAUST (not voxelized) unchanged. Cost: about 1.4 s CPU of ~10 at 800k
    points with 5 holes (the 56-point fits).
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
-   fill alike, steps 5b and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
+   fill alike, steps 5b, 6d and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
    computed even when f-1 failed the coverage test; accepted by step 2b, on the rim f-1 saw) and,
    where they still fit the rim (points within 3 s of the rim and farther than ``accept_spacings * s``
    off its local plane are dropped, as in step 4), fill the parts of R that the copies left open.
@@ -221,19 +221,31 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    (version 7) -> 22.11 / 25.41 (no fill 1.43 / 22.11, temporal-graph 16.26 / 19.24).
 6d. Cap (``cap``, voxelized input; `cap_fill`): where steps 6 and 6c added nothing, an opening that no
    surface round it continues (the base of a body standing on the floor, a sole, a crown above the
-   cameras) is spanned by the least-bending membrane of its boundary loop: the points of frame f within
+   cameras) is spanned by a membrane across its boundary loop: the points of frame f within
    2 s of R, whose heights over their own plane must have an RMS of at most max(1 s, r / 20) (two rims of
    a band round a limb, or a rim bent round a fold, lie at different heights and are refused; on a large
    opening the cap's error is of the loop's wobble, far less than the distance of the missing points to
-   the rim, which grows with r). The membrane is step 6's thin-plate spline through the loop with a
-   linear polynomial part (on a closed loop u^2 + v^2 is nearly constant, so a quadratic part is not
-   determined) and without the normals test (a cap's rim is the edge of the steep walls round it); its
-   points are rounded to voxels. Voxelized input only: rounded to the capture's voxels, a cap within half
-   a voxel of the surface is exact, while on D-FAUST (unvoxelized) the caps lay 0.55 s RMS off the true
-   surface (5 frames, occlusion, frame 0) and the whole-frame D2 dropped 0.21 dB for +0.33 dB D1.
-   Measured (occlusion holes, seed 0, 5 frames, D1 / D2): bunny small -7.68 / 2.61 -> 1.05 / 4.61 (its
-   base, a 150-voxel opening, stayed open: fu-nonlocal -2.22 / 7.42), samba 11.06 / 28.17 -> 11.09 / 28.21,
-   human small unchanged.
+   the rim, which grows with r). Version 29 (``harmonic_cap``): the membrane is the harmonic height field
+   over the loop's plane (`harmonic_height_field`: a grid of step 6's step, the cells the loop's points fall
+   in fixed at their mean height, the others inside the loop's convex hull solving Laplace's equation), with
+   the loop's points on steep walls left out (their normal more than 60 degrees off the plane's normal,
+   step 6's angle, `_flat_anchors`: a grid cell over a wall would take the mean of its column). By the maximum
+   principle the cap stays within the heights of the loop. Up to version 28 it was step 6's thin-plate
+   spline through the loop (linear polynomial part, no normals test), the least-bending plate, which
+   continues the slope the loop has where it leaves the walls: the bunny's base (a 150-voxel opening whose
+   rim rises from the body's walls and whose middle is hollow) got a cap 2-3 voxels above the rim that left
+   the box, so its middle stayed open. Its points are rounded to voxels. Since version 29 not reused by step 5
+   (as step 6e's membrane): frame f + 1 spans its own loop, where the moved cap's points drifted (the bunny base's
+   farthest fill point from the truth grew from 7 to 14 voxels over 10 frames); the thin plate, which left the
+   middle open, needed the earlier frames' caps there. Voxelized input only: rounded to the
+   capture's voxels, a cap within half a voxel of the surface is exact, while on D-FAUST (unvoxelized) the
+   version-13 caps lay 0.55 s RMS off the true surface (5 frames, occlusion, frame 0) and the whole-frame D2
+   dropped 0.21 dB for +0.33 dB D1.
+   Measured (version 13, occlusion holes, seed 0, 5 frames, D1 / D2): bunny small -7.68 / 2.61 -> 1.05 / 4.61
+   (fu-nonlocal -2.22 / 7.42), samba 11.06 / 28.17 -> 11.09 / 28.21, human small unchanged. Version 28 -> 29
+   (10 frames, D1 / D2 / NSHD x 1e9; methods/NOTES.md "version 29"): bunny small occlusion 1.84 / 4.33 / 34.7 -> 6.18 /
+   6.71 / 5.52 (fu-nonlocal -1.98 / 7.66 / 79.3), samba occlusion 21.09 / 28.36 / 1.13 -> 21.06 / 28.31 / 1.16; every
+   other row unchanged.
 6e. Membrane (``membrane``; `membrane_fill`): where steps 6-6d added nothing, the open parts of R are spanned by
    `lozes_pde.LozesPDE`'s harmonic graph fill (p = 2) anchored at every point of frame f and of the accepted
    points within 3 grid steps of R, inside R included: seeds on the anchors' PCA plane where no anchor
@@ -378,6 +390,9 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   cap               True: step 6d (voxelized input); its band, 2 s, is the rim's first rows of samples (one row
                     leaves gaps where the sampling is uneven); its flatness bound max(1 s, r / 20) is step 6's
                     hold-out bound, or on a wide opening a wobble of 3 degrees seen from the loop's centre.
+  harmonic_cap      True: step 6d's membrane is harmonic (never leaves its loop's heights) and built afresh in each
+                    frame; False: the thin plate of versions 13-28, reused by step 5. Its grid is step 6's, its
+                    wall angle step 6's; no constant of its own.
   membrane          True: step 6e; its ring (3 grid steps), graph and seeds are lozes-pde's defaults, its
                     hold-out band half that ring (round the open part), its bound and height-field test
                     step 6's (the latter with a majority bound, 0.5), its agreement rule step 4's.
@@ -746,7 +761,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "28"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "29"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -763,7 +778,8 @@ class TemporalFusion(InpaintingMethod):
     # 25: steps 1b and 4b's voxel decisions on voxelized input fit 28 points (a disc of 3 s), not 20;
     # 26: step 4b's fit pools the copies of f-1 and f+1 (`pool_adjacent`), 28 points a copy;
     # 27: `local_quadric` sums by rows (faster; the same fits to 1e-13, so a decision at a threshold may flip);
-    # 28: frames beyond f+-1 are aligned only where f-1 and f+1 are not both sources (`adjacent_first`)
+    # 28: frames beyond f+-1 are aligned only where f-1 and f+1 are not both sources (`adjacent_first`);
+    # 29: step 6d's cap is the harmonic membrane of its loop, not the thin plate, and not reused (`harmonic_cap`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -773,7 +789,8 @@ class TemporalFusion(InpaintingMethod):
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int | str = "auto", rim_fill: bool = True, poisson: bool = True,
-                 poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, membrane: bool = True, front: bool = False,
+                 poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, harmonic_cap: bool = True,
+                 membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
@@ -795,6 +812,7 @@ class TemporalFusion(InpaintingMethod):
         self.poisson_bodies = poisson_bodies
         self.poisson_bridges = poisson_bridges
         self.cap = cap
+        self.harmonic_cap = harmonic_cap
         self.membrane = membrane
         self.partial_sources = partial_sources
         self.sheet = sheet
@@ -830,7 +848,7 @@ class TemporalFusion(InpaintingMethod):
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
-                     "poisson_bridges", "cap", "membrane", "front", "partial_sources", "sheet", "revoxelize",
+                     "poisson_bridges", "cap", "harmonic_cap", "membrane", "front", "partial_sources", "sheet", "revoxelize",
                      "pool_adjacent", "adjacent_first"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
@@ -883,7 +901,7 @@ class TemporalFusion(InpaintingMethod):
 
     # -- one frame -----------------------------------------------------------------------------
     def _fill_frame(self, f, frame_regions, previous_fill, ctx) -> tuple[np.ndarray, np.ndarray]:
-        """(the points added to frame f, those of them that frame f + 1 may reuse: all but steps 5b and 6e's)."""
+        """(the points added to frame f, those of them that frame f + 1 may reuse: all but steps 5b, 6d and 6e's)."""
         frames, spacing = ctx["frames"], ctx["spacing"]
         frame, tree = frames[f], ctx["tree_of"](f)
         new_parts: list[np.ndarray] = []
@@ -904,8 +922,8 @@ class TemporalFusion(InpaintingMethod):
             added = added[far_from(added, tree, self.gap_spacings * spacing)]
         if not ctx["not_reused"]:
             return added, added
-        # step 5b's copies and step 6e's membrane rest on frames round f as they are, so frame f + 1 builds its
-        # own rather than reusing these (step 5): reused, they drift and pile up in a persistent occlusion box
+        # step 5b's copies and the membranes of steps 6d and 6e rest on frames round f as they are, so frame f + 1
+        # builds its own rather than reusing these (step 5): reused, they drift and pile up in a persistent occlusion box
         fresh = np.vstack(ctx["not_reused"])
         if ctx["voxelized"]:
             fresh = np.floor(fresh + 0.5)
@@ -1100,7 +1118,10 @@ class TemporalFusion(InpaintingMethod):
             if self.cap and ctx["voxelized"] and not len(spatial):
                 # step 6d: an opening no surface round it continues (a base, a sole), spanned by a membrane
                 spatial = cap_fill(local, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
-                                   gap_spacings=self.fill_gap_spacings)
+                                   gap_spacings=self.fill_gap_spacings, harmonic=self.harmonic_cap)
+                if self.harmonic_cap:
+                    # frame f's own loop spans it afresh in each frame; moved on by each frame's motion it drifted
+                    ctx["not_reused"].append(spatial)
             if self.membrane and not len(spatial):
                 # step 6e: a gap the membrane of the data round and inside it spans (an occlusion box's open parts)
                 spatial = membrane_fill(local, region, covered, spacing, step=ctx["step"], accepted=accepted,
