@@ -49,6 +49,11 @@ aligned where f-1 and f+1 both saw the hole, as here), CPU time, `-k size`, two 
 against 6.07 / 7.03, 100k 1.52 / 1.65 against 2.18 / 2.50 (the first case of a run also imports open3d). Version 28,
 `-k "size or human or holes"`, one run: 1 / 3 / 5 holes at ~280k 0.57 / 1.64 / 3.13 s (about 0.55 s a hole),
 occlusion human-800k 10.46 s (its adjacent frames have their own holes: every frame of the window is aligned).
+2026-11-27, version 29 (step 6d's cap harmonic), `-k occlusion`, CPU, one run: human-800k 10.53 s, bunny-635k 256.6 s
+(2 frames; 61,187 / 61,217 points added, the whole base now). One-off cProfile of the bunny case (`/tmp/s36/bocc.py`,
+versions 29 and 28 run side by side on 2 cores): 279.3 s against 291.2 s for the thin-plate cap; 247 s of it is step
+6c's screened Poisson (15 reconstructions of the base's crop, 160 s inside open3d) that the hold-out then refuses,
+the cap's harmonic solves 11 s (5 calls).
 """
 
 from __future__ import annotations
