@@ -408,10 +408,11 @@ def test_rim_surface_fill_on_voxels_gives_the_surface_voxels():
     assert cKDTree(surface).query(fill)[0].max() <= 1.0
 
 
-def voxel_cylinder(radius: float = 20.0, height: float = 30.0) -> np.ndarray:
-    """The surface voxels (N, 3) of a closed cylinder standing on z = 0: side wall, bottom and top discs,
-    sampled finely and rounded to integer voxels."""
-    angle = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+def voxel_cylinder(radius: float = 20.0, height: float = 30.0, bottom_height=None, angles: int = 720) -> np.ndarray:
+    """The surface voxels (N, 3) of a closed cylinder standing on z = 0: side wall (``angles`` samples round),
+    bottom and top discs, sampled finely and rounded to integer voxels. ``bottom_height``: the bottom's height as
+    a function of the radius (default flat, z = 0)."""
+    angle = np.linspace(0.0, 2 * np.pi, angles, endpoint=False)
     z = np.arange(0.0, height + 0.25, 0.25)
     aa, zz = np.meshgrid(angle, z)
     wall = np.column_stack([radius * np.cos(aa.ravel()), radius * np.sin(aa.ravel()), zz.ravel()])
@@ -419,7 +420,8 @@ def voxel_cylinder(radius: float = 20.0, height: float = 30.0) -> np.ndarray:
     xx, yy = np.meshgrid(xy, xy)
     disc = np.column_stack([xx.ravel(), yy.ravel()])
     disc = disc[np.hypot(disc[:, 0], disc[:, 1]) <= radius]
-    bottom = np.column_stack([disc, np.zeros(len(disc))])
+    lift = np.zeros(len(disc)) if bottom_height is None else bottom_height(np.hypot(disc[:, 0], disc[:, 1]))
+    bottom = np.column_stack([disc, lift])
     top = np.column_stack([disc, np.full(len(disc), height)])
     return np.unique(np.floor(np.vstack([wall, bottom, top]) + 0.5), axis=0)
 
@@ -453,21 +455,10 @@ def test_cap_fill_closes_a_flat_base_and_refuses_a_band_round_the_body():
 
 
 def footed_base(radius: float = 40.0, height: float = 20.0, punt: float = 4.0, foot: float = 32.0) -> np.ndarray:
-    """The surface voxels (N, 3) of a cylinder standing on a foot ring: its bottom rises into the body by
-    ``punt`` voxels in the middle (punt * (1 + cos(pi r / foot)) / 2 within ``foot``, 0 outside; a bottle's
-    punt, the bunny's hollow base), side wall and top as `voxel_cylinder`."""
-    angle = np.linspace(0.0, 2 * np.pi, 1440, endpoint=False)
-    z = np.arange(0.0, height + 0.25, 0.25)
-    aa, zz = np.meshgrid(angle, z)
-    wall = np.column_stack([radius * np.cos(aa.ravel()), radius * np.sin(aa.ravel()), zz.ravel()])
-    xy = np.arange(-radius, radius + 0.25, 0.25)
-    xx, yy = np.meshgrid(xy, xy)
-    disc = np.column_stack([xx.ravel(), yy.ravel()])
-    r = np.hypot(disc[:, 0], disc[:, 1])
-    disc, r = disc[r <= radius], r[r <= radius]
-    bottom = np.column_stack([disc, np.where(r < foot, punt * 0.5 * (1 + np.cos(np.pi * r / foot)), 0.0)])
-    top = np.column_stack([disc, np.full(len(disc), height)])
-    return np.unique(np.floor(np.vstack([wall, bottom, top]) + 0.5), axis=0)
+    """`voxel_cylinder` standing on a foot ring: its bottom rises into the body by ``punt`` voxels in the middle
+    (punt * (1 + cos(pi r / foot)) / 2 within ``foot``, 0 outside; a bottle's punt, the bunny's hollow base)."""
+    return voxel_cylinder(radius, height, angles=1440,
+                          bottom_height=lambda r: np.where(r < foot, punt * 0.5 * (1 + np.cos(np.pi * r / foot)), 0.0))
 
 
 def test_cap_stays_within_its_loops_heights_where_the_thin_plate_overshoots():
