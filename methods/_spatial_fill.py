@@ -256,6 +256,18 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
     return points
 
 
+def cap_walled(local: np.ndarray, region: HoleRegion, spacing: float, *, band_spacings: float = 2.0,
+               max_steep: float = MAX_STEEP) -> bool:
+    """Whether the surface round ``region``'s boundary loop turns away from the loop's plane (step 6d's walled
+    opening): more than ``max_steep`` of the loop's points (those of ``local`` (K, 3) within ``band_spacings *
+    spacing`` of the region, as `cap_fill`) have PCA normals (10 neighbours) more than 60 degrees off the loop's
+    PCA normal: step 6's height-field test (`fit_height_field`), failed. Walls rising from the opening (a base, a
+    sole: 33-35 % steep at the bunny's) say no surface round it continues over it; a hole in a sheet that goes on
+    over it has almost none (0-9 % at the bunny's coherent holes that step 6c fills)."""
+    loop = local[region.contains(local, margin=band_spacings * spacing)]
+    return len(loop) >= 12 and float(np.mean(~_flat_anchors(loop))) > max_steep
+
+
 def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
              voxelized: bool, step: float | None = None, gap_spacings: float = 1.0, band_spacings: float = 2.0,
              max_loop_spacings: float = 1.0, max_loop_fraction: float = 1 / 20, harmonic: bool = True) -> np.ndarray:

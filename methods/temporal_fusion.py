@@ -219,9 +219,9 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    D1 / D2 8.78 / 26.95 dB open at small, 1.21 / 21.97 open at default; medium holes land on a limb about
    half the time. Human default, coherent, 10 frames, seeds 0-2 (methods/NOTES.md): D1 / D2 3.20 / 22.69
    (version 7) -> 22.11 / 25.41 (no fill 1.43 / 22.11, temporal-graph 16.26 / 19.24).
-6d. Cap (``cap``, voxelized input; `cap_fill`): where steps 6 and 6c added nothing, an opening that no
-   surface round it continues (the base of a body standing on the floor, a sole, a crown above the
-   cameras) is spanned by a membrane across its boundary loop: the points of frame f within
+6d. Cap (``cap``, voxelized input; `cap_fill`): where steps 6 and 6c (6 alone where the loop is walled, below)
+   added nothing, an opening that no surface round it continues (the base of a body standing on the floor, a
+   sole, a crown above the cameras) is spanned by a membrane across its boundary loop: the points of frame f within
    2 s of R, whose heights over their own plane must have an RMS of at most max(1 s, r / 20) (two rims of
    a band round a limb, or a rim bent round a fold, lie at different heights and are refused; on a large
    opening the cap's error is of the loop's wobble, far less than the distance of the missing points to
@@ -246,6 +246,17 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    (10 frames, D1 / D2 / NSHD x 1e9; methods/NOTES.md "version 29"): bunny small occlusion 1.84 / 4.33 / 34.7 -> 6.18 /
    6.71 / 5.52 (fu-nonlocal -1.98 / 7.66 / 79.3), samba occlusion 21.09 / 28.36 / 1.13 -> 21.06 / 28.31 / 1.16; every
    other row unchanged.
+   Version 30 (``walled_cap_first``): step 6d goes before 6c where walls rise from the opening (`cap_walled`: more
+   than a quarter of the loop's points have normals more than 60 degrees off the loop's normal, step 6's
+   height-field test, failed): no surface round such an opening continues over it, so 6c's closed surface has no
+   side of it to follow and its hold-out refused every one measured (the bunny's base, 33-35 % steep: 15 screened
+   Poisson reconstructions, 83 % of a 635k-point frame's CPU, for nothing). Where a surface round the hole goes
+   on over it (the bunny's coherent holes that 6c fills, 0-9 % steep) 6c keeps its turn: capped first those lost
+   1.07 dB D1 (seed 2), and a bound on the membrane's sag (`membrane_sag`) does not tell them apart (0.2-0.95 s
+   there, 13 s at the base, whose loop rises up the walls).
+   Grids (methods/NOTES.md "version 30"): every row of the targets (seeds 0-2) and held-out (3-4) grids unchanged,
+   bunny small occlusion 272.7 -> 99.8 s CPU for its 10 frames; at paper scale (bunny-635k, occlusion, 2 frames,
+   the benchmark) 256.6 -> 91.4 s.
 6e. Membrane (``membrane``; `membrane_fill`): where steps 6-6d added nothing, the open parts of R are spanned by
    `lozes_pde.LozesPDE`'s harmonic graph fill (p = 2) anchored at every point of frame f and of the accepted
    points within 3 grid steps of R, inside R included: seeds on the anchors' PCA plane where no anchor
@@ -393,6 +404,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   harmonic_cap      True: step 6d's membrane is harmonic (never leaves its loop's heights) and built afresh in each
                     frame; False: the thin plate of versions 13-28, reused by step 5. Its grid is step 6's, its
                     wall angle step 6's; no constant of its own.
+  walled_cap_first  True: step 6d before 6c where its loop is walled (`cap_walled`); its bound is step 6's height-field
+                    bound (a quarter of the points steep), its angle step 6's; False: 6c first (versions 13-29).
   membrane          True: step 6e; its ring (3 grid steps), graph and seeds are lozes-pde's defaults, its
                     hold-out band half that ring (round the open part), its bound and height-field test
                     step 6's (the latter with a majority bound, 0.5), its agreement rule step 4's.
@@ -420,6 +433,7 @@ from dpcbench.methods._point_to_plane import point_to_plane_icp
 from dpcbench.methods._registration import alignment_residual
 from dpcbench.methods._spatial_fill import (
     cap_fill,
+    cap_walled,
     even_subset,
     far_from,
     grown_agreeing,
@@ -761,7 +775,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "29"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "30"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -779,7 +793,8 @@ class TemporalFusion(InpaintingMethod):
     # 26: step 4b's fit pools the copies of f-1 and f+1 (`pool_adjacent`), 28 points a copy;
     # 27: `local_quadric` sums by rows (faster; the same fits to 1e-13, so a decision at a threshold may flip);
     # 28: frames beyond f+-1 are aligned only where f-1 and f+1 are not both sources (`adjacent_first`);
-    # 29: step 6d's cap is the harmonic membrane of its loop, not the thin plate, and not reused (`harmonic_cap`)
+    # 29: step 6d's cap is the harmonic membrane of its loop, not the thin plate, and not reused (`harmonic_cap`);
+    # 30: step 6d before 6c where walls rise from the opening (`walled_cap_first`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -790,7 +805,7 @@ class TemporalFusion(InpaintingMethod):
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int | str = "auto", rim_fill: bool = True, poisson: bool = True,
                  poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, harmonic_cap: bool = True,
-                 membrane: bool = True, front: bool = False,
+                 walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
@@ -813,6 +828,7 @@ class TemporalFusion(InpaintingMethod):
         self.poisson_bridges = poisson_bridges
         self.cap = cap
         self.harmonic_cap = harmonic_cap
+        self.walled_cap_first = walled_cap_first
         self.membrane = membrane
         self.partial_sources = partial_sources
         self.sheet = sheet
@@ -848,8 +864,8 @@ class TemporalFusion(InpaintingMethod):
         number("fill_gap_spacings", False)
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
-                     "poisson_bridges", "cap", "harmonic_cap", "membrane", "front", "partial_sources", "sheet", "revoxelize",
-                     "pool_adjacent", "adjacent_first"):
+                     "poisson_bridges", "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources",
+                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1107,6 +1123,11 @@ class TemporalFusion(InpaintingMethod):
                                                   ring=shell / 2, gap_spacings=self.fill_gap_spacings)
                     if len(sheet_fill):
                         covered = cKDTree(np.vstack([covered.data, sheet_fill]))
+            capping = self.cap and ctx["voxelized"] and not len(spatial)
+            cap_first = capping and self.walled_cap_first and cap_walled(local, region, spacing)
+            if cap_first:
+                # step 6d before 6c where walls rise from the opening: no surface round it continues over it
+                spatial = self._cap(local, region, covered, spacing, ctx)
             if self.poisson and not len(spatial):
                 # step 6c: a hole the height field refused (round a limb, a neck), on the crop's closed surface
                 spatial = poisson_surface_fill(np.vstack([local, accepted]), region, covered, spacing,
@@ -1115,13 +1136,9 @@ class TemporalFusion(InpaintingMethod):
                                                max_holdout_spacings=self.surface_holdout_spacings,
                                                separate_bodies=self.poisson_bodies,
                                                bridge_ends=self.poisson_bridges)
-            if self.cap and ctx["voxelized"] and not len(spatial):
+            if capping and not cap_first and not len(spatial):
                 # step 6d: an opening no surface round it continues (a base, a sole), spanned by a membrane
-                spatial = cap_fill(local, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
-                                   gap_spacings=self.fill_gap_spacings, harmonic=self.harmonic_cap)
-                if self.harmonic_cap:
-                    # frame f's own loop spans it afresh in each frame; moved on by each frame's motion it drifted
-                    ctx["not_reused"].append(spatial)
+                spatial = self._cap(local, region, covered, spacing, ctx)
             if self.membrane and not len(spatial):
                 # step 6e: a gap the membrane of the data round and inside it spans (an occlusion box's open parts)
                 spatial = membrane_fill(local, region, covered, spacing, step=ctx["step"], accepted=accepted,
@@ -1166,6 +1183,15 @@ class TemporalFusion(InpaintingMethod):
             ctx["not_reused"].append(seen)
         accepted = np.vstack([accepted, seen, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
+
+    def _cap(self, local, region, covered, spacing, ctx) -> np.ndarray:
+        """Step 6d's membrane (`cap_fill`)."""
+        spatial = cap_fill(local, region, covered, spacing, voxelized=ctx["voxelized"], step=ctx["step"],
+                           gap_spacings=self.fill_gap_spacings, harmonic=self.harmonic_cap)
+        if self.harmonic_cap:
+            # frame f's own loop spans it afresh in each frame; moved on by each frame's motion it drifted
+            ctx["not_reused"].append(spatial)
+        return spatial
 
     def _front(self, support, region, covered, rim, spacing, voxelized, neighbours) -> np.ndarray:
         """Step 6b (`_front_fill.front_fill`): cell 1 voxel / s, `_rim_fill_rounds` rounds, residual bound

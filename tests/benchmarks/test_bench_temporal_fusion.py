@@ -54,6 +54,9 @@ occlusion human-800k 10.46 s (its adjacent frames have their own holes: every fr
 versions 29 and 28 run side by side on 2 cores): 279.3 s against 291.2 s for the thin-plate cap; 247 s of it is step
 6c's screened Poisson (15 reconstructions of the base's crop, 160 s inside open3d) that the hold-out then refuses,
 the cap's harmonic solves 11 s (5 calls).
+2026-11-27, version 30 (step 6d before 6c where walls rise from the opening), `-k occlusion`, CPU, one run:
+human-800k 11.16 s, bunny-635k 91.4 s (2 frames, the same points added); cProfile: step 6c 36 s on the four other
+holes that reach it, the base's cap 8.7 s.
 """
 
 from __future__ import annotations
