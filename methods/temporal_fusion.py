@@ -131,6 +131,20 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    37.43 -> 33.55 / 37.82; held-out seeds 3-4 37.39 -> 37.75, 29.86 -> 30.33, 33.12 -> 33.23 (D1); every
    coherent and occlusion row and D-FAUST (not voxelized) unchanged. Cost: about 1.4 s CPU of ~10 at 800k
    points with 5 holes (the 56-point fits).
+   Version 31 (``count_copies``): the copies' own count of voxels is kept, the candidates with the smallest
+   offsets (`surface_voxels`' ``count``), in place of the bound t. The copies are the same capture's voxelization
+   of the same surface, so their count is the count to expect; t is read where frame f's own fit judges its own
+   voxels, and a fit through aligned copies judges the hole's candidates with a wider scatter, so the same t kept
+   too few or too many: samba independent holes (seed 2 frames 0 and 9, seed 1 frames 4, 5, 8; one-off per-hole
+   attribution) got 3-8 % fewer voxels than the truth in most holes, truth-to-result error above result-to-truth
+   (D1 takes the larger), where temporal-copy's rounded copy matched the count; human small's got 2-7 % more. On
+   a thin capture (a sampled sphere, the test) t is unsteady and kept as few as 9 % of the count. Keeping at
+   least the count (t a floor) gained samba and bunny as much and lost human small 0.11 dB D1. Grid, version 30 ->
+   31 (10 frames, seeds 0-2, D1 / D2; methods/NOTES.md "version 31"): independent holes, samba 33.51 / 37.79 ->
+   34.06 / 38.34 (temporal-copy 32.84: +1.22 dB), bunny small 37.84 / 42.10 -> 38.17 / 42.27, human small 30.56 /
+   34.22 -> 30.78 / 34.44; every coherent and occlusion row and D-FAUST (not voxelized) unchanged. Held-out seeds 3-4: samba 33.20 -> 33.85, bunny
+   37.67 -> 38.20, human 30.29 -> 30.46 (D1); MVUB ricardo9 (a real capture, 2 frames, seed 0) 35.30 / 37.51 ->
+   35.45 / 37.66.
 5. Reuse (``reuse_previous``): the points frame f-1's result added (copies, reused and spatial
    fill alike, steps 5b, 6d and 6e excepted) are moved to frame f by f-1's motion (steps 2a and 2c,
    computed even when f-1 failed the coverage test; accepted by step 2b, on the rim f-1 saw) and,
@@ -416,6 +430,7 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   revoxelize        True: step 4b (voxelized data only); its bound t is read from each hole's rim.
   pool_adjacent     True: step 4b's fit also takes the copies of f-1 and f+1 (see there); no constant of its own.
   adjacent_first    True: frames beyond f+-1 only where f-1 and f+1 are not both sources (step 2, version 28).
+  count_copies      True: step 4b keeps as many voxels as the fused copies hold (version 31; False: the rim's bound t).
   snap              "auto": voxelize when the input is voxelized (True/False force it).
 """
 
@@ -671,14 +686,14 @@ def rim_crossing_threshold(rim: np.ndarray, region: HoleRegion, local: np.ndarra
 
 
 def surface_voxels(points: np.ndarray, region: HoleRegion, support: np.ndarray, occupied: cKDTree,
-                   neighbours: int = 20, threshold: float = 1.0) -> np.ndarray:
+                   neighbours: int = 20, threshold: float = 1.0, count: int | None = None) -> np.ndarray:
     """The voxels of ``region`` that the surface through ``points`` (P, 3; sub-voxel positions, e.g. an
     aligned copy) passes through: candidates are the free integer points (farther than 0.5 from
     ``occupied``) inside ``region`` within sqrt 3 of a point, kept when their `crossing_offset` from the
-    quadric of ``support`` is at most ``threshold`` (1: every cube the surface crosses). Returns integer
-    (V, 3) voxels, sorted. Why: rounding each moved sample to its nearest voxel puts 7-19 % of them one
-    voxel off the voxels the surface crosses (methods/NOTES.md); re-voxelizing the copied surface follows
-    the capture's rule."""
+    quadric of ``support`` is at most ``threshold`` (1: every cube the surface crosses); or, given ``count``,
+    the ``count`` of them with the smallest offsets (ties kept). Returns integer (V, 3) voxels, sorted. Why:
+    rounding each moved sample to its nearest voxel puts 7-19 % of them one voxel off the voxels the surface
+    crosses (methods/NOTES.md); re-voxelizing the copied surface follows the capture's rule."""
     points = np.asarray(points, dtype=np.float64)
     cand = _free_neighbours(points, occupied)
     cand = cand[region.contains(cand)] if len(cand) else cand
@@ -686,7 +701,13 @@ def surface_voxels(points: np.ndarray, region: HoleRegion, support: np.ndarray, 
         cand = cand[~far_from(cand, cKDTree(points), float(np.sqrt(3.0)) * (1 + 1e-9))]
     if not len(cand):
         return np.zeros((0, 3))
-    return cand[crossing_offset(cand, support, neighbours) <= threshold]
+    offsets = crossing_offset(cand, support, neighbours)
+    if count is not None:
+        if count <= 0:
+            return np.zeros((0, 3))
+        nth = min(count, len(offsets)) - 1
+        threshold = float(np.partition(offsets, nth)[nth])
+    return cand[offsets <= threshold]
 
 
 def snap_to_voxels(points: np.ndarray, occupied: np.ndarray) -> np.ndarray:
@@ -775,7 +796,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "30"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "31"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -794,7 +815,8 @@ class TemporalFusion(InpaintingMethod):
     # 27: `local_quadric` sums by rows (faster; the same fits to 1e-13, so a decision at a threshold may flip);
     # 28: frames beyond f+-1 are aligned only where f-1 and f+1 are not both sources (`adjacent_first`);
     # 29: step 6d's cap is the harmonic membrane of its loop, not the thin plate, and not reused (`harmonic_cap`);
-    # 30: step 6d before 6c where walls rise from the opening (`walled_cap_first`)
+    # 30: step 6d before 6c where walls rise from the opening (`walled_cap_first`);
+    # 31: step 4b keeps as many voxels as the copies hold (`count_copies`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -807,7 +829,7 @@ class TemporalFusion(InpaintingMethod):
                  poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, harmonic_cap: bool = True,
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
-                 adjacent_first: bool = True, snap: bool | str = "auto") -> None:
+                 adjacent_first: bool = True, count_copies: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -836,6 +858,7 @@ class TemporalFusion(InpaintingMethod):
         self.revoxelize = revoxelize
         self.pool_adjacent = pool_adjacent
         self.adjacent_first = adjacent_first
+        self.count_copies = count_copies
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -865,7 +888,7 @@ class TemporalFusion(InpaintingMethod):
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
                      "poisson_bridges", "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources",
-                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first"):
+                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1061,7 +1084,8 @@ class TemporalFusion(InpaintingMethod):
 
         if ctx["voxelized"] and self.revoxelize and len(accepted):
             k = max(ctx["neighbours"], 6)
-            bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
+            bound = 1.0 if self.count_copies else \
+                rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
             fit_support, copies = [local, accepted], 1
             if self.pool_adjacent:
                 # f-1's and f+1's copies when they were sources and not the one fused first: each is another
@@ -1071,7 +1095,11 @@ class TemporalFusion(InpaintingMethod):
                     points = points[far_from(points, local_tree, self.gap_spacings * spacing)] if gap == 1 else points[:0]
                     if len(points):
                         fit_support, copies = fit_support + [points], copies + 1
-            accepted = surface_voxels(accepted, region, np.vstack(fit_support), local_tree, k * copies, bound)
+            # as many voxels as the copies hold: they are the same capture's voxelization of the same surface
+            # (the rim's bound is read where frame f's own fit judges its own voxels; a fit through aligned
+            # copies judges the hole's with a wider scatter, so the same bound keeps too few or too many)
+            accepted = surface_voxels(accepted, region, np.vstack(fit_support), local_tree, k * copies, bound,
+                                      count=len(accepted) if self.count_copies else None)
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
 
         # step 5: the previous frame's fill, moved with the body, where the hole is still open

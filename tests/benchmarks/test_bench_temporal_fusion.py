@@ -57,6 +57,11 @@ the cap's harmonic solves 11 s (5 calls).
 2026-11-27, version 30 (step 6d before 6c where walls rise from the opening), `-k occlusion`, CPU, one run:
 human-800k 11.16 s, bunny-635k 91.4 s (2 frames, the same points added); cProfile: step 6c 36 s on the four other
 holes that reach it, the base's cap 8.7 s.
+Version 30, coherent holes at paper scale (`-k coherent`: 3 frames of human-800k, 5 holes each, none of them seen by
+another frame), one-off run of the same case under cProfile: 43.8 s CPU for 3 frames (14.6 s a frame); step 6c's
+Poisson 24.4 s of it (13 reconstructions, 15.6 s inside open3d), ICP 3.4 s.
+Version 31 (step 4b keeps the copies' count), `-k "size or coherent"`, CPU, one run: 100k / 290k / 800k 1.41 / 2.55 /
+4.30 s, coherent 800k 40.0 s for 3 frames.
 """
 
 from __future__ import annotations
@@ -133,3 +138,22 @@ def test_bench_fusion_occlusion(benchmark, case):
 @pytest.mark.parametrize("holes", [1, 3])
 def test_bench_fusion_holes(benchmark, holes):
     _run(benchmark, "290k", holes)
+
+
+def test_bench_fusion_coherent_800k(benchmark):
+    """Coherent holes at paper scale: 3 frames of the 800k-point human, 5 medium holes in each, the same patches
+    in every frame, so no frame is a source and each hole goes to the spatial fills (steps 6-6e)."""
+    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.holes.registry import get_generator
+    from dpcbench.methods.registry import get_method
+
+    truth = load_dataset("human", frames=3, progress=False, **SIZES["800k"]).points
+    damage = get_generator("region", preset="medium", count=5, coherent=True).damage(truth, seed=0)
+    method = get_method("temporal-fusion", window=WINDOW)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = benchmark.pedantic(method.inpaint, args=(damage.frames, damage.regions), rounds=1, iterations=1,
+                                 warmup_rounds=0)
+    benchmark.extra_info.update(points=[len(f) for f in truth],
+                                added=[len(o) - len(f) for o, f in zip(out, damage.frames)])
+    assert all(len(o) > len(f) for o, f in zip(out, damage.frames))
