@@ -447,6 +447,7 @@ from dpcbench.methods._front_fill import front_fill, local_quadric, rim_residual
 from dpcbench.methods._point_to_plane import point_to_plane_icp
 from dpcbench.methods._registration import alignment_residual
 from dpcbench.methods._spatial_fill import (
+    _voxel_keys,
     cap_fill,
     cap_walled,
     even_subset,
@@ -457,6 +458,7 @@ from dpcbench.methods._spatial_fill import (
     poisson_surface_fill,
     rim_sheet,
     rim_surface_fill,
+    unique_voxels,
 )
 from dpcbench.methods.base import InpaintingMethod, Regions
 from dpcbench.methods.lozes_pde import sampling_step
@@ -613,28 +615,6 @@ def _reachable_voxels(points: np.ndarray, region: HoleRegion, reach: float) -> n
     if not integer and len(cand):
         cand = cand[~far_from(cand, cKDTree(points), reach * (1 + 1e-9))]
     return cand
-
-
-def _voxel_keys(voxels: np.ndarray, origin: np.ndarray, side: np.int64) -> np.ndarray:
-    """One int64 per integer point of a cube of ``side`` voxels from ``origin`` (row-major)."""
-    v = (voxels - origin).astype(np.int64)
-    return (v[:, 0] * side + v[:, 1]) * side + v[:, 2]
-
-
-def unique_voxels(voxels: np.ndarray) -> np.ndarray:
-    """``np.unique(voxels, axis=0)`` for integer-valued (V, 3) ``voxels``: unique rows in lexicographic order,
-    found as one int64 key per row (`_voxel_keys`); np.unique on rows sorts a structured view of the
-    floats (1.1 s of the 800k-point benchmark case in a cProfile run, step 4b's free voxels beside the rim)."""
-    voxels = np.asarray(voxels, dtype=np.float64).reshape(-1, 3)
-    if not len(voxels) or not np.isfinite(voxels).all():
-        return np.unique(voxels, axis=0)
-    origin = voxels.min(axis=0)
-    side = int((voxels.max(axis=0) - origin).max()) + 1
-    if side > 1 << 20:  # the keys would overflow int64
-        return np.unique(voxels, axis=0)
-    keys = np.unique(_voxel_keys(voxels, origin, np.int64(side)))
-    rows = np.stack([keys // (side * side), (keys // side) % side, keys % side], axis=1)
-    return rows.astype(np.float64) + origin
 
 
 def _free_neighbours(points: np.ndarray, occupied: cKDTree) -> np.ndarray:

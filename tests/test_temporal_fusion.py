@@ -14,6 +14,7 @@ from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill import (
     cap_fill,
     cap_walled,
+    first_in_cells,
     fit_height_field,
     grown_agreeing,
     harmonic_height_field,
@@ -1370,6 +1371,20 @@ def test_unique_voxels_is_numpy_unique_on_rows():
     wide = np.array([[0.0, 0.0, 0.0], [3e6, -2.0, 1.0], [0.0, 0.0, 0.0], [-5.0, 7.0, 2e6]])
     np.testing.assert_array_equal(unique_voxels(wide), np.unique(wide, axis=0))
     assert unique_voxels(np.zeros((0, 3))).shape == (0, 3)
+
+
+def test_first_in_cells_is_numpy_unique_first_index_on_cells():
+    """Step 6c's thinning of float samples (one a cell of edge g, the first in the array) picks the indices
+    np.unique(cells, axis=0, return_index=True) picks, sorted: random clouds with repeated cells, a spread past
+    the keys' range (np.unique's path), an empty cloud."""
+    rng = np.random.default_rng(6)
+    for spread, cell, n in [(5.0, 1.0, 2000), (300.0, 0.7, 30000), (1.0, 2.0, 10)]:
+        points = rng.uniform(-spread, spread, size=(n, 3))
+        _, first = np.unique(np.floor(points / cell), axis=0, return_index=True)
+        np.testing.assert_array_equal(first_in_cells(points, cell), np.sort(first))
+    wide = np.array([[0.0, 0.0, 0.0], [3e6, -2.0, 1.0], [0.2, 0.3, 0.1], [-5.0, 7.0, 2e6]])
+    np.testing.assert_array_equal(first_in_cells(wide, 1.0), [0, 1, 3])
+    assert first_in_cells(np.zeros((0, 3)), 1.0).shape == (0,)
 
 
 def test_pooled_adjacent_copies_misplace_fewer_voxels():

@@ -62,6 +62,10 @@ another frame), one-off run of the same case under cProfile: 43.8 s CPU for 3 fr
 Poisson 24.4 s of it (13 reconstructions, 15.6 s inside open3d), ICP 3.4 s.
 Version 31 (step 4b keeps the copies' count), `-k "size or coherent"`, CPU, one run: 100k / 290k / 800k 1.41 / 2.55 /
 4.30 s, coherent 800k 40.0 s for 3 frames.
+Version 31, step 6c's Poisson samples rounded and kept inside R before their unique rows (`unique_voxels`; the
+same output, hashed on human-800k / D-FAUST / bunny coherent and D-FAUST occlusion), `-k "size or coherent"`, CPU, one
+run: 100k / 290k / 800k 1.60 / 2.59 / 4.25 s, coherent 800k 33.5 s for 3 frames (11.2 s a frame; cProfile: 14.9 s
+inside open3d's Poisson, 13 reconstructions, one thread).
 """
 
 from __future__ import annotations
