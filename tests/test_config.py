@@ -205,11 +205,15 @@ def test_detection_parameters(seq_dir):
         parse_config(base)
 
 
-@pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods"])
+@pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods", "temporal-fusion-targets",
+                                    "temporal-fusion-heldout", "temporal-fusion-heldout-frames"])
 def test_shipped_presets_expand(preset):
     """Every preset under bench/presets parses and expands into runs with distinct ids."""
     from dpcbench.bench.paper import PRESETS_DIR
 
-    specs = load_config(PRESETS_DIR / f"{preset}.toml").expand()
+    config = load_config(PRESETS_DIR / f"{preset}.toml")
+    specs = config.expand()  # optional sequences whose data is not here are skipped
+    if not specs and config.skipped:
+        pytest.skip(f"{preset}: every sequence is optional and none of their data is here ({config.skipped[0]})")
     assert specs and len({s.run_id for s in specs}) == len(specs)
     assert {s.method["name"] for s in specs} >= {"fu-nonlocal", "temporal-graph"}
