@@ -189,6 +189,23 @@ def test_poisson_fill_keeps_nothing_detached_from_the_support():
     assert len(poisson_surface_fill(plane, region, cKDTree(plane), 1.0, voxelized=False)) == 0
 
 
+def test_poisson_hold_out_runs_only_where_the_surface_adds_points(monkeypatch):
+    """Step 6c's hold-out (a second reconstruction) is skipped where the surface adds nothing: the same limb
+    hole with every hidden point already covered returns nothing without it; open, it is tested and filled."""
+    import dpcbench.methods._spatial_fill as spatial_fill
+
+    calls = []
+    holds_out = spatial_fill._holds_out
+    monkeypatch.setattr(spatial_fill, "_holds_out", lambda *a, **k: calls.append(1) or holds_out(*a, **k))
+    limb = cylinder(8.0, 60.0)
+    region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
+    kept = limb[~region.contains(limb)]
+    covered = poisson_surface_fill(kept, region, cKDTree(limb), 1.0, voxelized=False, step=1.0, ring=2.0)
+    assert len(covered) == 0 and calls == []
+    opened = poisson_surface_fill(kept, region, cKDTree(kept), 1.0, voxelized=False, step=1.0, ring=2.0)
+    assert len(opened) > 0 and len(calls) == 1
+
+
 def test_poisson_fill_is_repeatable():
     """Step 6c runs open3d's reconstruction on one thread and samples the mesh on a fixed lattice: the same
     input gives the same bits (the golden-output tests and the regression baseline need that)."""
