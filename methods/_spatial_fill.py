@@ -416,13 +416,18 @@ def harmonic_height_field(uv: np.ndarray, heights: np.ndarray, cell: float) -> t
 
 
 def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,
-                  step: float, accepted: np.ndarray | None = None, gap_spacings: float = 1.0,
+                  step: float, accepted: np.ndarray | None = None, partial: np.ndarray | None = None,
+                  gap_spacings: float = 1.0,
                   ring_spacings: float = 3.0, max_holdout_spacings: float = 1.0,
                   agree_spacings: float = 1.0, max_steep: float = 0.5) -> np.ndarray:
     """Membrane fill (step 6e of `methods.temporal_fusion`) of the parts of ``region`` that no point of
     ``covered`` is within ``gap_spacings * spacing`` of: `lozes_pde.LozesPDE`'s harmonic (p = 2) graph fill
     anchored at every point of ``captured`` (C, 3; the frame's own points round the hole) and ``accepted``
-    (A, 3; points other steps put there) within ``ring_spacings * step`` of the region, inside included.
+    (A, 3; points other steps put there) within ``ring_spacings * step`` of the region, inside included, and
+    at the points of ``partial`` (Q, 3; copies from frames with their own hole near the region) where the
+    anchors without them pass test (0) below: in a large box those copies hold what the frames round f saw,
+    but a copy of one side of a box wrapped round a limb makes it look flat (samba's widest box: 54 % of the
+    anchors steep without the copies, 50 % with, and a membrane 2.3 s RMS off the truth).
     Returns (P, 3) points; (0, 3) when the membrane is not trusted.
 
     Seeds: LozesPDE's grid of step ``step`` on the anchors' PCA plane, where the plane is farther than 0.8
@@ -462,6 +467,10 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     membrane = LozesPDE(p=2.0, ring_spacings=ring_spacings)
     captured = np.asarray(captured, dtype=np.float64)
     support = captured if accepted is None or not len(accepted) else np.vstack([captured, accepted])
+    if partial is not None and len(partial):
+        own = support[region.contains(support, margin=ring_spacings * step)]  # `seed_hole`'s anchors
+        if len(own) >= 12 and fit_height_field(own)[4] <= max_steep:
+            support = np.vstack([support, partial])
     try:
         seeds, anchors = membrane.seed_hole(support, region, step)
         crossing = None  # the anchors of a second surface through the hole's sheet

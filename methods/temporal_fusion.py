@@ -316,6 +316,12 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    Measured (targets grid, 10 frames, D1 / D2; methods/NOTES.md "version 24"): samba occlusion 15.26 / 27.70 ->
    21.15 / 28.46 (lozes-pde 15.33 / 16.12, temporal-copy 12.01 / 27.78; the hem box's fill 0.42-0.55 voxel RMS off
    the truth); every other row, the held-out seeds and the held-out data unchanged.
+   Version 33 (``partial``): step 5b's copies anchor the membrane too, where the frame's own and the accepted
+   anchors pass the height-field test without them (a copy of one side of a box must not make a box wrapped round
+   a limb look flat: samba's hem box, 54 % steep, 50 % with its copies, got a membrane 2.3 s RMS off the truth).
+   Measured (targets grid, D1 / D2 / NSHD 1e-9; NOTES "versions 32-34"): D-FAUST occlusion 28.58 / 35.75 / 0.88 ->
+   28.75 / 35.84 / 0.79, samba occlusion 21.06 / 28.31 -> 21.07 / 28.19; held-out frames, D-FAUST occlusion 26.18 /
+   33.75 / 1.20 -> 26.43 / 33.72 / 1.09; every other row unchanged.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
@@ -776,7 +782,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "31"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "33"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -796,7 +802,8 @@ class TemporalFusion(InpaintingMethod):
     # 28: frames beyond f+-1 are aligned only where f-1 and f+1 are not both sources (`adjacent_first`);
     # 29: step 6d's cap is the harmonic membrane of its loop, not the thin plate, and not reused (`harmonic_cap`);
     # 30: step 6d before 6c where walls rise from the opening (`walled_cap_first`);
-    # 31: step 4b keeps as many voxels as the copies hold (`count_copies`)
+    # 31: step 4b keeps as many voxels as the copies hold (`count_copies`); 32 (measured, not kept): step 5b's
+    # copies anchor step 6e's membrane; 33: the same where its anchors pass the height-field test without them
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -1150,7 +1157,8 @@ class TemporalFusion(InpaintingMethod):
             if self.membrane and not len(spatial):
                 # step 6e: a gap the membrane of the data round and inside it spans (an occlusion box's open parts)
                 spatial = membrane_fill(local, region, covered, spacing, step=ctx["step"], accepted=accepted,
-                                        gap_spacings=self.fill_gap_spacings, agree_spacings=self.accept_spacings,
+                                        partial=seen, gap_spacings=self.fill_gap_spacings,
+                                        agree_spacings=self.accept_spacings,
                                         max_holdout_spacings=self.surface_holdout_spacings)
                 ctx["not_reused"].append(spatial)
             if self.front and not len(spatial):

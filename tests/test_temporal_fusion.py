@@ -1148,6 +1148,25 @@ def test_membrane_fill_spans_an_open_disc_only_where_the_membrane_cannot_sag():
     assert np.hypot(*fill_of(flat, True)[:, :2].T).max() > 4.6
 
 
+def test_membrane_fill_is_anchored_at_the_copies_of_frames_that_saw_part_of_the_box():
+    """A box on the bowl z = 0.04 (x^2 + y^2) with two unseen patches; half of one patch (x < -3.5) was seen by
+    another frame (step 5b's partial copies, on the bowl). The membrane of the data alone passes its tests yet
+    lies up to 1.0 spacing off the bowl (0.81 RMS); anchored at the copies as well, it lies within 0.36 of it.
+    The copies are never returned (they are step 5b's points, not the membrane's)."""
+    from dpcbench.methods._spatial_fill import membrane_fill
+    from dpcbench.methods.lozes_pde import sampling_step
+
+    height, _, region, kept, hidden = bowl_in_a_box(0.04, [0.0, 0.0, 2.0], [8.0, 8.0, 4.0])
+    step = sampling_step(kept)
+    copies = hidden[hidden[:, 0] < -3.5]
+    alone = membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)
+    anchored = membrane_fill(kept, region, cKDTree(np.vstack([kept, copies])), 1.0, step=step, partial=copies)
+    assert len(alone) and np.abs(alone[:, 2] - height(alone[:, 0], alone[:, 1])).max() > 0.9
+    assert len(anchored) >= 10
+    assert np.abs(anchored[:, 2] - height(anchored[:, 0], anchored[:, 1])).max() <= 0.4
+    assert cKDTree(copies).query(anchored)[0].min() > 0.5
+
+
 def test_rows_in_matches_a_set_of_tuples():
     from dpcbench.methods.temporal_fusion import rows_in
 

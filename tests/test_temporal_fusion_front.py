@@ -324,3 +324,28 @@ def test_native_stderr_is_silenced_for_the_block_only(capfd):
         raise RuntimeError("inside")
     os.write(2, b"after\n")
     assert capfd.readouterr().err == "before\nafter\n"
+
+
+def test_partial_copies_cannot_tip_the_membrane_height_field_test():
+    """A box over the top of a cylinder (radius 8), its middle unseen: 53 % of the frame's own anchors are steep,
+    above step 6e's bound of a half, so its membrane spans only what the wrapped sheet's flat part allows. Copies
+    of the top (z > 6.5) from frames that saw part of it would bring the share to 44 % and open the whole box
+    (14 points as accepted points); as step 5b's partial copies they join only where the frame's own anchors
+    pass the test, so the fill is the same as without them (samba's widest box: 54 % steep without its copies,
+    50 % with, and a membrane 2.3 spacings RMS off the truth)."""
+    from dpcbench.methods._spatial_fill import fit_height_field, membrane_fill
+    from dpcbench.methods.lozes_pde import sampling_step
+
+    surface = cylinder()
+    region = HoleRegion.box([0.0, 0.0, 5.0], [8.0, 9.0, 4.0])
+    unseen = region.contains(surface) & (np.abs(surface[:, 0]) < 5)
+    kept, copies = surface[~unseen], surface[unseen & (surface[:, 2] > 6.5)]
+    step = sampling_step(kept)
+    own = kept[region.contains(kept, margin=3 * step)]
+    assert fit_height_field(own)[4] > 0.5 >= fit_height_field(np.vstack([own, copies]))[4]
+    covered = cKDTree(np.vstack([kept, copies]))
+    alone = membrane_fill(kept, region, covered, 1.0, step=step)
+    as_accepted = membrane_fill(kept, region, covered, 1.0, step=step, accepted=copies)
+    as_partial = membrane_fill(kept, region, covered, 1.0, step=step, partial=copies)
+    assert len(as_accepted) > len(alone) + 5
+    assert np.array_equal(as_partial, alone)
