@@ -444,7 +444,9 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     plane only the open parts that border the sheet more than the crossing surface are kept (`_sheet_bounded`:
     a tube's inside borders its wall alone); the tests below then judge that membrane, (0) included.
     (1) Interpolation or a flat opening:
-    where `membrane_sag` of the anchors exceeds ``max_holdout_spacings`` spacings (the bound of test 2), only
+    where `membrane_sag` of the anchors over the widest open disc among them (`_open_radius`; over the
+    region's radius up to temporal-fusion 33, which left the open band between a box's edge and the data
+    inside it to nothing) exceeds ``max_holdout_spacings`` spacings (the bound of test 2), only
     the seeds inside the convex hull (on the anchors' plane) of the ``captured`` points inside the region are
     kept, so the membrane spans gaps enclosed by data and never extends it (step 6's rule for its grid):
     across an emptied disc of radius 7 on a cylinder of radius 8 the membrane lies 1.5-2 spacings inside the
@@ -480,7 +482,7 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
                 crossing, support = anchors[~flat], anchors[flat]
                 seeds, anchors = membrane.seed_hole(support, region, step)
                 seeds = seeds[_sheet_bounded(seeds, anchors, crossing, membrane.gap_spacings * step, step)]
-        if len(anchors) >= 12 and membrane_sag(anchors, region) > max_holdout_spacings * spacing:
+        if len(anchors) >= 12 and membrane_sag(anchors, region, _open_radius(seeds, anchors)) > max_holdout_spacings * spacing:
             seeds = seeds[_within_hull_of(seeds, captured[region.contains(captured)], anchors)]
         if len(seeds) == 0 or len(anchors) < 12 or fit_height_field(anchors)[4] > max_steep:
             return np.zeros((0, 3))
@@ -573,17 +575,31 @@ def between_layers(points: np.ndarray, anchors: np.ndarray, reach: float, tolera
     return out
 
 
-def membrane_sag(anchors: np.ndarray, region: HoleRegion) -> float:
+def membrane_sag(anchors: np.ndarray, region: HoleRegion, radius: float | None = None) -> float:
     """How far (coordinate units) a harmonic membrane across ``region`` departs from the quadric through its
     ``anchors`` (K, 3), K >= 6: |c3 + c5| r^2 / 2, with c3, c5 the u^2 and v^2 coefficients of
-    `fit_height_field` of the anchors and r the region's bounding radius.
+    `fit_height_field` of the anchors and r the region's bounding radius, or ``radius`` where it is smaller
+    (the radius of the open part the membrane spans, `_open_radius`).
 
     Why: on a disc of radius r the quadric h has the constant Laplacian 2 (c3 + c5), and the harmonic
     function with h's boundary values differs from h by (c3 + c5) (rho^2 - r^2) / 2, the most at the centre
     (0 on a plane or a saddle; 1.53 for a hole of radius 7 on a cylinder of radius 8, where 1 / (2 * 8) =
     c3). It is the part of the membrane's error that the rim shows before the membrane is built."""
     _, _, coef, _, _ = fit_height_field(anchors)
-    return float(abs(coef[3] + coef[5]) * region.bounding_radius ** 2 / 2)
+    r = region.bounding_radius if radius is None else min(radius, region.bounding_radius)
+    return float(abs(coef[3] + coef[5]) * r ** 2 / 2)
+
+
+def _open_radius(seeds: np.ndarray, anchors: np.ndarray) -> float:
+    """The radius of the widest open disc among ``anchors`` (K, 3) that holds a seed of ``seeds`` (S, 3): the
+    largest distance, on the anchors' PCA plane, from a seed to its nearest anchor (inf with no seeds). A box
+    that keeps captured points inside opens gaps far narrower than the box: the membrane, pinned at every
+    anchor, departs from the surface by the width of the gap it spans, not of the box."""
+    if len(seeds) == 0:
+        return float("inf")
+    centre = anchors.mean(axis=0)
+    tangent = np.linalg.svd(anchors - centre, full_matrices=False)[2][:2]
+    return float(cKDTree((anchors - centre) @ tangent.T).query((seeds - centre) @ tangent.T)[0].max())
 
 
 def _within_hull_of(points: np.ndarray, inside: np.ndarray, anchors: np.ndarray) -> np.ndarray:

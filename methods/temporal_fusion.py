@@ -284,7 +284,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    interpolation only (seeds inside the convex hull of frame f's points inside R, as step 6's grid), unless
    the anchors' quadric says the membrane cannot sag far from the surface (`membrane_sag`: the harmonic
    membrane departs from a quadric h by |c3 + c5| r^2 / 2 at the centre of a disc of radius r, and that must be
-   within ``surface_holdout_spacings`` s; version 19). So an emptied disc on a flat or saddle-shaped
+   within ``surface_holdout_spacings`` s; version 19; since version 34 r is the widest open disc among the
+   anchors, `_open_radius`, not R's radius: a box keeps data inside, and its gaps are far narrower than it). So an emptied disc on a flat or saddle-shaped
    patch is spanned, one round a limb is not (there the membrane lies 2 s inside the surface, the sag
    1.5 s, and the other tests pass it); step 6's hold-out with its bound (the anchors within 1.5 steps
    of the open part's edge are left out, and the membrane of the others must predict them to
@@ -321,7 +322,10 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    a limb look flat: samba's hem box, 54 % steep, 50 % with its copies, got a membrane 2.3 s RMS off the truth).
    Measured (targets grid, D1 / D2 / NSHD 1e-9; NOTES "versions 32-34"): D-FAUST occlusion 28.58 / 35.75 / 0.88 ->
    28.75 / 35.84 / 0.79, samba occlusion 21.06 / 28.31 -> 21.07 / 28.19; held-out frames, D-FAUST occlusion 26.18 /
-   33.75 / 1.20 -> 26.43 / 33.72 / 1.09; every other row unchanged.
+   33.75 / 1.20 -> 26.43 / 33.72 / 1.09; every other row unchanged. Version 34 (`_open_radius`, the sag over the
+   widest open disc among the anchors): D-FAUST occlusion 28.75 / 35.84 / 0.79 -> 29.00 / 35.82 / 0.72 (lozes-pde
+   27.35 / 33.46 / 0.84); held-out frames 26.43 / 33.72 / 1.09 -> 27.29 / 33.85 / 0.68 (lozes-pde 25.97 / 31.75 /
+   0.72); D-FAUST coherent seed 0 28.52 / 31.72 -> 28.63 / 31.66; every other row within 0.01 dB.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
@@ -782,7 +786,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "33"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "34"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -803,7 +807,8 @@ class TemporalFusion(InpaintingMethod):
     # 29: step 6d's cap is the harmonic membrane of its loop, not the thin plate, and not reused (`harmonic_cap`);
     # 30: step 6d before 6c where walls rise from the opening (`walled_cap_first`);
     # 31: step 4b keeps as many voxels as the copies hold (`count_copies`); 32 (measured, not kept): step 5b's
-    # copies anchor step 6e's membrane; 33: the same where its anchors pass the height-field test without them
+    # copies anchor step 6e's membrane; 33: the same where its anchors pass the height-field test without them;
+    # 34: step 6e's sag bound judged over the widest open disc among its anchors, not the region (`_open_radius`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

@@ -1119,11 +1119,13 @@ def test_membrane_sag_is_the_closed_form_departure_of_the_harmonic_membrane():
 
 
 def test_membrane_fill_spans_an_open_disc_only_where_the_membrane_cannot_sag():
-    """A ball region of radius 6 on a flat sheet and on the paraboloid z = 0.03 (x^2 + y^2) (sag 1.08 spacings,
-    above the bound of 1). Emptied (no captured point inside): the membrane spans the flat disc, on the plane,
-    and leaves the paraboloid's open. With an annulus of captured points kept inside (radius 3.5-4.5): on the
-    paraboloid only the open part within the annulus's convex hull (its centre) is filled, never the open band
-    outside it; on the flat sheet that band is filled too."""
+    """A ball region of radius 6 on a flat sheet and on the paraboloid z = 0.03 (x^2 + y^2) (sag 1.08 spacings
+    over the whole disc, above the bound of 1). Emptied (no captured point inside): the membrane spans the flat
+    disc, on the plane, and leaves the paraboloid's open. With an annulus of captured points kept inside
+    (radius 3.5-4.5) the widest open disc is the centre's (radius 3.5, sag 0.37: `_open_radius`), so on the
+    paraboloid both open parts are spanned, the band outside the annulus (pinned on both sides) within 0.15
+    of the surface and the centre within 0.6; up to temporal-fusion 33 the sag was judged over the region's
+    radius and the band was left open. On the flat sheet the band is filled too."""
     from dpcbench.methods._spatial_fill import membrane_fill
     from dpcbench.methods.lozes_pde import sampling_step
 
@@ -1143,8 +1145,10 @@ def test_membrane_fill_spans_an_open_disc_only_where_the_membrane_cannot_sag():
     assert np.mean(cKDTree(fill).query(hidden)[0] <= 1.0) >= 0.9  # the disc is spanned, not a ring of it
     assert len(fill_of(bowl, False)) == 0
     inside = fill_of(bowl, True)
-    assert len(inside) and np.hypot(inside[:, 0], inside[:, 1]).max() < 3.5
-    assert np.abs(inside[:, 2] - 0.03 * (inside[:, 0] ** 2 + inside[:, 1] ** 2)).max() < 0.6
+    radius = np.hypot(inside[:, 0], inside[:, 1])
+    error = np.abs(inside[:, 2] - 0.03 * (inside[:, 0] ** 2 + inside[:, 1] ** 2))
+    assert (radius < 3.5).sum() >= 10 and (radius > 4.6).sum() >= 5
+    assert error[radius < 3.5].max() < 0.6 and error[radius > 4.6].max() < 0.15
     assert np.hypot(*fill_of(flat, True)[:, :2].T).max() > 4.6
 
 
