@@ -321,11 +321,11 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    anchors pass the height-field test without them (a copy of one side of a box must not make a box wrapped round
    a limb look flat: samba's hem box, 54 % steep, 50 % with its copies, got a membrane 2.3 s RMS off the truth).
    Measured (targets grid, D1 / D2 / NSHD 1e-9; NOTES "versions 32-34"): D-FAUST occlusion 28.58 / 35.75 / 0.88 ->
-   28.75 / 35.84 / 0.79, samba occlusion 21.06 / 28.31 -> 21.07 / 28.19; held-out frames, D-FAUST occlusion 26.18 /
+   28.92 / 35.93 / 0.70, samba occlusion 21.06 / 28.31 -> 21.09 / 28.06; held-out frames, D-FAUST occlusion 26.18 /
    33.75 / 1.20 -> 26.43 / 33.72 / 1.09; every other row unchanged. Version 34 (`_open_radius`, the sag over the
-   widest open disc among the anchors): D-FAUST occlusion 28.75 / 35.84 / 0.79 -> 29.00 / 35.82 / 0.72 (lozes-pde
+   widest open disc among the anchors): D-FAUST occlusion 28.92 / 35.93 / 0.70 -> 29.42 / 35.88 / 0.56 (lozes-pde
    27.35 / 33.46 / 0.84); held-out frames 26.43 / 33.72 / 1.09 -> 27.29 / 33.85 / 0.68 (lozes-pde 25.97 / 31.75 /
-   0.72); D-FAUST coherent seed 0 28.52 / 31.72 -> 28.63 / 31.66; every other row within 0.01 dB.
+   0.72); D-FAUST coherent seed 0 28.52 / 31.72 -> 28.75 / 31.61; every other row within 0.03 dB.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
