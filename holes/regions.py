@@ -94,6 +94,16 @@ class HoleRegion:
             raise TypeError(f"a {self.shape} region has no box extents")
         return self.half_extents, self.rotation
 
+    def support(self, direction: ArrayLike) -> float:
+        """The region's support function: max over its points p of p . u, u = ``direction`` (3,) made unit length.
+        Ball: c . u + r; box: c . u + sum_i h_i |a_i . u| (a_i its axes, h_i its half extents)."""
+        unit = np.asarray(direction, dtype=np.float64).reshape(3)
+        unit = unit / np.linalg.norm(unit)
+        if self.shape == "ball":
+            return float(self.center @ unit + self.radius)
+        half_extents, rotation = self._box()
+        return float(self.center @ unit + half_extents @ np.abs(rotation.T @ unit))
+
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Boolean mask (N,) of the points inside the region grown by ``margin``."""
         d = np.asarray(points, dtype=np.float64) - self.center

@@ -297,14 +297,33 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
 
 def cap_walled(local: np.ndarray, region: HoleRegion, spacing: float, *, band_spacings: float = 2.0,
                max_steep: float = MAX_STEEP) -> bool:
-    """Whether the surface round ``region``'s boundary loop turns away from the loop's plane (step 6d's walled
-    opening): more than ``max_steep`` of the loop's points (those of ``local`` (K, 3) within ``band_spacings *
-    spacing`` of the region, as `cap_fill`) have PCA normals (10 neighbours) more than 60 degrees off the loop's
-    PCA normal: step 6's height-field test (`fit_height_field`), failed. Walls rising from the opening (a base, a
-    sole: 33-35 % steep at the bunny's) say no surface round it continues over it; a hole in a sheet that goes on
-    over it has almost none (0-9 % at the bunny's coherent holes that step 6c fills)."""
+    """Whether ``region`` is a walled, shallow opening (step 6d's, capped before step 6c tries a closed surface).
+
+    Walled: the surface round the region's boundary loop turns away from the loop's plane: more than
+    ``max_steep`` of the loop's points (those of ``local`` (K, 3) within ``band_spacings * spacing`` of the
+    region, as `cap_fill`) have PCA normals (10 neighbours) more than 60 degrees off the loop's PCA normal n:
+    step 6's height-field test (`fit_height_field`), failed. Walls rising from the opening (a base, a sole: 33-35 %
+    steep at the bunny's) say no surface round it continues over it; a hole in a sheet that goes on over it has
+    almost none (0-9 % at the bunny's coherent holes that step 6c fills).
+
+    Shallow (version 35): the region reaches past the loop's plane, on the side away from the data round it
+    (the side of the median of (p - c) . n over ``local``, c the loop's centroid), by at most the loop's radius
+    (the RMS distance of its points from c within the plane): max over R of (c - p) . n s = support(-s n) + s n . c
+    (`HoleRegion.support`, s that side's sign). A closed end of the walls (a hand past a wrist, the tip of a limb)
+    is round and reaches about the loop's radius past it, so a region that reaches less cannot hide one: what it
+    hides closes inside that depth, and the flat cap is within it (the bunny's base: 6 voxels past a loop of
+    radius 52). A region that reaches further may hide a limb's end, which the closed surface follows and the
+    flat cap does not (the 800k human's hand, 57 past a wrist loop of radius 15: the cap lay 6.2 voxels RMS off
+    the hand, step 6c's surface 0.94)."""
     loop = local[region.contains(local, margin=band_spacings * spacing)]
-    return len(loop) >= 12 and float(np.mean(~_flat_anchors(loop))) > max_steep
+    if len(loop) < 12 or float(np.mean(~_flat_anchors(loop))) <= max_steep:
+        return False
+    centre = loop.mean(axis=0)
+    normal = np.linalg.svd(loop - centre, full_matrices=False)[2][2]
+    side = 1.0 if np.median((local - centre) @ normal) >= 0 else -1.0
+    past_plane = region.support(-side * normal) + side * float(normal @ centre)
+    in_plane = (loop - centre) - np.outer((loop - centre) @ normal, normal)
+    return past_plane <= float(np.sqrt(np.mean(np.sum(in_plane ** 2, axis=1))))
 
 
 def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spacing: float, *,

@@ -211,6 +211,25 @@ def test_regions_mask_matches_brute_force():
     np.testing.assert_array_equal(regions_mask(regions, pts), union_mask(regions, pts))
 
 
+def test_region_support_is_the_farthest_reach_of_its_points():
+    """``HoleRegion.support(u)`` = max p . u over the region: brute force over a ball's and a rotated box's
+    surface samples (a box's corners, a ball's points on a fine sphere) within sampling error, never exceeded."""
+    rng = np.random.default_rng(2)
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    box = HoleRegion.box([70, -20, 20], [4, 9, 2], rotation)
+    corners = box.center + (np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+                            * box.half_extents) @ rotation.T
+    ball = HoleRegion.ball([5, 6, -7], 12.0)
+    sphere = rng.normal(size=(200000, 3))
+    sphere = ball.center + 12.0 * sphere / np.linalg.norm(sphere, axis=1)[:, None]
+    for direction in rng.normal(size=(20, 3)):
+        unit = direction / np.linalg.norm(direction)
+        assert box.support(direction) == pytest.approx((corners @ unit).max(), abs=1e-9)
+        assert box.contains(corners, margin=1e-9).all()
+        reach = (sphere @ unit).max()
+        assert reach <= ball.support(3 * direction) + 1e-9 and reach == pytest.approx(ball.support(direction), abs=0.01)
+
+
 def test_components_to_regions_cover_their_points():
     rng = np.random.default_rng(0)
     blob_a = rng.normal(0, 1, (200, 3))
