@@ -12,6 +12,8 @@ from scipy.spatial.transform import Rotation
 
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill import (
+    MAX_STEEP,
+    _flat_anchors,
     cap_fill,
     cap_walled,
     first_in_cells,
@@ -515,6 +517,28 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     assert len(fill) >= 0.8 * opening.sum() and np.array_equal(np.unique(fill, axis=0), np.unique(capped, axis=0))
     quiet(TemporalFusion(walled_cap_first=False), frames, regions)
     assert len(calls) == 2  # one call a frame: the order is what the parameter changes
+
+
+def test_a_region_deeper_than_its_walled_loop_is_not_capped_first():
+    """Version 35: a ball hiding a limb's rounded end (a tube of radius 10 closed by a half sphere; the ball of
+    radius 16 centred 5 past the end's base) leaves a loop round the tube whose points are all steep, as at the
+    footed base, but the ball reaches 37 past the loop's plane, more than the loop's radius (10), so it may hide a
+    round end: `cap_walled` leaves it to step 6c first. The flat cap across that loop lies more than 4 voxels RMS
+    from the hidden end. (The footed base's slab, walled and reaching 3.8 past a loop of radius 36, is still capped
+    first: `test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson`.)"""
+    rng = np.random.default_rng(0)
+    angle, height = rng.uniform(0, 2 * np.pi, 600000), rng.uniform(-80.0, 0.0, 600000)
+    tube = np.column_stack([10.0 * np.cos(angle), 10.0 * np.sin(angle), height])
+    end = rng.normal(size=(200000, 3))
+    end[:, 2] = np.abs(end[:, 2])
+    limb = np.unique(np.floor(np.vstack([tube, 10.0 * end / np.linalg.norm(end, axis=1)[:, None]]) + 0.5), axis=0)
+    region = HoleRegion.ball([0.0, 0.0, 5.0], 16.0)
+    kept = limb[~region.contains(limb)]
+    loop = kept[region.contains(kept, margin=2.0)]
+    assert np.mean(~_flat_anchors(loop)) > MAX_STEEP  # walled, as version 30 judged it alone
+    assert not cap_walled(kept, region, 1.0)
+    cap = cap_fill(kept, region, cKDTree(kept), 1.0, voxelized=True)
+    assert len(cap) and np.sqrt(np.mean(cKDTree(limb).query(cap)[0] ** 2)) > 4.0
 
 
 def test_harmonic_height_field_is_exact_for_a_harmonic_polynomial():

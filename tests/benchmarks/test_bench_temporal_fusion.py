@@ -67,6 +67,12 @@ same output, hashed on human-800k / D-FAUST / bunny coherent and D-FAUST occlusi
 run: 100k / 290k / 800k 1.60 / 2.59 / 4.25 s, coherent 800k 33.5 s for 3 frames (11.2 s a frame; cProfile: 14.9 s
 inside open3d's Poisson, 13 reconstructions, one thread). After step 6c's hold-out was limited to bodies whose
 surface adds points (the same output), one run: 1.42 / 2.22 / 4.63 s, coherent 800k 32.3 s (10.8 s a frame).
+Version 35 (step 6d before 6c only where the region is shallow past the walled loop), `-k "size or coherent or
+occlusion"`, CPU, one run: 100k / 290k / 800k 1.35 / 2.60 / 4.69 s; occlusion human-800k 10.50 s (version 34 run
+back to back: 10.54, the same points added), bunny-635k 85.1 s (its base still capped first); coherent 800k 35.3 s
+(11.8 s a frame) against version 34's 31.2 s run after it: the hole over a hand that version 34 capped first (the
+cap 6.2 voxels RMS off the hand, 0.1 s) now gets step 6c's surface and its hold-out (0.94 off), 1-3 s a frame;
+frame D1 over the 3 frames 4.06 -> 12.88 dB (methods/NOTES.md, "version 35").
 """
 
 from __future__ import annotations
