@@ -497,6 +497,9 @@ CALIBRATION_POINTS = 1000
 FIT_NEIGHBOURS = 20
 VOXEL_FIT_NEIGHBOURS = 28
 
+#: how far a voxel of `surface_voxels` may lie from the nearest copied point to be a candidate
+COPY_REACH = 1.0
+
 
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
 
@@ -694,7 +697,7 @@ def surface_voxels(points: np.ndarray, region: HoleRegion, support: np.ndarray, 
     cand = _free_neighbours(points, occupied)
     cand = cand[region.contains(cand)] if len(cand) else cand
     if len(cand):
-        cand = cand[~far_from(cand, cKDTree(points), float(np.sqrt(3.0)) * (1 + 1e-9))]
+        cand = cand[~far_from(cand, cKDTree(points), COPY_REACH * (1 + 1e-9))]
     if not len(cand):
         return np.zeros((0, 3))
     offsets = crossing_offset(cand, support, neighbours)
@@ -792,7 +795,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "35"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "36"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -815,7 +818,8 @@ class TemporalFusion(InpaintingMethod):
     # 31: step 4b keeps as many voxels as the copies hold (`count_copies`); 32 (measured, not kept): step 5b's
     # copies anchor step 6e's membrane; 33: the same where its anchors pass the height-field test without them;
     # 34: step 6e's sag bound judged over the widest open disc among its anchors, not the region (`_open_radius`);
-    # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`)
+    # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`);
+    # 36: `surface_voxels` takes a voxel only within one voxel edge of a copied point, not sqrt 3 (`COPY_REACH`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
