@@ -103,7 +103,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
 4b. Re-voxelized copies (``revoxelize``, voxelized input): the fused copies (steps 3-4) sit at sub-voxel
    positions after the motion compensation, and rounding each to its nearest voxel put 7-19 % of
    them one voxel off the true ones (methods/NOTES.md). Instead the copied surface is voxelized by the
-   capture's own rule (`surface_voxels`): every free voxel c inside R within sqrt 3 of a copied point is
+   capture's own rule (`surface_voxels`): every free voxel c inside R within one voxel edge of a copied
+   point (`COPY_REACH`, version 36; sqrt 3 before) is
    kept when the MLS quadric of its ``mls_neighbours`` nearest points (frame f near R and the copies)
    passes close enough to c's cube, |(c - p) . n| <= t (|n_x| + |n_y| + |n_z|) / 2, where t = 1 is every
    cube the surface crosses. Captures voxelize more or less thickly (all crossed cubes; or the cubes
@@ -497,7 +498,13 @@ CALIBRATION_POINTS = 1000
 FIT_NEIGHBOURS = 20
 VOXEL_FIT_NEIGHBOURS = 28
 
-#: how far a voxel of `surface_voxels` may lie from the nearest copied point to be a candidate
+#: how far a candidate voxel of `surface_voxels` may lie from the nearest copied point: one voxel edge. The
+#: copies are another frame's voxels moved by a motion, one a cube that surface crossed there, so a cube the
+#: copied surface crosses holds a copied point or is next to one; a cube farther off is one only the quadric
+#: says the surface crosses, and where a misaligned copy sits in the fit's support (step 4b pools f-1's and
+#: f+1's) the quadric is off there. Version 36; sqrt 3 before (the 26-neighbourhood): samba independent
+#: (seeds 0-2) put 18 voxels 1.41-1.73 from the truth in 5 of 30 frames, every one of them 1.03-1.71 from the
+#: nearest copied point, while 98-100 % of the voxels on the truth lie within 1 of one (methods/NOTES.md)
 COPY_REACH = 1.0
 
 
@@ -688,7 +695,7 @@ def surface_voxels(points: np.ndarray, region: HoleRegion, support: np.ndarray, 
                    neighbours: int = 20, threshold: float = 1.0, count: int | None = None) -> np.ndarray:
     """The voxels of ``region`` that the surface through ``points`` (P, 3; sub-voxel positions, e.g. an
     aligned copy) passes through: candidates are the free integer points (farther than 0.5 from
-    ``occupied``) inside ``region`` within sqrt 3 of a point, kept when their `crossing_offset` from the
+    ``occupied``) inside ``region`` within `COPY_REACH` (one voxel edge) of a point, kept when their `crossing_offset` from the
     quadric of ``support`` is at most ``threshold`` (1: every cube the surface crosses); or, given ``count``,
     the ``count`` of them with the smallest offsets (ties kept). Returns integer (V, 3) voxels, sorted. Why:
     rounding each moved sample to its nearest voxel puts 7-19 % of them one voxel off the voxels the surface
