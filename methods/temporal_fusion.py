@@ -104,7 +104,7 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    positions after the motion compensation, and rounding each to its nearest voxel put 7-19 % of
    them one voxel off the true ones (methods/NOTES.md). Instead the copied surface is voxelized by the
    capture's own rule (`surface_voxels`): every free voxel c inside R within one voxel edge of a copied
-   point (`COPY_REACH`, version 36; sqrt 3 before) is
+   point (`COPY_REACH`, version 37; sqrt 3 before) is
    kept when the MLS quadric of its ``mls_neighbours`` nearest points (frame f near R and the copies)
    passes close enough to c's cube, |(c - p) . n| <= t (|n_x| + |n_y| + |n_z|) / 2, where t = 1 is every
    cube the surface crosses. Captures voxelize more or less thickly (all crossed cubes; or the cubes
@@ -498,13 +498,15 @@ CALIBRATION_POINTS = 1000
 FIT_NEIGHBOURS = 20
 VOXEL_FIT_NEIGHBOURS = 28
 
-#: how far a candidate voxel of `surface_voxels` may lie from the nearest copied point: one voxel edge. The
-#: copies are another frame's voxels moved by a motion, one a cube that surface crossed there, so a cube the
-#: copied surface crosses holds a copied point or is next to one; a cube farther off is one only the quadric
-#: says the surface crosses, and where a misaligned copy sits in the fit's support (step 4b pools f-1's and
-#: f+1's) the quadric is off there. Version 36; sqrt 3 before (the 26-neighbourhood): samba independent
-#: (seeds 0-2) put 18 voxels 1.41-1.73 from the truth in 5 of 30 frames, every one of them 1.03-1.71 from the
-#: nearest copied point, while 98-100 % of the voxels on the truth lie within 1 of one (methods/NOTES.md)
+#: how far step 4b's candidate voxels (`surface_voxels`) may lie from the nearest copied point: one voxel edge.
+#: The copies are another frame's voxels moved by a motion, one a cube that surface crossed there, so a cube
+#: the copied surface crosses holds a copied point or is next to one; a cube farther off is one only the
+#: quadric says the surface crosses, and where a misaligned copy sits in the fit's support (step 4b pools
+#: f-1's and f+1's) the quadric is off there. Version 37; sqrt 3 before (the 26-neighbourhood): samba
+#: independent (seeds 0-2) put 18 voxels 1.41-1.73 from the truth in 5 of 30 frames, every one of them
+#: 1.03-1.71 from the nearest copied point, while 98-100 % of the voxels on the truth lie within 1 of one
+#: (methods/NOTES.md). Only step 4b's copies: the reused fill and step 5b's copies are projected onto a fit
+#: first (step 7), no longer one a captured voxel, and one edge there lost human occlusion 14 dB (version 36)
 COPY_REACH = 1.0
 
 
@@ -692,10 +694,12 @@ def rim_crossing_threshold(rim: np.ndarray, region: HoleRegion, local: np.ndarra
 
 
 def surface_voxels(points: np.ndarray, region: HoleRegion, support: np.ndarray, occupied: cKDTree,
-                   neighbours: int = 20, threshold: float = 1.0, count: int | None = None) -> np.ndarray:
+                   neighbours: int = 20, threshold: float = 1.0, count: int | None = None,
+                   reach: float = float(np.sqrt(3.0))) -> np.ndarray:
     """The voxels of ``region`` that the surface through ``points`` (P, 3; sub-voxel positions, e.g. an
     aligned copy) passes through: candidates are the free integer points (farther than 0.5 from
-    ``occupied``) inside ``region`` within `COPY_REACH` (one voxel edge) of a point, kept when their `crossing_offset` from the
+    ``occupied``) inside ``region`` within ``reach`` of a point (sqrt 3: the 26-neighbourhood of its voxel;
+    step 4b passes `COPY_REACH`, one voxel edge), kept when their `crossing_offset` from the
     quadric of ``support`` is at most ``threshold`` (1: every cube the surface crosses); or, given ``count``,
     the ``count`` of them with the smallest offsets (ties kept). Returns integer (V, 3) voxels, sorted. Why:
     rounding each moved sample to its nearest voxel puts 7-19 % of them one voxel off the voxels the surface
@@ -704,7 +708,7 @@ def surface_voxels(points: np.ndarray, region: HoleRegion, support: np.ndarray, 
     cand = _free_neighbours(points, occupied)
     cand = cand[region.contains(cand)] if len(cand) else cand
     if len(cand):
-        cand = cand[~far_from(cand, cKDTree(points), COPY_REACH * (1 + 1e-9))]
+        cand = cand[~far_from(cand, cKDTree(points), reach * (1 + 1e-9))]
     if not len(cand):
         return np.zeros((0, 3))
     offsets = crossing_offset(cand, support, neighbours)
@@ -802,7 +806,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "36"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "37"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -826,7 +830,8 @@ class TemporalFusion(InpaintingMethod):
     # copies anchor step 6e's membrane; 33: the same where its anchors pass the height-field test without them;
     # 34: step 6e's sag bound judged over the widest open disc among its anchors, not the region (`_open_radius`);
     # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`);
-    # 36: `surface_voxels` takes a voxel only within one voxel edge of a copied point, not sqrt 3 (`COPY_REACH`)
+    # 36 (measured, not kept): `surface_voxels` takes a voxel only within one voxel edge of a copied point, not
+    # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -1109,7 +1114,7 @@ class TemporalFusion(InpaintingMethod):
             # (the rim's bound is read where frame f's own fit judges its own voxels; a fit through aligned
             # copies judges the hole's with a wider scatter, so the same bound keeps too few or too many)
             accepted = surface_voxels(accepted, region, np.vstack(fit_support), local_tree, k * copies, bound,
-                                      count=len(accepted) if self.count_copies else None)
+                                      count=len(accepted) if self.count_copies else None, reach=COPY_REACH)
         copied = len(accepted)  # points copied from captured data; the rest is reused or spatial fill
 
         # step 5: the previous frame's fill, moved with the body, where the hole is still open

@@ -25,6 +25,7 @@ from dpcbench.methods._spatial_fill import (
     rim_surface_fill,
 )
 from dpcbench.methods.temporal_fusion import (
+    COPY_REACH,
     TemporalFusion,
     crossed_voxels,
     disagreeing,
@@ -832,14 +833,12 @@ def test_surface_voxels_revoxelize_a_copy_by_the_capture_s_own_rule():
     assert thin[1] >= 0.97 and thin[0] >= 0.85, thin
 
 
-def test_surface_voxels_keep_to_the_copied_points_where_a_misaligned_copy_pulls_the_fit(monkeypatch):
+def test_step_4b_voxels_keep_to_the_copied_points_where_a_misaligned_copy_pulls_the_fit():
     """Step 4b's fit pools the adjacent frames' copies; where one of them is aligned 1.5 voxels off along the
-    normal over half the hole, its quadric crosses cubes the fused copy never reached. Candidates within one
-    voxel edge of a copied point (`COPY_REACH`) keep every voxel there and give back more of the hidden ones
-    than candidates within sqrt 3 (measured 0.85 against 0.72 of the hidden voxels; 53 against 102 voxels off
-    them)."""
-    import dpcbench.methods.temporal_fusion as fusion
-
+    normal over half the hole, its quadric crosses cubes the fused copy never reached. Candidates within
+    `COPY_REACH` (one voxel edge) of a copied point keep every voxel there and give back more of the hidden
+    ones than candidates within sqrt 3 (measured 0.85 against 0.72 of the hidden voxels; 53 against 102 voxels
+    off them)."""
     voxels, n, d = digital_plane("crossed")
     region = HoleRegion.ball(np.array([30.0, 30.0, 0.3 * 30 + 0.2 * 30 + 20.4]), 9.0)
     hidden = voxels[region.contains(voxels)]
@@ -849,13 +848,11 @@ def test_surface_voxels_keep_to_the_copied_points_where_a_misaligned_copy_pulls_
     misaligned = misaligned[misaligned[:, 0] > 30.0]  # the other frame's copy, half of it, a voxel and a half off
     support = np.vstack([kept, copy, misaligned])
 
-    def found(reach: float | None) -> tuple[np.ndarray, float]:
-        if reach is not None:
-            monkeypatch.setattr(fusion, "COPY_REACH", reach)
-        got = surface_voxels(copy, region, support, cKDTree(kept), 56, 1.0, count=len(copy))
+    def found(reach: float) -> tuple[np.ndarray, float]:
+        got = surface_voxels(copy, region, support, cKDTree(kept), 56, 1.0, count=len(copy), reach=reach)
         return got, float(np.mean(cKDTree(got).query(hidden)[0] < 0.5))
 
-    near, near_share = found(None)  # the default
+    near, near_share = found(COPY_REACH)
     wide, wide_share = found(float(np.sqrt(3.0)))
     assert cKDTree(copy).query(near)[0].max() <= 1.0 + 1e-9
     assert cKDTree(copy).query(wide)[0].max() > 1.2  # the wider reach does take cubes the copy never reached
