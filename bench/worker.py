@@ -32,7 +32,9 @@ Per-frame measurements stored as metrics (scope "frame"):
   (Linux: ``VmHWM`` from /proc/self/status after resetting it through /proc/self/clear_refs;
   elsewhere ``resource.getrusage(...).ru_maxrss``, the process-lifetime peak). It includes the
   interpreter and loaded libraries, so it is an upper bound of what the method needs; it sees native
-  allocations (open3d, pymeshlab) that tracemalloc would miss.
+  allocations (open3d, pymeshlab) that tracemalloc would miss. Generated sequences are in the frame cache
+  before the runs start (`bench.runner.warm_caches`), so loading one never imports what generating it
+  needs into the worker.
 - ``removed_fraction``: share of the frame's points the hole generator removed.
 
 Per run (columns of the store's ``runs`` table): ``wall_time_s`` and ``cpu_time_s`` over the same span,

@@ -277,3 +277,27 @@ def test_stand_in_d2_uses_the_ground_truth_normals_as_pc_error_would(tmp_path, m
         assert stored == pytest.approx(figures["d2_psnr"], rel=1e-12)
         estimated = metrics.pc_error(truth.points, result, None, peak="intrinsic")
         assert abs(estimated["d2_mse"] / figures["d2_mse"] - 1) > 1e-3
+
+
+def test_generated_sequences_are_cached_before_the_runs_so_no_worker_pays_for_generating(tmp_path, monkeypatch):
+    """`warm_caches` generates each stand-in of the runs once, in a child process, into the frame cache
+    (a worker that generated it would count what generating left loaded in its peak memory); a sequence
+    read from files is not loaded ahead, nor one with the cache turned off."""
+    from dpcbench.bench.runner import warm_caches
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("DPCBENCH_CACHE", str(cache))
+    monkeypatch.chdir(REPO)
+    seq = helpers.write_sequence(tmp_path / "seq", n_frames=2, n_points=300)
+    cfg = {
+        "experiment": {"name": "warm", "timeout_s": 300},
+        "sequences": [{"name": "bunny", "frames": 2, "params": {"size": "tiny"}},
+                      {"name": "human", "frames": 2, "params": {"size": "tiny", "cache": False}},
+                      {"path": str(seq), "label": "sphere"}],
+        "holes": [{"generator": "region", "params": {"preset": "small", "count": 1}, "seed": 0}],
+        "methods": [{"name": "none"}],
+        "metrics": {"names": ["gpsnr_d1"], "peaks": ["intrinsic"], "scopes": ["frame"]},
+    }
+    warm_caches(parse_config(cfg).expand())
+    assert sorted(p.name for p in cache.iterdir()) == ["bunny"]  # neither the uncached human nor the files
+    assert len(list((cache / "bunny").glob("*.npz"))) == 2

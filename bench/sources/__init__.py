@@ -36,9 +36,11 @@ DATA_DIR_ENV = "DPCBENCH_DATA_DIR"
 
 
 class SequenceSource:
-    """Base of the sources: ``name`` labels the sequence, ``kind`` says which file defines it."""
+    """Base of the sources: ``name`` labels the sequence, ``kind`` says which file defines it, ``cached``
+    whether loading generates the frames into the on-disk cache (`bench.standins.cache`) the first time."""
 
     kind: ClassVar[str] = ""
+    cached: ClassVar[bool] = False
 
     def __init__(self, name: str):
         self.name = name

@@ -39,6 +39,7 @@ class EmbeddedSource(SequenceSource):
     keyword parameters, plus ``cache`` (default True: read and write the on-disk cache)."""
 
     kind = "embedded"
+    cached = True
 
     def __init__(self, info: EmbeddedDataset):
         super().__init__(info.name)

@@ -66,6 +66,7 @@ class MeshDatasetSource(SequenceSource):
     override its default sampling parameters."""
 
     kind = "mesh"
+    cached = True
 
     def __init__(self, info: MeshDataset, data_dir=None):
         super().__init__(info.name)
@@ -96,6 +97,7 @@ class MeshFolderSource(SequenceSource):
     """A folder (or glob) of mesh frames, ``files`` in natural order (`bench.meshseq.list_mesh_files`)."""
 
     kind = "mesh folder"
+    cached = True
 
     def __init__(self, path: str | os.PathLike, files: list[Path], label: str | None = None):
         p = Path(str(path))
