@@ -195,17 +195,20 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
     return source.load(frames, progress=progress, **params)
 
 
+def run_sequence_source(sequence: dict):
+    """The source (`bench.sources`) of a run spec's ``sequence`` entry: ``name`` (a dataset name, never
+    looked up on disk) or ``path`` (named by ``label``), with ``data_dir``."""
+    if sequence.get("path"):
+        return resolve_source(sequence["path"], label=sequence.get("label") or sequence["name"])
+    return resolve_source(sequence["name"], sequence.get("data_dir"), name_only=True)
+
+
 def load_run_sequence(sequence: dict) -> Sequence:
-    """The intact sequence of a run spec's ``sequence`` entry (`bench.config.RunSpec`): ``name`` (a
-    dataset name, never looked up on disk) or ``path`` (named by ``label``), ``frames`` (count or
-    [start, stop)), ``params``, ``data_dir``."""
+    """The intact sequence of a run spec's ``sequence`` entry (`bench.config.RunSpec`; `run_sequence_source`),
+    ``frames`` (count or [start, stop)) of it, loaded with its ``params``."""
     frames = sequence.get("frames")
     wanted = None if frames is None else list(range(frames) if isinstance(frames, int) else range(*frames))
-    if sequence.get("path"):
-        source = resolve_source(sequence["path"], label=sequence.get("label") or sequence["name"])
-    else:
-        source = resolve_source(sequence["name"], sequence.get("data_dir"), name_only=True)
-    return source.load(wanted, progress=False, **sequence.get("params", {}))
+    return run_sequence_source(sequence).load(wanted, progress=False, **sequence.get("params", {}))
 
 
 def describe_datasets(data_dir=None) -> list[dict]:

@@ -59,7 +59,7 @@ def warm_caches(specs: list[RunSpec], quiet: bool = True) -> None:
     import subprocess
     import sys
 
-    from dpcbench.bench.datasets import resolve_source
+    from dpcbench.bench.datasets import run_sequence_source
 
     done = set()
     for spec in specs:
@@ -69,9 +69,7 @@ def warm_caches(specs: list[RunSpec], quiet: bool = True) -> None:
             continue
         done.add(key)
         try:
-            source = (resolve_source(sequence["path"], label=sequence.get("label") or sequence["name"])
-                      if sequence.get("path") else
-                      resolve_source(sequence["name"], sequence.get("data_dir"), name_only=True))
+            source = run_sequence_source(sequence)
         except Exception:  # an unknown or missing sequence: its runs report it
             continue
         if not getattr(source, "cached", False) or sequence.get("params", {}).get("cache", True) is False:
