@@ -806,7 +806,7 @@ class TemporalFusion(InpaintingMethod):
                "compensation), MLS surface projection, steady reuse of the previous fill, spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "37"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "38"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -831,7 +831,8 @@ class TemporalFusion(InpaintingMethod):
     # 34: step 6e's sag bound judged over the widest open disc among its anchors, not the region (`_open_radius`);
     # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`);
     # 36 (measured, not kept): `surface_voxels` takes a voxel only within one voxel edge of a copied point, not
-    # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`)
+    # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`); 38: step 9, a hole left open in frame f takes
+    # what frame f+1 found there, moved back (``reuse_next``)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -844,7 +845,8 @@ class TemporalFusion(InpaintingMethod):
                  poisson_bodies: bool = True, poisson_bridges: bool = True, cap: bool = True, harmonic_cap: bool = True,
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
-                 adjacent_first: bool = True, count_copies: bool = True, snap: bool | str = "auto") -> None:
+                 adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
+                 snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -874,6 +876,7 @@ class TemporalFusion(InpaintingMethod):
         self.pool_adjacent = pool_adjacent
         self.adjacent_first = adjacent_first
         self.count_copies = count_copies
+        self.reuse_next = reuse_next
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -903,7 +906,7 @@ class TemporalFusion(InpaintingMethod):
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
                      "poisson_bridges", "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources",
-                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies"):
+                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies", "reuse_next"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -939,7 +942,9 @@ class TemporalFusion(InpaintingMethod):
         step = spacing if integer else sampling_step(frames[largest])
         context = dict(step=step, frames=frames, regions=regions, tree_of=tree_of, spacing=spacing, voxelized=voxelized,
                        neighbours=self._fit_neighbours(voxelized), projection_neighbours=self._fit_neighbours(False))
+        context["back_motions"] = {}
         outputs: list[np.ndarray] = []
+        found_of: dict[int, np.ndarray] = {}  # the points each frame found itself (`_fill_frame`), for step 9
         previous_fill = np.zeros((0, 3))
         for f, frame in enumerate(frames):
             for old in [g for g in trees if g < f - int(self.window)]:
@@ -948,40 +953,63 @@ class TemporalFusion(InpaintingMethod):
                 outputs.append(frame.copy())
                 previous_fill = np.zeros((0, 3))
                 continue
-            added, reusable = self._fill_frame(f, regions[f], previous_fill, context)
+            added, previous_fill, found_of[f] = self._fill_frame(f, regions[f], previous_fill, context)
             outputs.append(np.vstack([frame, added]) if len(added) else frame.copy())
-            previous_fill = reusable
+        if self.reuse_next:
+            # step 9, last frame first, so a fill found late in a persistent hole reaches back over every frame
+            for f in range(len(frames) - 2, -1, -1):
+                for old in [g for g in trees if g > f + 1]:
+                    del trees[old]
+                later = found_of.get(f + 1)
+                if f not in found_of or later is None or not len(later):
+                    continue
+                back = self._back_fill(f, later, outputs[f][len(frames[f]):], context)
+                if len(back):
+                    outputs[f] = np.vstack([outputs[f], back])
+                    found_of[f] = np.vstack([found_of[f], back])
         return outputs
 
     # -- one frame -----------------------------------------------------------------------------
-    def _fill_frame(self, f, frame_regions, previous_fill, ctx) -> tuple[np.ndarray, np.ndarray]:
-        """(the points added to frame f, those of them that frame f + 1 may reuse: all but steps 5b, 6d and 6e's)."""
+    def _fill_frame(self, f, frame_regions, previous_fill, ctx) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(the points added to frame f; those of them that frame f + 1 may reuse: all but steps 5b, 6d and 6e's;
+        those of the latter that frame f found itself, not reused from f - 1: what step 9 carries back to f - 1)."""
         frames, spacing = ctx["frames"], ctx["spacing"]
         frame, tree = frames[f], ctx["tree_of"](f)
         new_parts: list[np.ndarray] = []
-        ctx["not_reused"] = []
+        ctx["not_reused"], ctx["from_previous"] = [], []
+        ctx["back_motions"][f] = next_motions = []
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
+            next_motions.append(ctx["next_motion"])
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
                     fill = fill[~earlier.contains(fill)]
                 new_parts.append(fill)
         if not new_parts:
-            return np.zeros((0, 3)), np.zeros((0, 3))
+            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
         added = np.vstack(new_parts)
         if ctx["voxelized"]:
             added = snap_to_voxels(added, frame[self._near_regions(tree, frame_regions, spacing * 2)])
         else:
             added = added[far_from(added, tree, self.gap_spacings * spacing)]
-        if not ctx["not_reused"]:
-            return added, added
-        # step 5b's copies and the membranes of steps 6d and 6e rest on frames round f as they are, so frame f + 1
-        # builds its own rather than reusing these (step 5): reused, they drift and pile up in a persistent occlusion box
-        fresh = np.vstack(ctx["not_reused"])
-        if ctx["voxelized"]:
-            fresh = np.floor(fresh + 0.5)
-        return added, added[~rows_in(added, fresh)]
+        reusable = added
+        if ctx["not_reused"]:
+            # step 5b's copies and the membranes of steps 6d and 6e rest on frames round f as they are, so frame f + 1
+            # builds its own rather than reusing these (step 5): reused, they drift and pile up in a persistent
+            # occlusion box
+            reusable = added[~rows_in(added, self._as_added(ctx["not_reused"], ctx))]
+        found = reusable
+        if ctx["from_previous"]:
+            # frame f - 1 holds these already: carried back (step 9) after a round trip they would lie beside it
+            found = reusable[~rows_in(reusable, self._as_added(ctx["from_previous"], ctx))]
+        return added, reusable, found
+
+    @staticmethod
+    def _as_added(parts: list[np.ndarray], ctx) -> np.ndarray:
+        """``parts`` stacked as `_fill_frame` puts them in ``added`` (rounded to voxels on voxelized data)."""
+        points = np.vstack(parts)
+        return np.floor(points + 0.5) if ctx["voxelized"] else points
 
     @staticmethod
     def _near_regions(tree, frame_regions, margin) -> np.ndarray:
@@ -991,14 +1019,58 @@ class TemporalFusion(InpaintingMethod):
     def _shell(self, region, spacing) -> float:
         return max(self.shell_factor * region.bounding_radius, self.shell_spacings * spacing)
 
+    def _crop(self, f, region, ctx) -> tuple[np.ndarray, np.ndarray, float]:
+        """Step 1: (frame f's points within r + 2 shell of R, in the frame's order; those of them within the
+        shell of R, the rim; the shell width)."""
+        shell = self._shell(region, ctx["spacing"])
+        reach = region.bounding_radius + 2 * shell
+        idx = np.asarray(ctx["tree_of"](f).query_ball_point(region.center, reach, return_sorted=True), dtype=np.int64)
+        local = ctx["frames"][f][idx]
+        return local, local[region.contains(local, margin=shell)], shell
+
+    def _back_fill(self, f, later_fill, added, ctx) -> np.ndarray:
+        """Step 9: frame f+1's fill ``later_fill`` (M, 3) moved back to frame f by f+1's motion, where frame f's
+        holes are still open after its own fill ``added`` (A, 3); step 5's tests and step 7's treatment.
+        Returns (P, 3) points to add to frame f."""
+        spacing, frame = ctx["spacing"], ctx["frames"][f]
+        frame_regions = ctx["regions"][f]
+        parts: list[np.ndarray] = []
+        for k, (region, motion) in enumerate(zip(frame_regions, ctx["back_motions"][f])):
+            if motion is None:
+                continue
+            rotation, translation, field = motion
+            moved = later_fill @ rotation.T + translation
+            moved = self._deformed(moved[region.contains(moved)], field)
+            if not len(moved):
+                continue
+            local, rim, shell = self._crop(f, region, ctx)
+            local_tree = cKDTree(local)
+            moved = moved[far_from(moved, local_tree, self.gap_spacings * spacing)]
+            near = np.vstack([added, *parts])
+            near = near[region.contains(near, margin=shell)]
+            if len(near):
+                moved = moved[far_from(moved, cKDTree(near), self.fill_gap_spacings * spacing)]
+            moved = moved[~disagreeing(moved, rim, 3 * spacing, self.accept_spacings * spacing)]
+            if not len(moved):
+                continue
+            moved = self._settle(moved, near, region, local, rim, local_tree, ctx)
+            moved = moved[region.contains(moved, margin=spacing)]
+            for earlier in frame_regions[:k]:
+                moved = moved[~earlier.contains(moved)]
+            parts.append(moved)
+        if not parts:
+            return np.zeros((0, 3))
+        back = np.vstack(parts)
+        if ctx["voxelized"]:
+            back = snap_to_voxels(back, frame[self._near_regions(ctx["tree_of"](f), frame_regions, spacing * 2)])
+            return back[~rows_in(back, added)] if len(added) else back
+        return back[far_from(back, ctx["tree_of"](f), self.gap_spacings * spacing)]
+
     def _fill_region(self, f, region, previous_fill, ctx) -> np.ndarray:
         frames, tree_of, spacing = ctx["frames"], ctx["tree_of"], ctx["spacing"]
-        frame = frames[f]
-        shell = self._shell(region, spacing)
+        ctx["next_motion"] = None  # frame f+1's motion to f, for step 9 (set below when f+1 is aligned)
+        local, rim, shell = self._crop(f, region, ctx)
         reach = region.bounding_radius + 2 * shell
-        local_idx = np.asarray(tree_of(f).query_ball_point(region.center, reach, return_sorted=True), dtype=np.int64)
-        local = frame[local_idx]
-        rim = local[region.contains(local, margin=shell)]
         if len(rim) < 6:
             return np.zeros((0, 3))  # nothing around the hole to align to or to continue
         if ctx["voxelized"] and self.rim_fill:
@@ -1060,9 +1132,10 @@ class TemporalFusion(InpaintingMethod):
                     (rotation, translation), residual = refined, refined_residual
             carries_only = False
             if residual > self.accept_spacings * spacing:
-                # f-1 with its own hole there: judged again on the rim it saw, its motion carries its fill
-                # (step 5) though it is no source (step 2b)
-                if not (own_hole and g == f - 1 and self.reuse_previous
+                # f-1 (f+1) with its own hole there: judged again on the rim it saw, its motion carries its fill
+                # to f (step 5; step 9) though it is no source (step 2b)
+                carrier = (g == f - 1 and self.reuse_previous) or (g == f + 1 and self.reuse_next)
+                if not (own_hole and carrier
                         and seen_rim_residual(source_tree, rim, rotation, translation, ctx["regions"][g])
                         <= self.accept_spacings * spacing):
                     continue
@@ -1072,8 +1145,11 @@ class TemporalFusion(InpaintingMethod):
             field = None
             if self.deform:
                 field = rim_displacement(rim, moved[~inside], 2 * spacing)
+            if g == f + 1:
+                ctx["next_motion"] = (rotation, translation, field)
             if carries_only:
-                carried = (rotation, translation, field)
+                if g == f - 1:
+                    carried = (rotation, translation, field)
                 continue
             motions[g] = (rotation, translation, field)
             if inside.any() and not own_hole:
@@ -1212,21 +1288,31 @@ class TemporalFusion(InpaintingMethod):
             accepted = np.vstack([accepted[:copied], reused])
         elif ctx["voxelized"] and copied < len(accepted):
             accepted = np.vstack([accepted[:copied], unique_voxels(np.floor(accepted[copied:] + 0.5))])
+        ctx["from_previous"].append(accepted[copied:])
         if len(seen):
             # step 5b's copies as step 7 treats the reused points: onto the surface, re-voxelized; not reused
-            support = np.vstack([local, accepted, seen])
-            if ctx["projection_neighbours"] >= 6:
-                seen = mls_project(seen, support, ctx["projection_neighbours"])
-            if ctx["voxelized"] and self.revoxelize:
-                k = max(ctx["projection_neighbours"], 6)
-                bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
-                occupied = cKDTree(np.vstack([local, accepted])) if len(accepted) else local_tree
-                seen = surface_voxels(seen, region, support, occupied, k, bound)
-            elif ctx["voxelized"]:
-                seen = unique_voxels(np.floor(seen + 0.5))
+            seen = self._settle(seen, accepted, region, local, rim, local_tree, ctx)
             ctx["not_reused"].append(seen)
+        if len(accepted) or len(spatial):
+            ctx["next_motion"] = None  # step 9 only where R stayed open but for step 5b's copies
         accepted = np.vstack([accepted, seen, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
+
+    def _settle(self, points, fixed, region, local, rim, local_tree, ctx) -> np.ndarray:
+        """Step 7's treatment of moved points (``points`` (P, 3), beside the new points ``fixed`` of R): onto the MLS
+        surface of frame f's crop ``local`` and all new points, then, on voxelized data, re-voxelized by step 4b's
+        rule with the rim's bound, never on a voxel of ``local`` or ``fixed``."""
+        support = np.vstack([local, fixed, points])
+        if ctx["projection_neighbours"] >= 6:
+            points = mls_project(points, support, ctx["projection_neighbours"])
+        if ctx["voxelized"] and self.revoxelize:
+            k = max(ctx["projection_neighbours"], 6)
+            bound = rim_crossing_threshold(even_subset(rim, CALIBRATION_POINTS), region, local, local_tree, k)
+            occupied = cKDTree(np.vstack([local, fixed])) if len(fixed) else local_tree
+            points = surface_voxels(points, region, support, occupied, k, bound)
+        elif ctx["voxelized"]:
+            points = unique_voxels(np.floor(points + 0.5))
+        return points
 
     def _cap(self, local, region, covered, spacing, ctx) -> np.ndarray:
         """Step 6d's membrane (`cap_fill`)."""
