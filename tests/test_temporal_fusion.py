@@ -62,14 +62,21 @@ def quiet(method, frames, regions):
         return method.inpaint(frames, regions)
 
 
-def rigid_sequence(n_frames=5, hole_frame=2, n=12000):
-    """A bumpy sphere moving rigidly (known rotation + translation per frame); frame ``hole_frame``
-    has a ball hole (the other frames are intact). Returns (frames, regions, hidden points)."""
+def rigid_frames(n_frames: int, n: int) -> list[np.ndarray]:
+    """A bumpy sphere of n points moving rigidly (known rotation + translation per frame), the same point
+    order in every frame."""
     base = bumpy(n)
     frames = []
     for f in range(n_frames):
         rot = Rotation.from_rotvec([0.0, 0.03 * f, 0.02 * f]).as_matrix()
         frames.append(base @ rot.T + np.array([1.2, -0.7, 0.5]) * f)
+    return frames
+
+
+def rigid_sequence(n_frames=5, hole_frame=2, n=12000):
+    """A bumpy sphere moving rigidly (`rigid_frames`); frame ``hole_frame`` has a ball hole (the other
+    frames are intact). Returns (frames, regions, hidden points)."""
+    frames = rigid_frames(n_frames, n)
     target = frames[hole_frame]
     centre = target[np.argmax(target[:, 0])]
     region = HoleRegion.ball(centre, 9.0)
@@ -610,6 +617,34 @@ def test_a_frame_with_its_own_hole_nearby_gives_what_it_saw():
     new = out[1][len(holed[1]):]
     assert cKDTree(hidden).query(new)[0].max() < 0.3
     assert np.mean(cKDTree(np.vstack([holed[1], new])).query(hidden)[0] <= 1.0) > 0.8
+
+def test_a_hole_left_open_takes_what_the_next_frame_found_there_moved_back():
+    """Step 9: frames 0 and 1 miss the same patch of the body, frame 2 saw it (window 1). Frame 1 copies it from
+    frame 2; frame 0 has no source (frame 1 lacks the patch too) and, with the spatial fill off, stays open unless
+    frame 1's copy is carried back by frame 1's motion: then the hidden patch of frame 0 is covered, on the true
+    surface. Frames 1 and 2 are the same either way, and a frame whose own fill covered the hole gets nothing back."""
+    frames = rigid_frames(3, 12000)
+    tip = int(np.argmax(frames[0][:, 0]))  # one point of the body: frames keep the point order
+    regions = [[HoleRegion.ball(frames[g][tip], 9.0)] for g in (0, 1)] + [[]]
+    holed = [frames[g][~regions[g][0].contains(frames[g])] if regions[g] else frames[g] for g in range(3)]
+    hidden = frames[0][regions[0][0].contains(frames[0])]
+
+    off = quiet(TemporalFusion(window=1, fallback=False, reuse_next=False), holed, regions)
+    on = quiet(TemporalFusion(window=1, fallback=False), holed, regions)
+    assert len(off[0]) == len(holed[0])  # no frame gave frame 0 anything
+    assert len(off[1]) > len(holed[1]) + 0.5 * len(hidden)  # frame 1 copied frame 2's patch
+    new = on[0][len(holed[0]):]
+    assert cKDTree(hidden).query(new)[0].max() < 0.3
+    assert np.mean(cKDTree(np.vstack([holed[0], new])).query(hidden)[0] <= 1.0) > 0.8
+    for g in (1, 2):
+        np.testing.assert_array_equal(on[g], off[g])
+
+    spatial_off = quiet(TemporalFusion(window=1, reuse_next=False), holed, regions)
+    spatial_on = quiet(TemporalFusion(window=1), holed, regions)
+    assert len(spatial_off[0]) > len(holed[0]) + 0.5 * len(hidden)  # frame 0's own spatial fill
+    for g in range(3):
+        np.testing.assert_array_equal(spatial_on[g], spatial_off[g])
+
 
 # -- version 4: thin gaps filled from the rim by the voxelization rule ------------------------------
 
