@@ -74,7 +74,8 @@ back to back: 10.54, the same points added), bunny-635k 85.1 s (its base still c
 cap 6.2 voxels RMS off the hand, 0.1 s) now gets step 6c's surface and its hold-out (0.94 off), 1-3 s a frame;
 frame D1 over the 3 frames 4.06 -> 12.88 dB (methods/NOTES.md, "version 35").
 Version 38 (step 9, open holes take the next frame's fill moved back), `-k "size or coherent"`, CPU, one run: 100k /
-290k / 800k 1.18 / 1.86 / 3.76 s, coherent 800k 35.9 s for 3 frames. Wall-clock (the default timer, version 37, one
+290k / 800k 1.18 / 1.86 / 3.76 s, coherent 800k 35.9 s for 3 frames; `-k "holes or occlusion"`: 1 / 3 holes at
+~280k 0.58 / 1.26 s (with 5: 1.86 s, about 0.32 s a hole), occlusion human-800k 10.7 s, bunny-635k 89.2 s. Wall-clock (the default timer, version 37, one
 run): coherent 800k 30.1 s for 3 frames, about 10 s a frame.
 """
 
