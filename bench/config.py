@@ -18,7 +18,8 @@ grids), and the metrics with their options::
     # path = "/data/longdress/Ply"  # ... a folder of PLY frames (or of OBJ/OFF/PLY meshes, sampled
                                     # with params such as points, bit_depth: bench.meshseq)
     params = { size = "small" }     # passed to bench.datasets.load_dataset
-    frames = 4                      # the first N frames, or [start, stop) as [0, 8]
+    frames = 4                      # the first N frames, or [start, stop) as [0, 8], or every step-th
+                                    # frame of [start, stop) as [0, 16, 2] (a lower frame rate)
     label = "Human (stand-in)"      # how reports name it (default: name)
     optional = true                 # data that may be absent (a mesh or paper sequence): skipped, with
                                     # a message, when not found, instead of failing the whole config
@@ -330,7 +331,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
             return _mesh_fingerprint(mesh_files, sequence)
         fingerprint = _folder_fingerprint(path if path.is_dir() else path.parent)
         frames = sequence.get("frames")
-        wanted = frames if isinstance(frames, int) else (frames[1] if isinstance(frames, list) else 0)
+        wanted = frames if isinstance(frames, int) else (max(range(*frames)) + 1 if isinstance(frames, list) else 0)
         if fingerprint["files"] == 0:
             raise ConfigError(f"{where}.path: {path} holds no .ply frame; give a folder of PLY frames")
         if wanted > fingerprint["files"]:
@@ -471,10 +472,12 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         frames = seq.get("frames")
         if frames is not None:
             ok = (isinstance(frames, int) and not isinstance(frames, bool) and frames > 0) or (
-                isinstance(frames, list) and len(frames) == 2 and all(isinstance(x, int) for x in frames)
-                and 0 <= frames[0] < frames[1])
+                isinstance(frames, list) and len(frames) in (2, 3)
+                and all(isinstance(x, int) and not isinstance(x, bool) for x in frames)
+                and 0 <= frames[0] < frames[1] and (len(frames) == 2 or frames[2] > 0))
             if not ok:
-                raise ConfigError(f"{where}.frames: expected a positive count or [start, stop) with start < stop, got {frames!r}")
+                raise ConfigError(f"{where}.frames: expected a positive count, [start, stop) with start < stop, or "
+                                  f"[start, stop, step] with step > 0 (every step-th frame), got {frames!r}")
         path = None
         if seq.get("path"):  # relative paths are relative to the config file's folder
             path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())

@@ -205,7 +205,7 @@ def run_sequence_source(sequence: dict):
 
 def load_run_sequence(sequence: dict) -> Sequence:
     """The intact sequence of a run spec's ``sequence`` entry (`bench.config.RunSpec`; `run_sequence_source`),
-    ``frames`` (count or [start, stop)) of it, loaded with its ``params``."""
+    ``frames`` (count, [start, stop) or [start, stop, step]) of it, loaded with its ``params``."""
     frames = sequence.get("frames")
     wanted = None if frames is None else list(range(frames) if isinstance(frames, int) else range(*frames))
     return run_sequence_source(sequence).load(wanted, progress=False, **sequence.get("params", {}))

@@ -71,6 +71,25 @@ def test_ids_are_stable_and_change_with_every_parameter(seq_dir):
     assert set(_ids(changed)).isdisjoint(ids)
 
 
+def test_a_frame_step_loads_every_step_th_frame_under_its_own_ids(tmp_path, monkeypatch):
+    """frames = [start, stop, step]: a lower frame rate of the same capture; the frames loaded are exactly
+    start, start + step, ... < stop, and the runs are not those of [start, stop)."""
+    from dpcbench.bench.datasets import load_run_sequence
+
+    helpers.register(monkeypatch)
+    folder = helpers.write_sequence(tmp_path / "seq", n_frames=5, n_points=200)
+    every = _config(folder)
+    every["sequences"][0]["frames"] = [0, 5]
+    strided = copy.deepcopy(every)
+    strided["sequences"][0]["frames"] = [1, 5, 2]
+    assert set(_ids(strided)).isdisjoint(_ids(every))
+    whole = load_run_sequence(parse_config(every).expand()[0].sequence)
+    loaded = load_run_sequence(parse_config(strided).expand()[0].sequence)
+    assert len(whole.frames) == 5 and len(loaded.frames) == 2
+    for got, index in zip(loaded.frames, (1, 3)):
+        np.testing.assert_array_equal(got.points, whole.frames[index].points)
+
+
 def test_key_order_numbers_and_labels_do_not_change_ids(seq_dir):
     base = _config(seq_dir)
     reordered = {k: base[k] for k in reversed(list(base))}
@@ -115,6 +134,9 @@ def test_method_version_and_data_change_ids(seq_dir, monkeypatch):
     (lambda c: c["metrics"].update(peaks=[-1]), "metrics.peaks[0]"),
     (lambda c: c["metrics"].update(scopes=["everywhere"]), "metrics.scopes"),
     (lambda c: c["sequences"][0].update(frames=0), "sequences[0].frames"),
+    (lambda c: c["sequences"][0].update(frames=[0, 2, 0]), "sequences[0].frames: expected a positive count"),
+    (lambda c: c["sequences"][0].update(frames=[0, 2, 1, 1]), "sequences[0].frames"),
+    (lambda c: c["sequences"][0].update(frames=[0, 5, 2]), "sequences[0].frames: asks for 5 frames"),
     (lambda c: c["sequences"][0].update(path="/does/not/exist"), "sequences[0].path"),
     (lambda c: c["sequences"][0].update(colour=1), "sequences[0].colour: unknown key"),
     (lambda c: c["experiment"].pop("name"), "experiment.name: missing"),
@@ -206,7 +228,8 @@ def test_detection_parameters(seq_dir):
 
 
 @pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods", "temporal-fusion-targets",
-                                    "temporal-fusion-heldout", "temporal-fusion-heldout-frames"])
+                                    "temporal-fusion-heldout", "temporal-fusion-heldout-frames",
+                                    "temporal-fusion-heldout-framerate"])
 def test_shipped_presets_expand(preset):
     """Every preset under bench/presets parses and expands into runs with distinct ids."""
     from dpcbench.bench.paper import PRESETS_DIR
