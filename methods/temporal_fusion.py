@@ -490,6 +490,7 @@ from dpcbench.methods._spatial_fill import (
     far_from,
     grown_agreeing,
     membrane_fill,
+    over_captured_surface,
     plane_offsets,
     poisson_surface_fill,
     rim_sheet,
@@ -827,7 +828,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "38"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "39"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -853,7 +854,8 @@ class TemporalFusion(InpaintingMethod):
     # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`);
     # 36 (measured, not kept): `surface_voxels` takes a voxel only within one voxel edge of a copied point, not
     # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`); 38: step 9, a hole left open in frame f takes
-    # what frame f+1 found there, moved back (``reuse_next``)
+    # what frame f+1 found there, moved back (``reuse_next``); 39: step 7b, no second layer over the captured
+    # surface (``drop_layers``)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -867,7 +869,7 @@ class TemporalFusion(InpaintingMethod):
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
-                 snap: bool | str = "auto") -> None:
+                 drop_layers: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -898,6 +900,7 @@ class TemporalFusion(InpaintingMethod):
         self.adjacent_first = adjacent_first
         self.count_copies = count_copies
         self.reuse_next = reuse_next
+        self.drop_layers = drop_layers
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -1002,6 +1005,10 @@ class TemporalFusion(InpaintingMethod):
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             next_motions.append(ctx["next_motion"])
+            if len(fill) and self.drop_layers:
+                # step 7b: no second layer over what frame f captured (a copy misaligned there, in a box that
+                # keeps captured points)
+                fill = fill[~over_captured_surface(fill, tree, spacing)]
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
