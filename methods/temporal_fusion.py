@@ -1005,10 +1005,6 @@ class TemporalFusion(InpaintingMethod):
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             next_motions.append(ctx["next_motion"])
-            if len(fill) and self.drop_layers:
-                # step 7b: no second layer over what frame f captured (a copy misaligned there, in a box that
-                # keeps captured points)
-                fill = fill[~over_captured_surface(fill, tree, spacing)]
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
@@ -1323,6 +1319,12 @@ class TemporalFusion(InpaintingMethod):
             ctx["not_reused"].append(seen)
         if len(accepted) or len(spatial):
             ctx["next_motion"] = None  # step 9 only where R stayed open but for step 5b's copies
+        if self.drop_layers:
+            # step 7b: no copy laid as a second layer over what frame f captured (misaligned there, in a region
+            # that keeps captured points); the spatial fills are frame f's own and have their own tests
+            captured = tree_of(f)
+            accepted = accepted[~over_captured_surface(accepted, captured, spacing)]
+            seen = seen[~over_captured_surface(seen, captured, spacing)]
         accepted = np.vstack([accepted, seen, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
 
