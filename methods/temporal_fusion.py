@@ -1005,6 +1005,10 @@ class TemporalFusion(InpaintingMethod):
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             next_motions.append(ctx["next_motion"])
+            if len(fill) and self.drop_layers and self._keeps_captured(tree, frame, region):
+                # step 7b: in a region that keeps captured points (an occlusion box), nothing laid as a second
+                # layer over them (a copy misaligned there)
+                fill = fill[~over_captured_surface(fill, tree, spacing)]
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
@@ -1034,6 +1038,12 @@ class TemporalFusion(InpaintingMethod):
         """``parts`` stacked as `_fill_frame` puts them in ``added`` (rounded to voxels on voxelized data)."""
         points = np.vstack(parts)
         return np.floor(points + 0.5) if ctx["voxelized"] else points
+
+    @staticmethod
+    def _keeps_captured(tree, frame, region) -> bool:
+        """Whether frame f (``frame``, its k-d tree ``tree``) has points inside ``region``."""
+        near = tree.query_ball_point(region.center, region.bounding_radius)
+        return bool(len(near)) and bool(region.contains(frame[np.asarray(near, dtype=np.int64)]).any())
 
     @staticmethod
     def _near_regions(tree, frame_regions, margin) -> np.ndarray:
@@ -1319,12 +1329,6 @@ class TemporalFusion(InpaintingMethod):
             ctx["not_reused"].append(seen)
         if len(accepted) or len(spatial):
             ctx["next_motion"] = None  # step 9 only where R stayed open but for step 5b's copies
-        if self.drop_layers:
-            # step 7b: no copy laid as a second layer over what frame f captured (misaligned there, in a region
-            # that keeps captured points); the spatial fills are frame f's own and have their own tests
-            captured = tree_of(f)
-            accepted = accepted[~over_captured_surface(accepted, captured, spacing)]
-            seen = seen[~over_captured_surface(seen, captured, spacing)]
         accepted = np.vstack([accepted, seen, spatial])
         return accepted[region.contains(accepted, margin=spacing)]
 

@@ -602,6 +602,8 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     out = quiet(TemporalFusion(), frames, regions)
     assert calls == []
     capped = cap_fill(kept, box, cKDTree(kept), 1.0, voxelized=True)
+    # less the cap's voxels that step 7b reads as a layer over the captured foot ring in the box (55 of 1828)
+    capped = capped[~over_captured_surface(capped, cKDTree(kept), 1.0)]
     fill = out[0][len(kept):]
     assert len(fill) >= 0.8 * opening.sum() and np.array_equal(np.unique(fill, axis=0), np.unique(capped, axis=0))
     quiet(TemporalFusion(walled_cap_first=False), frames, regions)
