@@ -490,7 +490,6 @@ from dpcbench.methods._spatial_fill import (
     far_from,
     grown_agreeing,
     membrane_fill,
-    over_captured_surface,
     plane_offsets,
     poisson_surface_fill,
     rim_sheet,
@@ -828,7 +827,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "39"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "38"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -854,8 +853,7 @@ class TemporalFusion(InpaintingMethod):
     # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`);
     # 36 (measured, not kept): `surface_voxels` takes a voxel only within one voxel edge of a copied point, not
     # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`); 38: step 9, a hole left open in frame f takes
-    # what frame f+1 found there, moved back (``reuse_next``); 39: step 7b, no second layer over the captured
-    # surface (``drop_layers``)
+    # what frame f+1 found there, moved back (``reuse_next``)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -869,7 +867,7 @@ class TemporalFusion(InpaintingMethod):
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
-                 drop_layers: bool = True, snap: bool | str = "auto") -> None:
+                 snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -900,7 +898,6 @@ class TemporalFusion(InpaintingMethod):
         self.adjacent_first = adjacent_first
         self.count_copies = count_copies
         self.reuse_next = reuse_next
-        self.drop_layers = drop_layers
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -1005,10 +1002,6 @@ class TemporalFusion(InpaintingMethod):
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             next_motions.append(ctx["next_motion"])
-            if len(fill) and self.drop_layers and self._keeps_captured(tree, frame, region):
-                # step 7b: in a region that keeps captured points (an occlusion box), nothing laid as a second
-                # layer over them (a copy misaligned there)
-                fill = fill[~over_captured_surface(fill, tree, spacing)]
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
@@ -1038,12 +1031,6 @@ class TemporalFusion(InpaintingMethod):
         """``parts`` stacked as `_fill_frame` puts them in ``added`` (rounded to voxels on voxelized data)."""
         points = np.vstack(parts)
         return np.floor(points + 0.5) if ctx["voxelized"] else points
-
-    @staticmethod
-    def _keeps_captured(tree, frame, region) -> bool:
-        """Whether frame f (``frame``, its k-d tree ``tree``) has points inside ``region``."""
-        near = tree.query_ball_point(region.center, region.bounding_radius)
-        return bool(len(near)) and bool(region.contains(frame[np.asarray(near, dtype=np.int64)]).any())
 
     @staticmethod
     def _near_regions(tree, frame_regions, margin) -> np.ndarray:
