@@ -103,6 +103,48 @@ def far_from(points: np.ndarray, tree: cKDTree | None, distance: float) -> np.nd
     return ~np.isfinite(dist)
 
 
+def over_captured_surface(points: np.ndarray, captured: cKDTree, spacing: float, *, reach_spacings: float = 2.0,
+                          neighbours: int = 16, one_sided: float = 0.5, off_plane_spacings: float = 0.5) -> np.ndarray:
+    """Mask (P,) of the ``points`` that lie over the captured surface as a second layer (step 7b of
+    `methods.temporal_fusion`): a point p whose captured neighbours (``captured``'s points within
+    ``reach_spacings * spacing``, its ``neighbours`` nearest, at least 3) surround it and whose distance to their
+    plane is more than ``off_plane_spacings * spacing``.
+
+    With m the neighbours' centroid and n their PCA normal (smallest eigenvector of their covariance), each
+    neighbour q gives the unit tangential direction u_q of (q - p) - ((q - p) . n) n; the neighbours surround p
+    when |mean_q u_q| < ``one_sided`` (past the edge of a captured patch, at a hole's rim, they all lie to one side
+    and the mean is near 1), and p is off their plane when |(p - m) . n| > ``off_plane_spacings * spacing``.
+    A point inside a sampling gap of the captured surface (on its plane) and a point in a hole (one-sided
+    neighbours, or none within reach) are kept."""
+    points = np.asarray(points, dtype=np.float64)
+    out = np.zeros(len(points), dtype=bool)
+    if not len(points) or captured.n < 3:
+        return out
+    k = min(int(neighbours), captured.n)
+    dist, idx = captured.query(points, k=k, distance_upper_bound=reach_spacings * spacing)
+    dist, idx = dist.reshape(len(points), k), idx.reshape(len(points), k)
+    valid = np.isfinite(dist)
+    rows = np.flatnonzero(valid.sum(axis=1) >= 3)
+    if not len(rows):
+        return out
+    weight = valid[rows].astype(np.float64)  # (R, k): 1 for a neighbour within reach
+    near = captured.data[np.where(valid[rows], idx[rows], 0)]  # (R, k, 3); rows past reach weigh 0
+    count = weight.sum(axis=1)
+    centre = np.einsum("rk,rkd->rd", weight, near) / count[:, None]
+    spread = near - centre[:, None, :]
+    covariance = np.einsum("rk,rki,rkj->rij", weight, spread, spread) / count[:, None, None]
+    normal = np.linalg.eigh(covariance)[1][:, :, 0]  # (R, 3): eigenvalues ascending
+    offset = near - points[rows][:, None, :]
+    tangential = offset - np.einsum("rkd,rd->rk", offset, normal)[:, :, None] * normal[:, None, :]
+    length = np.linalg.norm(tangential, axis=2)
+    usable = valid[rows] & (length > 1e-9 * spacing)
+    unit = np.where(usable[:, :, None], tangential / np.maximum(length, 1e-300)[:, :, None], 0.0)
+    mean = np.linalg.norm(unit.sum(axis=1), axis=1) / np.maximum(usable.sum(axis=1), 1)
+    height = np.abs(np.einsum("rd,rd->r", points[rows] - centre, normal))
+    out[rows] = (usable.sum(axis=1) >= 3) & (mean < one_sided) & (height > off_plane_spacings * spacing)
+    return out
+
+
 
 
 def grown_agreeing(points: np.ndarray, support: np.ndarray, reach: float, tolerance: float) -> np.ndarray:

@@ -465,6 +465,9 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   pool_adjacent     True: step 4b's fit also takes the copies of f-1 and f+1 (see there); no constant of its own.
   adjacent_first    True: frames beyond f+-1 only where f-1 and f+1 are not both sources (step 2, version 28).
   count_copies      True: step 4b keeps as many voxels as the fused copies hold (version 31; False: the rim's bound t).
+  drop_layers       True: step 7b; its reach, 2 s, is step 2a's pairing reach (its 16 nearest, at least 3), its off-plane bound
+                    `FLOAT_LAYER_SPACINGS` / `VOXEL_LAYER_SPACINGS`, its surround bound (0.5) the mean of unit
+                    directions that lie all to one side (near 1) or all round (near 0).
   reuse_next        True: step 9, the holes left open take frame f+1's fill moved back (version 38); its tests are
                     step 5's and step 2b's, its treatment step 7's: no constant of its own.
   snap              "auto": voxelize when the input is voxelized (True/False force it).
@@ -490,6 +493,7 @@ from dpcbench.methods._spatial_fill import (
     far_from,
     grown_agreeing,
     membrane_fill,
+    over_captured_surface,
     plane_offsets,
     poisson_surface_fill,
     rim_sheet,
@@ -527,6 +531,14 @@ VOXEL_FIT_NEIGHBOURS = 28
 #: (methods/NOTES.md). Only step 4b's copies: the reused fill and step 5b's copies are projected onto a fit
 #: first (step 7), no longer one a captured voxel, and one edge there lost human occlusion 14 dB (version 36)
 COPY_REACH = 1.0
+
+#: step 7b's bound on how far off the captured surface's plane a fill point must lie to be a second layer over it, in
+#: spacings: half a spacing on float samples (two samplings of one surface lie about that far apart, step 2b's
+#: reasoning); one voxel on voxelized input, where a captured plane's own staircase scatters up to half a cube
+#: diagonal (0.87 voxel) about it, so a copy within a voxel of it cannot be told from it (at 0.5 the voxelized
+#: independent and occlusion rows lost up to 16 dB D1: staircases read as layers; methods/NOTES.md "step 7b")
+FLOAT_LAYER_SPACINGS = 0.5
+VOXEL_LAYER_SPACINGS = 1.0
 
 
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
@@ -827,7 +839,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "38"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "39"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -853,7 +865,8 @@ class TemporalFusion(InpaintingMethod):
     # 35: step 6d before 6c only where the region is shallow past the walled loop's plane (`cap_walled`);
     # 36 (measured, not kept): `surface_voxels` takes a voxel only within one voxel edge of a copied point, not
     # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`); 38: step 9, a hole left open in frame f takes
-    # what frame f+1 found there, moved back (``reuse_next``)
+    # what frame f+1 found there, moved back (``reuse_next``); 39: step 7b, no second layer over the captured
+    # surface (``drop_layers``)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -867,7 +880,7 @@ class TemporalFusion(InpaintingMethod):
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
-                 snap: bool | str = "auto") -> None:
+                 drop_layers: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -898,6 +911,7 @@ class TemporalFusion(InpaintingMethod):
         self.adjacent_first = adjacent_first
         self.count_copies = count_copies
         self.reuse_next = reuse_next
+        self.drop_layers = drop_layers
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -1002,6 +1016,12 @@ class TemporalFusion(InpaintingMethod):
         for k, region in enumerate(frame_regions):
             fill = self._fill_region(f, region, previous_fill, ctx)
             next_motions.append(ctx["next_motion"])
+            if len(fill) and self.drop_layers and self._keeps_captured(tree, frame, region):
+                # step 7b: in a region that keeps captured points (an occlusion box), nothing laid as a second
+                # layer over them (a copy misaligned there); on voxelized data only beyond one voxel off their
+                # plane, as a voxelized plane's own staircase scatters up to half a cube diagonal (0.87) about it
+                off_plane = VOXEL_LAYER_SPACINGS if ctx["voxelized"] else FLOAT_LAYER_SPACINGS
+                fill = fill[~over_captured_surface(fill, tree, spacing, off_plane_spacings=off_plane)]
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
@@ -1031,6 +1051,12 @@ class TemporalFusion(InpaintingMethod):
         """``parts`` stacked as `_fill_frame` puts them in ``added`` (rounded to voxels on voxelized data)."""
         points = np.vstack(parts)
         return np.floor(points + 0.5) if ctx["voxelized"] else points
+
+    @staticmethod
+    def _keeps_captured(tree, frame, region) -> bool:
+        """Whether frame f (``frame``, its k-d tree ``tree``) has points inside ``region``."""
+        near = tree.query_ball_point(region.center, region.bounding_radius)
+        return bool(len(near)) and bool(region.contains(frame[np.asarray(near, dtype=np.int64)]).any())
 
     @staticmethod
     def _near_regions(tree, frame_regions, margin) -> np.ndarray:

@@ -20,6 +20,7 @@ from dpcbench.methods._spatial_fill import (
     fit_height_field,
     grown_agreeing,
     harmonic_height_field,
+    over_captured_surface,
     plane_offsets,
     rim_sheet,
     rim_surface_fill,
@@ -175,6 +176,86 @@ def test_grown_agreeing_keeps_what_continues_the_surface_and_drops_layers_and_is
     # one round only (what version 5's `disagreeing` judged): the far continuation is not reached
     one_round = ~disagreeing(continuation, support, 3.0, 1.0) & (cKDTree(support).query(continuation)[0] <= 3.0)
     assert one_round.sum() < n_c
+
+
+def naive_over_captured_surface(points, captured, spacing, reach=2.0, neighbours=16, one_sided=0.5, off_plane=0.5):
+    """`over_captured_surface` point by point, from its docstring: a sorted brute-force neighbour list, numpy's
+    SVD for the plane."""
+    out = []
+    for p in points:
+        dist = np.linalg.norm(captured - p, axis=1)
+        order = np.argsort(dist, kind="stable")[:neighbours]
+        near = captured[order[dist[order] <= reach * spacing]]
+        if len(near) < 3:
+            out.append(False)
+            continue
+        centre = near.mean(axis=0)
+        normal = np.linalg.svd(near - centre)[2][-1]
+        tangential = (near - p) - np.outer((near - p) @ normal, normal)
+        length = np.linalg.norm(tangential, axis=1)
+        unit = tangential[length > 1e-9 * spacing] / length[length > 1e-9 * spacing, None]
+        out.append(len(unit) >= 3 and np.linalg.norm(unit.mean(axis=0)) < one_sided
+                   and abs((p - centre) @ normal) > off_plane * spacing)
+    return np.array(out, dtype=bool)
+
+
+def test_over_captured_surface_flags_a_layer_over_the_captured_surface_only():
+    """A captured unit grid on z = 0, 0 <= x, y < 20. Flagged: a point 1 above its interior. Kept: a point 0.3
+    above it (within half a spacing of the plane), one in the plane, one 1 above but 1 past the grid's edge
+    (its neighbours all lie to one side), one 1 above the edge row (one-sided too), one 3 above (no
+    neighbour within 2). Then against the point-by-point reference on random points over a bumpy sheet."""
+    grid = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0), indexing="ij"), -1).reshape(-1, 2)
+    plane = np.column_stack([grid, np.zeros(len(grid))])
+    points = np.array([[10, 10, 1.0], [10, 10, 0.3], [10.5, 10.5, 0.0], [21, 10, 1.0], [19.2, 10, 1.0],
+                       [10, 10, 3.0]])
+    np.testing.assert_array_equal(over_captured_surface(points, cKDTree(plane), 1.0),
+                                  [True, False, False, False, False, False])
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 20.0, (600, 2))
+    sheet = np.column_stack([xy, 0.8 * np.sin(xy[:, 0] / 3.0)])
+    queries = np.column_stack([rng.uniform(-2.0, 22.0, (400, 2)), rng.uniform(-2.5, 2.5, 400)])
+    got = over_captured_surface(queries, cKDTree(sheet), 0.9)
+    np.testing.assert_array_equal(got, naive_over_captured_surface(queries, sheet, 0.9))
+    assert 10 < got.sum() < len(got) - 10  # both outcomes occur
+
+
+def test_a_misaligned_copy_adds_no_layer_over_what_the_frame_captured():
+    """An occlusion-like box on the bumpy sphere keeps its captured points but for a strip (the hidden part). Both
+    neighbour frames saw the whole box, but their patch inside it sits 1.5 spacings outward (a copy misaligned
+    there; their rims are intact, so they align and pass the acceptance test). Without step 7b the copy lays a
+    second layer over the captured part of the box; with it the added points are the strip's fill only: none
+    flagged over the captured part, and the strip still filled (measured: 102 layer points without step 7b, 1 with
+    it; 67 points over the strip's 54 hidden)."""
+    frames = rigid_frames(3, 12000)
+    spacing = np.median(cKDTree(frames[0]).query(frames[0], k=2)[0][:, 1])
+    target = frames[1]
+    centre = target[np.argmax(target[:, 0])]
+    region = HoleRegion.box(centre, [6.0, 12.0, 12.0])
+    strip = region.contains(target) & (np.abs(target[:, 1] - centre[1]) < 3.0)
+    hidden = target[strip]
+    frames[1] = target[~strip]
+    step = np.array([1.2, -0.7, 0.5])
+    for g in (0, 2):
+        base = (frames[g] - step * g) @ Rotation.from_rotvec([0.0, 0.03 * g, 0.02 * g]).as_matrix()
+        in_frame_1 = base @ Rotation.from_rotvec([0.0, 0.03, 0.02]).as_matrix().T + step
+        patch = region.contains(in_frame_1)
+        outward = frames[g][patch] - step * g  # from the sphere's centre, which moves by step per frame
+        frames[g] = frames[g].copy()
+        frames[g][patch] += 1.5 * spacing * outward / np.linalg.norm(outward, axis=1, keepdims=True)
+    regions = [[], [region], []]
+    kw = dict(window=1, fallback=False, reuse_previous=False, reuse_next=False)
+    layered = quiet(TemporalFusion(drop_layers=False, **kw), frames, regions)[1][len(frames[1]):]
+    dropped = quiet(TemporalFusion(**kw), frames, regions)[1][len(frames[1]):]
+    captured = cKDTree(frames[1])
+    over_strip = lambda points: cKDTree(hidden).query(points)[0] <= 2.0 * spacing  # noqa: E731
+    assert (~over_strip(layered)).sum() > len(hidden)  # the layer: more points than the strip holds
+    from dpcbench.metrics.neighbours import point_spacing
+
+    largest = max(frames, key=len)  # the spacing the method itself reads (its `inpaint`)
+    assert not over_captured_surface(dropped, captured, point_spacing(largest, tree=cKDTree(largest))).any()
+    assert (~over_strip(dropped)).sum() < 0.1 * (~over_strip(layered)).sum()
+    assert over_strip(dropped).sum() >= 0.9 * len(hidden)
+    assert cKDTree(dropped).query(hidden)[0].max() < 2.0 * spacing
 
 
 # -- the method -------------------------------------------------------------------------------------
