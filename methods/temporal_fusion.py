@@ -13,7 +13,7 @@ bounding radius ``r``); time is in frames.
 Pipeline. Frames are processed in order (step 5 reuses frame f-1's result), then once more from the last
 to the first for the holes left open (step 9 takes frame f+1's). For frame f and each of
 its hole regions R (given, or found by `holes.detection.detect_holes` per frame when regions=None):
-(code: steps 1-5 and 7-9 here; the spatial fills of steps 6, 6c-6f and step 4's agreement rule in
+(code: steps 1-5, 7, 7b, 8 and 9 here; the spatial fills of steps 6, 6c-6f and step 4's agreement rule in
 `methods._spatial_fill`; step 6b in `methods._front_fill`)
 
 1. Rim shell: the points of frame f within ``shell = max(shell_factor * r, shell_spacings * s)``
@@ -369,6 +369,22 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    support points, a PCA frame at their centroid, a least-squares quadric height field
    h(u, v) = c0 + c1 u + c2 v + c3 u^2 + c4 u v + c5 v^2 (Gaussian weights, bandwidth the distance
    to the farthest neighbour / 2), and the point replaced by (u, v, h(u, v)).
+7b. No second layer over the captured surface (``drop_layers``, version 39), in a region that keeps captured
+   points inside (an occlusion box; a region hole the generators punch, or a hole found blind, is emptied, so
+   only its rim lies inside): a new point is dropped when the captured points round it (its 16 nearest within
+   2 s, at least 3) surround it, |mean of the unit tangential directions to them| < 0.5 (at a hole's edge they
+   all lie to one side, near 1), and it lies farther than ``FLOAT_LAYER_SPACINGS`` (0.5 s) off their PCA
+   plane, ``VOXEL_LAYER_SPACINGS`` (1 voxel) on voxelized input. Such a point lies over surface the frame
+   captured, as a layer beside it: a copy misaligned there, where step 3's 0.5 s test only removes what lies
+   on the captured points. Why: on D-FAUST's occlusion boxes at half the frame rate a box with 411 hidden
+   points got 1,014 fill points, 460 of them more than 4 s from every hidden point and 1.3-2.2 s off the
+   truth (methods/NOTES.md "half the capture's frame rate"). On voxelized input a captured plane's staircase
+   scatters up to half a cube diagonal about its plane, so within a voxel a layer cannot be told from it
+   (at 0.5 voxel the staircases of step 1b's gaps and step 4b's copies read as layers: human small
+   occlusion 63.31 -> 47.35 D1). Measured (every occlusion row of the targets and held-out grids, fusion with
+   and without it in one store, D1 / D2; methods/NOTES.md "version 39"): D-FAUST 29.42 / 35.89 -> 29.34 / 36.17,
+   D-FAUST 10-16 27.29 / 33.84 -> 27.21 / 33.84, D-FAUST at half the frame rate 28.44 / 34.40 -> 28.35 / 34.89
+   (no fill 34.42); the voxelized rows (human, bunny, samba at three frame selections) within 0.03 dB.
 8. Voxelized input (every coordinate an integer; ``snap="auto"``): all new points are rounded to the
    grid (half up), duplicates merged, and voxels that frame f already occupies dropped: one point per
    voxel, never on a captured one.

@@ -27,6 +27,8 @@ from dpcbench.methods._spatial_fill import (
 )
 from dpcbench.methods.temporal_fusion import (
     COPY_REACH,
+    FLOAT_LAYER_SPACINGS,
+    VOXEL_LAYER_SPACINGS,
     TemporalFusion,
     crossed_voxels,
     disagreeing,
@@ -217,6 +219,29 @@ def test_over_captured_surface_flags_a_layer_over_the_captured_surface_only():
     got = over_captured_surface(queries, cKDTree(sheet), 0.9)
     np.testing.assert_array_equal(got, naive_over_captured_surface(queries, sheet, 0.9))
     assert 10 < got.sum() < len(got) - 10  # both outcomes occur
+
+
+@pytest.mark.parametrize(("normal", "layer_seen"), [((0.37, 0.61, 1.0), True), ((1.0, 1.0, 1.0), True),
+                                                    ((0.5, 0.0, 1.0), False)])
+def test_a_voxelized_planes_own_staircase_is_no_layer_at_the_voxel_bound(normal, layer_seen):
+    """A plane voxelized by the exact plane-cube test (every cube it crosses), a disc of radius 3 taken out as
+    the fill of a gap: those voxels are the plane's own, yet its staircase scatters up to half a cube diagonal
+    about the plane, so at the float bound (0.5) some read as a layer over the rest; at `VOXEL_LAYER_SPACINGS`
+    none do. A layer 1.5 voxels above the plane's middle (rounded to voxels) is still flagged in part on planes
+    tilted about both axes, and escapes on one tilted about one axis: one voxel is a safe bound, not a sharp one."""
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    cells = np.stack(np.meshgrid(np.arange(30.0), np.arange(30.0), np.arange(-40.0, 40.0), indexing="ij"), -1)
+    cells = cells.reshape(-1, 3)
+    stair = cells[np.abs((cells - [15.0, 15.0, 0.0]) @ n - 0.2) <= np.abs(n).sum() / 2]
+    gap = np.linalg.norm(stair[:, :2] - 15.0, axis=1) < 3.0
+    captured = cKDTree(stair[~gap])
+    assert over_captured_surface(stair[gap], captured, 1.0, off_plane_spacings=FLOAT_LAYER_SPACINGS).any()
+    assert not over_captured_surface(stair[gap], captured, 1.0, off_plane_spacings=VOXEL_LAYER_SPACINGS).any()
+    inner = stair[np.abs(stair[:, :2] - 15.0).max(axis=1) < 5.0]
+    layer = np.unique(np.floor(inner + 1.5 * n + 0.5), axis=0)
+    layer = layer[cKDTree(stair).query(layer)[0] > 0]
+    flagged = over_captured_surface(layer, cKDTree(stair), 1.0, off_plane_spacings=VOXEL_LAYER_SPACINGS)
+    assert (flagged.sum() >= 0.15 * len(layer)) if layer_seen else not flagged.any()
 
 
 def test_a_misaligned_copy_adds_no_layer_over_what_the_frame_captured():
