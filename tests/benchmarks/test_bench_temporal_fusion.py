@@ -77,6 +77,11 @@ Version 38 (step 9, open holes take the next frame's fill moved back), `-k "size
 290k / 800k 1.18 / 1.86 / 3.76 s, coherent 800k 35.9 s for 3 frames; `-k "holes or occlusion"`: 1 / 3 holes at
 ~280k 0.58 / 1.26 s (with 5: 1.86 s, about 0.32 s a hole), occlusion human-800k 10.7 s, bunny-635k 89.2 s. Wall-clock (the default timer, version 37, one
 run): coherent 800k 30.1 s for 3 frames, about 10 s a frame.
+Version 39 (step 7b: no second layer over the captured surface, only in regions that keep captured points), on a
+slower machine than version 38's figures above, CPU, one run each: `-k "size or human or coherent"` 100k / 290k / 800k
+1.06 / 2.82 / 4.67 s, occlusion human-800k 12.63 s, coherent 800k 43.6 s; versions 38 and 39 back to back on it
+(version 38 from a worktree): `-k "size or coherent"` 1.33 / 2.53 / 5.46 s and 47.2 s against 1.09 / 2.73 / 5.15 s and
+44.7 s (region holes never run step 7b: the same work), occlusion human-800k 11.96, 11.46 s against 12.27, 11.45 s.
 """
 
 from __future__ import annotations
