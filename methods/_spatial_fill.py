@@ -104,7 +104,8 @@ def far_from(points: np.ndarray, tree: cKDTree | None, distance: float) -> np.nd
 
 
 def over_captured_surface(points: np.ndarray, captured: cKDTree, spacing: float, *, reach_spacings: float = 2.0,
-                          neighbours: int = 16, one_sided: float = 0.5, off_plane_spacings: float = 0.5) -> np.ndarray:
+                          neighbours: int = 16, one_sided: float = 0.5,
+                          off_plane_spacings: float | None = 0.5) -> np.ndarray:
     """Mask (P,) of the ``points`` that lie over the captured surface as a second layer (step 7b of
     `methods.temporal_fusion`): a point p whose captured neighbours (``captured``'s points within
     ``reach_spacings * spacing``, its ``neighbours`` nearest, at least 3) surround it and whose distance to their
@@ -115,7 +116,10 @@ def over_captured_surface(points: np.ndarray, captured: cKDTree, spacing: float,
     when |mean_q u_q| < ``one_sided`` (past the edge of a captured patch, at a hole's rim, they all lie to one side
     and the mean is near 1), and p is off their plane when |(p - m) . n| > ``off_plane_spacings * spacing``.
     A point inside a sampling gap of the captured surface (on its plane) and a point in a hole (one-sided
-    neighbours, or none within reach) are kept."""
+    neighbours, or none within reach) are kept. ``off_plane_spacings=None`` (voxelized input, ``spacing`` one
+    voxel): p is off the plane when the plane does not cross p's unit cube, |(p - m) . n| > (|n_x| + |n_y| +
+    |n_z|) / 2 (the exact plane-cube test, the voxelization rule of `crossed_voxels`): a voxel of the captured
+    surface's own staircase is one the plane crosses."""
     points = np.asarray(points, dtype=np.float64)
     out = np.zeros(len(points), dtype=bool)
     if not len(points) or captured.n < 3:
@@ -141,7 +145,8 @@ def over_captured_surface(points: np.ndarray, captured: cKDTree, spacing: float,
     unit = np.where(usable[:, :, None], tangential / np.maximum(length, 1e-300)[:, :, None], 0.0)
     mean = np.linalg.norm(unit.sum(axis=1), axis=1) / np.maximum(usable.sum(axis=1), 1)
     height = np.abs(np.einsum("rd,rd->r", points[rows] - centre, normal))
-    out[rows] = (usable.sum(axis=1) >= 3) & (mean < one_sided) & (height > off_plane_spacings * spacing)
+    bound = np.abs(normal).sum(axis=1) / 2.0 if off_plane_spacings is None else off_plane_spacings
+    out[rows] = (usable.sum(axis=1) >= 3) & (mean < one_sided) & (height > bound * spacing)
     return out
 
 

@@ -555,6 +555,8 @@ COPY_REACH = 1.0
 #: independent and occlusion rows lost up to 16 dB D1: staircases read as layers; methods/NOTES.md "step 7b")
 FLOAT_LAYER_SPACINGS = 0.5
 VOXEL_LAYER_SPACINGS = 1.0
+VOXEL_LAYER_REACH = 4.0
+VOXEL_LAYER_NEIGHBOURS = 50
 
 
 # -- steps, as functions on arrays (each tested on its own) -------------------------------------------
@@ -855,7 +857,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "39"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "40"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -882,7 +884,8 @@ class TemporalFusion(InpaintingMethod):
     # 36 (measured, not kept): `surface_voxels` takes a voxel only within one voxel edge of a copied point, not
     # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`); 38: step 9, a hole left open in frame f takes
     # what frame f+1 found there, moved back (``reuse_next``); 39: step 7b, no second layer over the captured
-    # surface (``drop_layers``)
+    # surface (``drop_layers``); 40: on voxelized input step 7b judges a voxel by whether the captured plane
+    # (50 voxels within 4) crosses its cube
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -1036,8 +1039,7 @@ class TemporalFusion(InpaintingMethod):
                 # step 7b: in a region that keeps captured points (an occlusion box), nothing laid as a second
                 # layer over them (a copy misaligned there); on voxelized data only beyond one voxel off their
                 # plane, as a voxelized plane's own staircase scatters up to half a cube diagonal (0.87) about it
-                off_plane = VOXEL_LAYER_SPACINGS if ctx["voxelized"] else FLOAT_LAYER_SPACINGS
-                fill = fill[~over_captured_surface(fill, tree, spacing, off_plane_spacings=off_plane)]
+                fill = fill[~self._over_captured(fill, tree, spacing, ctx["voxelized"])]
             if len(fill):
                 # overlapping regions: what an earlier region filled is not filled again
                 for earlier in frame_regions[:k]:
@@ -1067,6 +1069,14 @@ class TemporalFusion(InpaintingMethod):
         """``parts`` stacked as `_fill_frame` puts them in ``added`` (rounded to voxels on voxelized data)."""
         points = np.vstack(parts)
         return np.floor(points + 0.5) if ctx["voxelized"] else points
+
+    @staticmethod
+    def _over_captured(fill, tree, spacing, voxelized) -> np.ndarray:
+        """Step 7b's mask of ``fill`` (a second layer over frame f's captured points, ``tree``)."""
+        if not voxelized:
+            return over_captured_surface(fill, tree, spacing, off_plane_spacings=FLOAT_LAYER_SPACINGS)
+        return over_captured_surface(fill, tree, spacing, reach_spacings=VOXEL_LAYER_REACH,
+                                     neighbours=VOXEL_LAYER_NEIGHBOURS, off_plane_spacings=None)
 
     @staticmethod
     def _keeps_captured(tree, frame, region) -> bool:
