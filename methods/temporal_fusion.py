@@ -374,17 +374,21 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    only its rim lies inside): a new point is dropped when the captured points round it (its 16 nearest within
    2 s, at least 3) surround it, |mean of the unit tangential directions to them| < 0.5 (at a hole's edge they
    all lie to one side, near 1), and it lies farther than ``FLOAT_LAYER_SPACINGS`` (0.5 s) off their PCA
-   plane, ``VOXEL_LAYER_SPACINGS`` (1 voxel) on voxelized input. Such a point lies over surface the frame
+   plane; on voxelized input (version 40) a voxel whose cube the plane of the 50 captured voxels within 4 does not
+   cross (`VOXEL_LAYER_REACH`, `VOXEL_LAYER_NEIGHBOURS`). Such a point lies over surface the frame
    captured, as a layer beside it: a copy misaligned there, where step 3's 0.5 s test only removes what lies
    on the captured points. Why: on D-FAUST's occlusion boxes at half the frame rate a box with 411 hidden
    points got 1,014 fill points, 460 of them more than 4 s from every hidden point and 1.3-2.2 s off the
    truth (methods/NOTES.md "half the capture's frame rate"). On voxelized input a captured plane's staircase
-   scatters up to half a cube diagonal about its plane, so within a voxel a layer cannot be told from it
-   (at 0.5 voxel the staircases of step 1b's gaps and step 4b's copies read as layers: human small
-   occlusion 63.31 -> 47.35 D1). Measured (every occlusion row of the targets and held-out grids, fusion with
-   and without it in one store, D1 / D2; methods/NOTES.md "version 39"): D-FAUST 29.42 / 35.89 -> 29.34 / 36.17,
+   scatters up to half a cube diagonal about its plane, so a fixed bound off a small fit's plane cannot tell a
+   layer from it (at 0.5 voxel the staircases of step 1b's gaps and step 4b's copies read as layers: human small
+   occlusion 63.31 -> 47.35 D1; at 1 voxel the layers one voxel off pass); the plane-cube test over a disc of 4
+   voxels does (`VOXEL_LAYER_REACH`). Measured (every occlusion row of the targets and held-out grids, D1 / D2;
+   methods/NOTES.md "versions 39 and 40"): without step 7b -> with it, D-FAUST 29.42 / 35.89 -> 29.34 / 36.17,
    D-FAUST 10-16 27.29 / 33.84 -> 27.21 / 33.84, D-FAUST at half the frame rate 28.44 / 34.40 -> 28.35 / 34.89
-   (no fill 34.42); the voxelized rows (human, bunny, samba at three frame selections) within 0.03 dB.
+   (no fill 34.42); version 39 -> 40 (the voxel rule), samba 21.03 / 28.14 -> 20.95 / 28.21, samba 10-19 21.44 /
+   28.67 -> 21.24 / 29.05, samba at half the frame rate 21.25 / 27.46 -> 21.11 / 28.24 (no fill 27.54), human
+   small 63.24 / 65.66 -> 62.77 / 66.89, bunny small unchanged.
 8. Voxelized input (every coordinate an integer; ``snap="auto"``): all new points are rounded to the
    grid (half up), duplicates merged, and voxels that frame f already occupies dropped: one point per
    voxel, never on a captured one.
@@ -482,7 +486,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   adjacent_first    True: frames beyond f+-1 only where f-1 and f+1 are not both sources (step 2, version 28).
   count_copies      True: step 4b keeps as many voxels as the fused copies hold (version 31; False: the rim's bound t).
   drop_layers       True: step 7b; its reach, 2 s, is step 2a's pairing reach (its 16 nearest, at least 3), its off-plane bound
-                    `FLOAT_LAYER_SPACINGS` / `VOXEL_LAYER_SPACINGS`, its surround bound (0.5) the mean of unit
+                    `FLOAT_LAYER_SPACINGS` (on voxelized input the plane-cube test over `VOXEL_LAYER_REACH`,
+                    `VOXEL_LAYER_NEIGHBOURS`), its surround bound (0.5) the mean of unit
                     directions that lie all to one side (near 1) or all round (near 0).
   reuse_next        True: step 9, the holes left open take frame f+1's fill moved back (version 38); its tests are
                     step 5's and step 2b's, its treatment step 7's: no constant of its own.
@@ -548,13 +553,18 @@ VOXEL_FIT_NEIGHBOURS = 28
 #: first (step 7), no longer one a captured voxel, and one edge there lost human occlusion 14 dB (version 36)
 COPY_REACH = 1.0
 
-#: step 7b's bound on how far off the captured surface's plane a fill point must lie to be a second layer over it, in
-#: spacings: half a spacing on float samples (two samplings of one surface lie about that far apart, step 2b's
-#: reasoning); one voxel on voxelized input, where a captured plane's own staircase scatters up to half a cube
-#: diagonal (0.87 voxel) about it, so a copy within a voxel of it cannot be told from it (at 0.5 the voxelized
-#: independent and occlusion rows lost up to 16 dB D1: staircases read as layers; methods/NOTES.md "step 7b")
+#: step 7b's bound on how far off the captured surface's plane a fill point must lie to be a second layer over it, on
+#: float samples, in spacings: half a spacing (two samplings of one surface lie about that far apart, step 2b's
+#: reasoning); the plane is that of its 16 nearest captured points within 2 s
 FLOAT_LAYER_SPACINGS = 0.5
-VOXEL_LAYER_SPACINGS = 1.0
+#: step 7b on voxelized input: a voxel is a layer when the captured surface's plane does not cross its unit cube (the
+#: voxelization rule of steps 1b and 4b), the plane fitted to the ``VOXEL_LAYER_NEIGHBOURS`` captured voxels within
+#: ``VOXEL_LAYER_REACH`` voxels: the voxels of a disc of radius 4 (pi 4^2 ~ 50). A staircase's voxels scatter up to half
+#: a cube diagonal about its plane, and a smaller disc tilts its fitted plane by that scatter: on voxelized planes
+#: (five tilts, one-off; the test takes the same) 2 s and 16 voxels read 4-28 of a gap's own 32-75 voxels as off the
+#: plane, 4 voxels and 50 at most 4, while 97-100 % of a layer one voxel above is read as one. A layer one voxel off a captured surface is what
+#: a copy misaligned by a voxel lays (samba occlusion: 132-221 such voxels a frame in its widest box,
+#: methods/NOTES.md "version 40"); version 39 took 1 voxel off a 2-voxel fit's plane, which let them all pass
 VOXEL_LAYER_REACH = 4.0
 VOXEL_LAYER_NEIGHBOURS = 50
 

@@ -28,7 +28,6 @@ from dpcbench.methods._spatial_fill import (
 from dpcbench.methods.temporal_fusion import (
     COPY_REACH,
     FLOAT_LAYER_SPACINGS,
-    VOXEL_LAYER_SPACINGS,
     TemporalFusion,
     crossed_voxels,
     disagreeing,
@@ -221,27 +220,28 @@ def test_over_captured_surface_flags_a_layer_over_the_captured_surface_only():
     assert 10 < got.sum() < len(got) - 10  # both outcomes occur
 
 
-@pytest.mark.parametrize(("normal", "layer_seen"), [((0.37, 0.61, 1.0), True), ((1.0, 1.0, 1.0), True),
-                                                    ((0.5, 0.0, 1.0), False)])
-def test_a_voxelized_planes_own_staircase_is_no_layer_at_the_voxel_bound(normal, layer_seen):
-    """A plane voxelized by the exact plane-cube test (every cube it crosses), a disc of radius 3 taken out as
-    the fill of a gap: those voxels are the plane's own, yet its staircase scatters up to half a cube diagonal
-    about the plane, so at the float bound (0.5) some read as a layer over the rest; at `VOXEL_LAYER_SPACINGS`
-    none do. A layer 1.5 voxels above the plane's middle (rounded to voxels) is still flagged in part on planes
-    tilted about both axes, and escapes on one tilted about one axis: one voxel is a safe bound, not a sharp one."""
+@pytest.mark.parametrize("normal", [(0.37, 0.61, 1.0), (0.9, 0.2, 1.0), (1.0, 1.0, 1.0), (0.5, 0.0, 1.0),
+                                    (0.2, 0.1, 1.0)])
+def test_on_voxelized_input_a_layer_is_a_voxel_the_captured_plane_does_not_cross(normal):
+    """A plane voxelized by the exact plane-cube test (every cube it crosses), a disc of radius 3 taken out as the
+    fill of a gap: those voxels are the plane's own. At the float bound (0.5 off a plane of 16 voxels within 2) some
+    of them read as a layer over the rest (a staircase scatters up to half a cube diagonal about its plane); step
+    7b's voxel rule (`TemporalFusion._over_captured`: does the plane of the 50 captured voxels within 4 cross the
+    cube?) reads at most a tenth of them so, and reads at least 90 % of a layer one voxel above the plane's middle
+    (rounded to voxels, none on the plane's own) as one."""
     n = np.asarray(normal) / np.linalg.norm(normal)
     cells = np.stack(np.meshgrid(np.arange(30.0), np.arange(30.0), np.arange(-40.0, 40.0), indexing="ij"), -1)
     cells = cells.reshape(-1, 3)
     stair = cells[np.abs((cells - [15.0, 15.0, 0.0]) @ n - 0.2) <= np.abs(n).sum() / 2]
     gap = np.linalg.norm(stair[:, :2] - 15.0, axis=1) < 3.0
     captured = cKDTree(stair[~gap])
-    assert over_captured_surface(stair[gap], captured, 1.0, off_plane_spacings=FLOAT_LAYER_SPACINGS).any()
-    assert not over_captured_surface(stair[gap], captured, 1.0, off_plane_spacings=VOXEL_LAYER_SPACINGS).any()
+    if n[0] > 0.1:  # a tilt about both axes: the float bound misreads the staircase (not an axis-parallel plane)
+        assert over_captured_surface(stair[gap], captured, 1.0, off_plane_spacings=FLOAT_LAYER_SPACINGS).any()
+    assert TemporalFusion._over_captured(stair[gap], captured, 1.0, True).sum() <= 0.1 * gap.sum()
     inner = stair[np.abs(stair[:, :2] - 15.0).max(axis=1) < 5.0]
-    layer = np.unique(np.floor(inner + 1.5 * n + 0.5), axis=0)
+    layer = np.unique(np.floor(inner + n + 0.5), axis=0)
     layer = layer[cKDTree(stair).query(layer)[0] > 0]
-    flagged = over_captured_surface(layer, cKDTree(stair), 1.0, off_plane_spacings=VOXEL_LAYER_SPACINGS)
-    assert (flagged.sum() >= 0.15 * len(layer)) if layer_seen else not flagged.any()
+    assert TemporalFusion._over_captured(layer, cKDTree(stair), 1.0, True).mean() >= 0.9
 
 
 def test_a_misaligned_copy_adds_no_layer_over_what_the_frame_captured():
@@ -627,6 +627,9 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     out = quiet(TemporalFusion(), frames, regions)
     assert calls == []
     capped = cap_fill(kept, box, cKDTree(kept), 1.0, voxelized=True)
+    # less the cap's voxels that step 7b reads as a layer over the captured foot ring in the box: at the corner
+    # where the ring meets the wall, the plane of the 50 voxels within 4 takes in the wall (79 of 1,828)
+    capped = capped[~TemporalFusion._over_captured(capped, cKDTree(kept), 1.0, True)]
     fill = out[0][len(kept):]
     assert len(fill) >= 0.8 * opening.sum() and np.array_equal(np.unique(fill, axis=0), np.unique(capped, axis=0))
     quiet(TemporalFusion(walled_cap_first=False), frames, regions)
