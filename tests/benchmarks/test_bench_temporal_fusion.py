@@ -82,6 +82,8 @@ slower machine than version 38's figures above, CPU, one run each: `-k "size or 
 1.06 / 2.82 / 4.67 s, occlusion human-800k 12.63 s, coherent 800k 43.6 s; versions 38 and 39 back to back on it
 (version 38 from a worktree): `-k "size or coherent"` 1.33 / 2.53 / 5.46 s and 47.2 s against 1.09 / 2.73 / 5.15 s and
 44.7 s (region holes never run step 7b: the same work), occlusion human-800k 11.96, 11.46 s against 12.27, 11.45 s.
+Version 40 (step 7b's voxel rule: a plane of 50 voxels a fill voxel in an occlusion box), the same machine, `-k
+occlusion`, CPU, one run: human-800k 12.98 s, bunny-635k 90.6 s (2 frames).
 """
 
 from __future__ import annotations
