@@ -867,7 +867,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "40"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "41"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -895,7 +895,8 @@ class TemporalFusion(InpaintingMethod):
     # sqrt 3; 37: the same for step 4b's copies only (`COPY_REACH`); 38: step 9, a hole left open in frame f takes
     # what frame f+1 found there, moved back (``reuse_next``); 39: step 7b, no second layer over the captured
     # surface (``drop_layers``); 40: on voxelized input step 7b judges a voxel by whether the captured plane
-    # (50 voxels within 4) crosses its cube
+    # (50 voxels within 4) crosses its cube; 41: step 2a', an alignment that misses the bound is tried again coarse to
+    # fine, the crop following the patch (``coarse_retry``)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -909,7 +910,7 @@ class TemporalFusion(InpaintingMethod):
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
-                 drop_layers: bool = True, snap: bool | str = "auto") -> None:
+                 drop_layers: bool = True, coarse_retry: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -941,6 +942,7 @@ class TemporalFusion(InpaintingMethod):
         self.count_copies = count_copies
         self.reuse_next = reuse_next
         self.drop_layers = drop_layers
+        self.coarse_retry = coarse_retry
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -970,7 +972,8 @@ class TemporalFusion(InpaintingMethod):
         number("surface_holdout_spacings", True)
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
                      "poisson_bridges", "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources",
-                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies", "reuse_next"):
+                     "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies", "reuse_next",
+                     "drop_layers", "coarse_retry"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1149,6 +1152,47 @@ class TemporalFusion(InpaintingMethod):
             return back[~rows_in(back, added)] if len(added) else back
         return back[far_from(back, ctx["tree_of"](f), self.gap_spacings * spacing)]
 
+    def _align(self, g, region, init, schedule, follow, local, rim, shell, local_cache, ctx):
+        """Step 2a: frame g's points round where R lies in g, moved onto frame f's points ``local`` near R.
+        One point-to-point ICP round of g's shell per pair reach in ``schedule``, from the motion ``init``
+        (frame g -> f); with ``follow`` the crop is taken again round where R lies in g under each round's
+        motion (step 2a'). Returns (source (K, 3), its k-d tree, rotation, translation, rim residual), None
+        when g has fewer than 6 points there."""
+        spacing = ctx["spacing"]
+        reach = region.bounding_radius + 2 * shell
+        rotation, translation = init
+        source = None
+        for max_distance in schedule:
+            if source is None or follow:
+                centre_g = (region.center - translation) @ rotation
+                idx = np.asarray(ctx["tree_of"](g).query_ball_point(centre_g, reach, return_sorted=True), dtype=np.int64)
+                if len(idx) < 6:
+                    return None
+                source = ctx["frames"][g][idx]
+            # the source's shell is re-selected where it lands after the current motion, so the
+            # source's own patch inside R never pairs with frame f's rim
+            moved = source @ rotation.T + translation
+            in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
+            rotation, translation = icp_align(even_subset(source[in_shell], ICP_POINTS), local,
+                                              max_distance=max_distance, max_iterations=int(self.icp_iterations),
+                                              init=(rotation, translation))
+        source_tree = cKDTree(source)
+        residual = alignment_residual(source_tree, rim, rotation, translation)
+        if self.refine:
+            # point-to-plane from the converged point-to-point motion, pairs within 2 s: it
+            # slides the samplings onto each other where point-to-point stops at half a spacing
+            moved = source @ rotation.T + translation
+            in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
+            if "plane" not in local_cache:
+                local_cache["plane"] = plane_target(local)  # one normal estimate per hole, not one per frame
+            refined = refine_point_to_plane(even_subset(source[in_shell], ICP_POINTS), local, 2 * spacing,
+                                            (rotation, translation), int(self.icp_iterations),
+                                            target_cloud=local_cache["plane"])
+            refined_residual = alignment_residual(source_tree, rim, *refined)
+            if refined_residual <= residual:
+                (rotation, translation), residual = refined, refined_residual
+        return source, source_tree, rotation, translation, residual
+
     def _fill_region(self, f, region, previous_fill, ctx) -> np.ndarray:
         frames, tree_of, spacing = ctx["frames"], ctx["tree_of"], ctx["spacing"]
         ctx["next_motion"] = None  # frame f+1's motion to f, for step 9 (set below when f+1 is aligned)
@@ -1168,7 +1212,7 @@ class TemporalFusion(InpaintingMethod):
         order = sorted((g for g in range(len(frames)) if g != f and abs(g - f) <= int(self.window)),
                        key=lambda g: (abs(g - f), g))
         motions: dict[int, tuple] = {f: (np.eye(3), np.zeros(3), None)}
-        local_plane = None  # `plane_target` of ``local`` (points, normals, tree), for step 2a's refinement
+        local_cache: dict = {}  # `plane_target` of ``local`` (points, normals, tree), for step 2a's refinement
         candidates: list[tuple[float, int, int, np.ndarray]] = []  # (rim residual, |g - f|, g, points)
         partial = []
         carried: tuple | None = None  # f-1's motion when it carries its fill only (step 2b)
@@ -1185,34 +1229,18 @@ class TemporalFusion(InpaintingMethod):
                            for other in ctx["regions"][g])
             if own_hole and not (self.reuse_previous and g == f - 1) and not self.partial_sources:
                 continue
-            idx = np.asarray(tree_of(g).query_ball_point(centre_g, reach, return_sorted=True), dtype=np.int64)
-            if len(idx) < 6:
+            aligned = self._align(g, region, (rotation0, translation0), [shell] * 3, False, local, rim, shell,
+                                  local_cache, ctx)
+            if aligned is None:
                 continue
-            source = frames[g][idx]
-            rotation, translation = rotation0, translation0
-            for _ in range(3):
-                # the source's shell is re-selected where it lands after the current motion, so the
-                # source's own patch inside R never pairs with frame f's rim
-                moved = source @ rotation.T + translation
-                in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
-                rotation, translation = icp_align(even_subset(source[in_shell], ICP_POINTS), local, max_distance=shell,
-                                                  max_iterations=int(self.icp_iterations),
-                                                  init=(rotation, translation))
-            source_tree = cKDTree(source)
-            residual = alignment_residual(source_tree, rim, rotation, translation)
-            if self.refine:
-                # point-to-plane from the converged point-to-point motion, pairs within 2 s: it
-                # slides the samplings onto each other where point-to-point stops at half a spacing
-                moved = source @ rotation.T + translation
-                in_shell = ~region.contains(moved) & region.contains(moved, margin=shell)
-                if local_plane is None:
-                    local_plane = plane_target(local)  # one normal estimate per hole, not one per frame
-                refined = refine_point_to_plane(even_subset(source[in_shell], ICP_POINTS), local, 2 * spacing,
-                                                (rotation, translation), int(self.icp_iterations),
-                                                target_cloud=local_plane)
-                refined_residual = alignment_residual(source_tree, rim, *refined)
-                if refined_residual <= residual:
-                    (rotation, translation), residual = refined, refined_residual
+            if self.coarse_retry and aligned[-1] > self.accept_spacings * spacing:
+                # step 2a': a patch that moved farther than the shell, coarse to fine, the crop following it
+                schedule = [reach / 2 ** k for k in range(int(np.ceil(np.log2(reach / shell))))] + [shell] * 3
+                retried = self._align(g, region, (rotation0, translation0), schedule, True, local, rim, shell,
+                                      local_cache, ctx)
+                if retried is not None and retried[-1] < aligned[-1]:
+                    aligned = retried
+            source, source_tree, rotation, translation, residual = aligned
             carries_only = False
             if residual > self.accept_spacings * spacing:
                 # f-1 (f+1) with its own hole there: judged again on the rim it saw, its motion carries its fill

@@ -229,7 +229,7 @@ def test_detection_parameters(seq_dir):
 
 @pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods", "temporal-fusion-targets",
                                     "temporal-fusion-heldout", "temporal-fusion-heldout-frames",
-                                    "temporal-fusion-heldout-framerate"])
+                                    "temporal-fusion-heldout-framerate", "temporal-fusion-heldout-data"])
 def test_shipped_presets_expand(preset):
     """Every preset under bench/presets parses and expands into runs with distinct ids."""
     from dpcbench.bench.paper import PRESETS_DIR
