@@ -49,6 +49,15 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
       (`refine_point_to_plane`: our own, `_point_to_plane.point_to_plane_icp`; open3d's sums its
       normal equations in a thread-parallel order, and version 4, which used it, gave a different
       fill from run to run), kept when the rim residual does not grow;
+   a'. coarse to fine (``coarse_retry``, version 41): when the motion of a. misses b.'s bound, g is aligned once
+      more from the same start, its ICP pairs first within the crop's reach (r + 2 shell), then within half of
+      that, halving down to the shell, then 3 rounds within the shell as in a., g's crop taken again before each
+      round round where R lies in g under that round's motion; the lower rim residual of the two is judged by b.
+      Why: a limb that moved farther than the shell between two frames (a fast motion, a low frame rate) leaves
+      ICP with pairs within the shell short of it, and g's crop round R's place in f holds only part of the
+      patch (human small, "dance" motion, independent holes, seed 1, frame 0: a hole whose f+1 and f+2 rim
+      residuals were 1.83 and 3.71 s, the hole left 88 % open; retried, 0.83 and 0.50 s, the copy of f+2 covers
+      it). An alignment that passes b. at once is not retried, so its result is unchanged;
    b. accepted when the trimmed mean rim residual is at most ``accept_spacings * s`` (two samplings
       of one surface lie about half a spacing apart; a wrong match lies a spacing or more off).
       Version 23: f-1 with its own hole near R that fails this bound is judged again on the rim
@@ -489,6 +498,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     `FLOAT_LAYER_SPACINGS` (on voxelized input the plane-cube test over `VOXEL_LAYER_REACH`,
                     `VOXEL_LAYER_NEIGHBOURS`), its surround bound (0.5) the mean of unit
                     directions that lie all to one side (near 1) or all round (near 0).
+  coarse_retry      True: step 2a'; its first pair reach is the crop's own (r + 2 shell: a patch that moved
+                    farther has left the crop), halved each round down to the shell (a.'s reach): no constant of its own.
   reuse_next        True: step 9, the holes left open take frame f+1's fill moved back (version 38); its tests are
                     step 5's and step 2b's, its treatment step 7's: no constant of its own.
   snap              "auto": voxelize when the input is voxelized (True/False force it).
@@ -1216,11 +1227,12 @@ class TemporalFusion(InpaintingMethod):
         candidates: list[tuple[float, int, int, np.ndarray]] = []  # (rim residual, |g - f|, g, points)
         partial = []
         carried: tuple | None = None  # f-1's motion when it carries its fill only (step 2b)
+        starts: dict[int, tuple] = {}  # motions that only start the farther frames' alignment (step 2a')
         for g in order:
             if self.adjacent_first and abs(g - f) > 1 and sum(gap == 1 for _, gap, _, _ in candidates) == 2:
                 break  # f-1 and f+1 both saw R: farther frames only moved more (step 2, version 28)
             nearer = g - 1 if g > f else g + 1
-            rotation0, translation0, _ = motions.get(nearer, motions[f])
+            rotation0, translation0 = motions[nearer][:2] if nearer in motions else starts.get(nearer, motions[f][:2])
             centre_g = (region.center - translation0) @ rotation0
             # coverage test: frame g has a hole of its own over R or R's rim, so it lacks part of the
             # patch and its rim alignment pairs a holed shell (coherent holes): its motion still
@@ -1239,7 +1251,12 @@ class TemporalFusion(InpaintingMethod):
                 retried = self._align(g, region, (rotation0, translation0), schedule, True, local, rim, shell,
                                       local_cache, ctx)
                 if retried is not None and retried[-1] < aligned[-1]:
-                    aligned = retried
+                    if not own_hole or self.coarse_retry == "all":
+                        aligned = retried
+                    elif retried[-1] <= self.accept_spacings * spacing:
+                        # g has its own hole near R: its coarse motion only starts the farther frames' alignment;
+                        # g itself is judged on its first one (step 2a')
+                        starts[g] = retried[2:4]
             source, source_tree, rotation, translation, residual = aligned
             carries_only = False
             if residual > self.accept_spacings * spacing:

@@ -755,6 +755,33 @@ def test_a_hole_left_open_takes_what_the_next_frame_found_there_moved_back():
         np.testing.assert_array_equal(spatial_on[g], spatial_off[g])
 
 
+@pytest.mark.parametrize("shift", [12.0, 16.0])
+def test_a_patch_that_moved_farther_than_the_shell_is_aligned_coarse_to_fine(shift):
+    """Step 2a': frame 1 is frame 0 moved ``shift`` units, mostly along the surface normal at the hole: about twice
+    the rim shell (6.4 here). ICP with pairs within the shell, from the identity, stops short and the copy is
+    refused (the spatial fill is off, so the hole stays open); tried again coarse to fine, the crop following the
+    patch, the copy is accepted and lies on the truth. A motion the first alignment handles gives the same output
+    with the retry and without it."""
+    base = bumpy(12000)
+    tip = int(np.argmax(base[:, 0]))
+    region = HoleRegion.ball(base[tip], 9.0)
+    hidden = base[region.contains(base)]
+    holed = [base[~region.contains(base)]]
+    rotation = Rotation.from_rotvec([0.0, 0.0, 0.05]).as_matrix()
+    for moved_by, retried in ((shift, True), (4.0, False)):
+        frames = holed + [base @ rotation.T + np.array([moved_by, 0.3 * moved_by, 0.0])]
+        off = quiet(TemporalFusion(window=1, fallback=False, coarse_retry=False), frames, [[region], []])
+        on = quiet(TemporalFusion(window=1, fallback=False), frames, [[region], []])
+        if not retried:
+            np.testing.assert_array_equal(on[0], off[0])
+            continue
+        assert len(off[0]) == len(holed[0])
+        new = on[0][len(holed[0]):]
+        assert len(new) >= 0.9 * len(hidden)
+        assert cKDTree(hidden).query(new)[0].max() < 0.3
+        assert np.mean(cKDTree(on[0]).query(hidden)[0] <= 1.0) > 0.95
+
+
 # -- version 4: thin gaps filled from the rim by the voxelization rule ------------------------------
 
 def crossed_sphere_voxels(radius: float, centre: np.ndarray) -> np.ndarray:
