@@ -782,6 +782,30 @@ def test_a_patch_that_moved_farther_than_the_shell_is_aligned_coarse_to_fine(shi
         assert np.mean(cKDTree(on[0]).query(hidden)[0] <= 1.0) > 0.95
 
 
+def test_a_coarse_motion_of_a_frame_with_its_own_hole_starts_the_next_frames_alignment():
+    """Step 2a': frames 0 and 1 miss the same patch (frame 1 is frame 0 moved 12 units, mostly along the normal at
+    the hole), frame 2 saw it and moved as far again (24 units from frame 0, beyond the crop's reach of 21.8).
+    Without the retry nothing aligns and frame 0 stays open (spatial fill off); with it, frame 1's coarse motion
+    starts frame 2's alignment and frame 2's copy fills frame 0's hole on the truth."""
+    base = bumpy(12000)
+    tip = int(np.argmax(base[:, 0]))
+    region = HoleRegion.ball(base[tip], 9.0)
+    hidden = base[region.contains(base)]
+    rotation = Rotation.from_rotvec([0.0, 0.0, 0.05]).as_matrix()
+    step = np.array([12.0, 3.6, 0.0])
+    second = base @ rotation.T + step
+    third = second @ rotation.T + step
+    second_region = HoleRegion.ball(second[tip], 9.0)
+    frames = [base[~region.contains(base)], second[~second_region.contains(second)], third]
+    regions = [[region], [second_region], []]
+    off = quiet(TemporalFusion(window=2, fallback=False, reuse_next=False, coarse_retry=False), frames, regions)
+    on = quiet(TemporalFusion(window=2, fallback=False, reuse_next=False), frames, regions)
+    assert len(off[0]) == len(frames[0])
+    new = on[0][len(frames[0]):]
+    assert len(new) >= 0.9 * len(hidden)
+    assert cKDTree(hidden).query(new)[0].max() < 0.3
+
+
 # -- version 4: thin gaps filled from the rim by the voxelization rule ------------------------------
 
 def crossed_sphere_voxels(radius: float, centre: np.ndarray) -> np.ndarray:
