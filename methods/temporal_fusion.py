@@ -52,7 +52,12 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    a'. coarse to fine (``coarse_retry``, version 41): when the motion of a. misses b.'s bound, g is aligned once
       more from the same start, its ICP pairs first within the crop's reach (r + 2 shell), then within half of
       that, halving down to the shell, then 3 rounds within the shell as in a., g's crop taken again before each
-      round round where R lies in g under that round's motion; the lower rim residual of the two is judged by b.
+      round round where R lies in g under that round's motion. The retry is kept when it puts R's place in g
+      farther than the shell from where the start put it (within the shell the first alignment could reach the
+      patch: a lower residual there is one more local minimum of an alignment that failed; samba 10-19, seed 5,
+      frame 17: f+1's first alignment diverged 10 units, the retry came back 1.8 units from the start at 0.94 s,
+      just under b.'s bound, and its copy, pooled with f-1's, displaced f-2's and f-3's at 0.44-0.45 s: D1
+      29.77 -> 28.55 dB in that frame) and its rim residual is the lower; b. judges it.
       A frame with its own hole near R (the coverage test) keeps its first alignment, and its coarse motion, when
       within b.'s bound, only starts the alignment of the frames beyond it. Why: a limb that moved farther than
       the shell between two frames (a fast motion, a low frame rate) leaves ICP with pairs within the shell
