@@ -1254,7 +1254,10 @@ class TemporalFusion(InpaintingMethod):
                                   local_cache, ctx)
             if aligned is None:
                 continue
-            if self.coarse_retry and aligned[-1] > self.accept_spacings * spacing:
+            beyond = g + (1 if g > f else -1)
+            # an own-hole frame's retry only starts the frame beyond it: none within the window, no retry
+            retry_useful = not own_hole or (abs(beyond - f) <= int(self.window) and 0 <= beyond < len(frames))
+            if self.coarse_retry and retry_useful and aligned[-1] > self.accept_spacings * spacing:
                 # step 2a': a patch that moved farther than the shell, coarse to fine, the crop following it
                 schedule = [reach / 2 ** k for k in range(int(np.ceil(np.log2(reach / shell))))] + [shell] * 3
                 retried = self._align(g, region, (rotation0, translation0), schedule, True, local, rim, shell,
