@@ -930,7 +930,8 @@ class TemporalFusion(InpaintingMethod):
                  walled_cap_first: bool = True, membrane: bool = True, front: bool = False,
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
-                 drop_layers: bool = True, coarse_retry: bool = True, snap: bool | str = "auto") -> None:
+                 drop_layers: bool = True, coarse_retry: bool = True,
+                 poisson_in_boxes: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -963,6 +964,7 @@ class TemporalFusion(InpaintingMethod):
         self.reuse_next = reuse_next
         self.drop_layers = drop_layers
         self.coarse_retry = coarse_retry
+        self.poisson_in_boxes = poisson_in_boxes
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -993,7 +995,7 @@ class TemporalFusion(InpaintingMethod):
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
                      "poisson_bridges", "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources",
                      "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies", "reuse_next",
-                     "drop_layers", "coarse_retry"):
+                     "drop_layers", "coarse_retry", "poisson_in_boxes"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1391,7 +1393,8 @@ class TemporalFusion(InpaintingMethod):
             if cap_first:
                 # step 6d before 6c where walls rise from the opening: no surface round it continues over it
                 spatial = self._cap(local, region, covered, spacing, ctx)
-            if self.poisson and not len(spatial):
+            if self.poisson and not len(spatial) and (
+                    self.poisson_in_boxes or not self._keeps_captured(ctx["tree_of"](f), frames[f], region)):
                 # step 6c: a hole the height field refused (round a limb, a neck), on the crop's closed surface
                 spatial = poisson_surface_fill(np.vstack([local, accepted]), region, covered, spacing,
                                                voxelized=ctx["voxelized"], step=ctx["step"],
