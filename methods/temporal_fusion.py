@@ -247,6 +247,10 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    D1 / D2 18.68 / 22.72 -> 24.09 / 25.97. Grids (methods/NOTES.md "version 22"): targets (seeds 0-2) samba
    coherent 23.57 / 26.58 -> 25.58 / 27.99 (no fill 9.02 / 27.84: D2 above no fill now), held-out seeds 3-4
    bunny coherent 34.17 / 37.41 -> 34.14 / 37.39, every other row and the held-out data unchanged.
+   In a region that keeps captured points (an occlusion box) the hold-out's ring takes in the data kept inside
+   the box too, so the test judges a surface across the whole box, which the fill never spans: most boxes are
+   refused there, at most of the run's time (``poisson_in_boxes=False`` skips step 6c in them; kept on by
+   default, as the few boxes it fills are better filled than by step 6e: methods/NOTES.md, "poisson_in_boxes").
    Why step 6c at all: a hole left open costs whole-frame
    D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
    26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
@@ -483,6 +487,10 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     (`limb_ends`: near points to one side of the centre, |u| >= 0.5, the ends pointing apart;
                     `tube_fill`); both bounds are geometry (a tube of radius up to 0.87 r; bent up to 90
                     degrees), the tube's tests step 6's.
+  poisson_in_boxes  True: step 6c is tried in a region that keeps captured points too (an occlusion box); False
+                    skips it there, a speed switch (methods/NOTES.md, "poisson_in_boxes"): 3-10x faster on real
+                    captures with occlusion boxes (Longdress, one 858k-point frame: 88.9 -> 8.9 s CPU), the same
+                    D1 on most rows, but D-FAUST occlusion -0.20 dB D1 and Longdress NSHD 0.212 -> 0.254.
   cap               True: step 6d (voxelized input); its band, 2 s, is the rim's first rows of samples (one row
                     leaves gaps where the sampling is uneven); its flatness bound max(1 s, r / 20) is step 6's
                     hold-out bound, or on a wide opening a wobble of 3 degrees seen from the loop's centre.

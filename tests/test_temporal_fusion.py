@@ -636,6 +636,32 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     assert len(calls) == 2  # one call a frame: the order is what the parameter changes
 
 
+def test_poisson_in_boxes_false_skips_step_6c_in_a_region_that_keeps_captured_points(monkeypatch):
+    """``poisson_in_boxes=False``: in a region that still holds captured points (an occlusion box; its open parts
+    lie between the data inside it) step 6c's closed surface is not tried, and steps 6d-6e go on as before; an
+    emptied region still gets it. By default (True) both regions get it, as up to version 41."""
+    import dpcbench.methods.temporal_fusion as module
+
+    directions = np.random.default_rng(0).normal(size=(200000, 3))
+    ball_surface = np.unique(np.floor(30.0 * directions / np.linalg.norm(directions, axis=1)[:, None] + 0.5), axis=0)
+    box = HoleRegion.box([0.0, 0.0, 30.0], [12.0, 12.0, 8.0])
+    unseen = box.contains(ball_surface) & (np.hypot(ball_surface[:, 0] - 4.0, ball_surface[:, 1]) < 4.0)
+    emptied = HoleRegion.ball([30.0, 0.0, 0.0], 6.0)
+    kept = ball_surface[~unseen & ~emptied.contains(ball_surface)]
+    assert box.contains(kept).sum() > 100 and not emptied.contains(kept).any()
+
+    called = []
+    monkeypatch.setattr(module, "rim_surface_fill", lambda *a, **k: np.zeros((0, 3)))  # step 6 refuses both
+    monkeypatch.setattr(module, "poisson_surface_fill",
+                        lambda support, region, *a, **k: called.append(region) or np.zeros((0, 3)))
+    settings = dict(rim_fill=False, sheet=False, cap=False)
+    quiet(TemporalFusion(**settings), [kept], [[box, emptied]])
+    assert called == [box, emptied]
+    called.clear()
+    quiet(TemporalFusion(poisson_in_boxes=False, **settings), [kept], [[box, emptied]])
+    assert called == [emptied]
+
+
 def test_a_region_deeper_than_its_walled_loop_is_not_capped_first():
     """Version 35: a ball hiding a limb's rounded end (a tube of radius 10 closed by a half sphere; the ball of
     radius 16 centred 5 past the end's base) leaves a loop round the tube whose points are all steep, as at the
