@@ -939,7 +939,7 @@ class TemporalFusion(InpaintingMethod):
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
                  drop_layers: bool = True, coarse_retry: bool = True,
-                 poisson_in_boxes: bool = True, snap: bool | str = "auto") -> None:
+                 poisson_in_boxes: bool = True, membrane_after_poisson: bool = True, snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -973,6 +973,7 @@ class TemporalFusion(InpaintingMethod):
         self.drop_layers = drop_layers
         self.coarse_retry = coarse_retry
         self.poisson_in_boxes = poisson_in_boxes
+        self.membrane_after_poisson = membrane_after_poisson
         self.snap = snap
 
     # -- parameters ---------------------------------------------------------------------------
@@ -1003,7 +1004,8 @@ class TemporalFusion(InpaintingMethod):
         for name in ("refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies",
                      "poisson_bridges", "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources",
                      "sheet", "revoxelize", "pool_adjacent", "adjacent_first", "count_copies", "reuse_next",
-                     "drop_layers", "coarse_retry", "poisson_in_boxes"):
+                     "drop_layers", "coarse_retry", "poisson_in_boxes",
+                     "membrane_after_poisson"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{self.name}: {name} must be true or false, got {getattr(self, name)!r}")
         if self.snap not in ("auto", True, False):
@@ -1401,8 +1403,9 @@ class TemporalFusion(InpaintingMethod):
             if cap_first:
                 # step 6d before 6c where walls rise from the opening: no surface round it continues over it
                 spatial = self._cap(local, region, covered, spacing, ctx)
-            if self.poisson and not len(spatial) and (
-                    self.poisson_in_boxes or not self._keeps_captured(ctx["tree_of"](f), frames[f], region)):
+            in_box = self._keeps_captured(ctx["tree_of"](f), frames[f], region)
+            poisson_fill = np.zeros((0, 3))
+            if self.poisson and not len(spatial) and (self.poisson_in_boxes or not in_box):
                 # step 6c: a hole the height field refused (round a limb, a neck), on the crop's closed surface
                 spatial = poisson_surface_fill(np.vstack([local, accepted]), region, covered, spacing,
                                                voxelized=ctx["voxelized"], step=ctx["step"],
@@ -1410,16 +1413,22 @@ class TemporalFusion(InpaintingMethod):
                                                max_holdout_spacings=self.surface_holdout_spacings,
                                                separate_bodies=self.poisson_bodies,
                                                bridge_ends=self.poisson_bridges)
+                poisson_fill = spatial
             if capping and not cap_first and not len(spatial):
                 # step 6d: an opening no surface round it continues (a base, a sole), spanned by a membrane
                 spatial = self._cap(local, region, covered, spacing, ctx)
-            if self.membrane and not len(spatial):
+            after_poisson = (self.membrane_after_poisson and in_box and len(poisson_fill)
+                             and len(spatial) == len(poisson_fill))
+            if self.membrane and (not len(spatial) or after_poisson):
                 # step 6e: a gap the membrane of the data round and inside it spans (an occlusion box's open parts)
-                spatial = membrane_fill(local, region, covered, spacing, step=ctx["step"], accepted=accepted,
-                                        partial=seen, gap_spacings=self.fill_gap_spacings,
-                                        agree_spacings=self.accept_spacings,
-                                        max_holdout_spacings=self.surface_holdout_spacings)
-                ctx["not_reused"].append(spatial)
+                anchors = np.vstack([accepted, poisson_fill])
+                gaps = cKDTree(np.vstack([covered.data, poisson_fill])) if len(poisson_fill) else covered
+                membrane = membrane_fill(local, region, gaps, spacing, step=ctx["step"], accepted=anchors,
+                                         partial=seen, gap_spacings=self.fill_gap_spacings,
+                                         agree_spacings=self.accept_spacings,
+                                         max_holdout_spacings=self.surface_holdout_spacings)
+                ctx["not_reused"].append(membrane)
+                spatial = np.vstack([spatial, membrane])
             if self.front and not len(spatial):
                 # step 6b: what the one-surface fill refused, grown from the rim and copies chart by chart
                 spatial = self._front(support, region, covered, rim, spacing, ctx["voxelized"], ctx["neighbours"])
