@@ -250,7 +250,8 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    In a region that keeps captured points (an occlusion box) the hold-out's ring takes in the data kept inside
    the box too, so the test judges a surface across the whole box, which the fill never spans: most boxes are
    refused there, at most of the run's time (``poisson_in_boxes=False`` skips step 6c in them; kept on by
-   default, as the few boxes it fills are better filled than by step 6e: methods/NOTES.md, "poisson_in_boxes").
+   default: its fills in boxes, carried on by step 5, measured better over the frames after them than step 6e's
+   membrane, which is not reused: methods/NOTES.md, "poisson_in_boxes").
    Why step 6c at all: a hole left open costs whole-frame
    D1 in proportion to its radius in voxels, so the same holes cost 7.8 dB more at default size (radius
    26.7 voxels) than at small (10.9): human coherent holes seed 1, 2 frames, all three refused by step 6:
@@ -355,6 +356,16 @@ its hole regions R (given, or found by `holes.detection.detect_holes` per frame 
    widest open disc among the anchors): D-FAUST occlusion 28.92 / 35.93 / 0.70 -> 29.42 / 35.88 / 0.56 (lozes-pde
    27.35 / 33.46 / 0.84); held-out frames 26.43 / 33.72 / 1.09 -> 27.29 / 33.85 / 0.68 (lozes-pde 25.97 / 31.75 /
    0.72); D-FAUST coherent seed 0 28.52 / 31.72 -> 28.75 / 31.61; every other row within 0.03 dB.
+   Version 42 (``membrane_after_poisson``): in a region that keeps captured points, what step 6c filled no longer
+   ends step 6 there: the membrane spans what it left open, its points among the anchors and counted as covered,
+   and both are kept (step 6c's part reused by step 5 as before, the membrane's not). In a box step 6c passes only
+   a few points (its hold-out judges a surface across the whole box, see 6c), and those took the whole box from
+   the membrane: D-FAUST occlusion frame 2, fills of 6 and 4 points in boxes with 312 and 99 hidden points. In an
+   emptied region step 6c's fill still ends step 6 (the membrane after it was measured there at version 22: a
+   trade of D1 for D2 on the hands of D-FAUST coherent holes, methods/NOTES.md). Measured (occlusion rows,
+   D1 / D2 / NSHD 1e-9; NOTES "version 42"): D-FAUST 29.34 / 36.17 / 0.554 -> 29.50 / 36.19 / 0.514, at half
+   the frame rate 28.35 / 34.90 / 0.736 -> 28.45 / 34.89 / 0.692 (lozes-pde's NSHD 0.726); every other row
+   within 0.01 dB.
 6f. Sheet (``sheet``; `rim_sheet`): where step 6 refused the hole, it is tried again on the hole's own sheet
    of its support: the points whose normal is within 60 degrees of the inner ring's normal axis (the support
    within shell / 2 of R: the surface at the hole's edge), and of those the part connected by links of 3 s to
@@ -488,7 +499,7 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     `tube_fill`); both bounds are geometry (a tube of radius up to 0.87 r; bent up to 90
                     degrees), the tube's tests step 6's.
   poisson_in_boxes  True: step 6c is tried in a region that keeps captured points too (an occlusion box); False
-                    skips it there, a speed switch (methods/NOTES.md, "poisson_in_boxes"): 3-10x faster on real
+                    skips it there, a speed switch (methods/NOTES.md, "poisson_in_boxes", at version 41): 3-10x faster on real
                     captures with occlusion boxes (Longdress, one 858k-point frame: 88.9 -> 8.9 s CPU), the same
                     D1 on most rows, but D-FAUST occlusion -0.20 dB D1 and Longdress NSHD 0.212 -> 0.254.
   cap               True: step 6d (voxelized input); its band, 2 s, is the rim's first rows of samples (one row
@@ -503,6 +514,8 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
   membrane          True: step 6e; its ring (3 grid steps), graph and seeds are lozes-pde's defaults, its
                     hold-out band half that ring (round the open part), its bound and height-field test
                     step 6's (the latter with a majority bound, 0.5), its agreement rule step 4's.
+  membrane_after_poisson  True: step 6e also runs after step 6c filled part of a region that keeps captured points
+                    (version 42); its tests are step 6e's: no constant of its own.
   partial_sources   True: step 5b; its tests are step 2's and step 4's, its treatment step 7's.
   sheet             True: step 6f; its angle is step 6's steepness angle, its links step 4's reach (3 s).
   front             False: step 6b (see there for the measurement that keeps it off); its cell, round
@@ -895,7 +908,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "41"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
+    version = "42"  # 7: trimmed residual summed in sorted order (independent of the CPU); 8: revoxelize;
     # 9: revoxelize the reused fill too; 12: step 6c, screened Poisson fill of the holes step 6 refuses (developed
     # as 8-11 on a branch beside 8-9, merged with them); 13: step 6c reconstructs each connected body of the crop
     # alone, and step 6d (cap) spans flat openings on voxelized input (developed side by side, merged);
@@ -924,7 +937,8 @@ class TemporalFusion(InpaintingMethod):
     # what frame f+1 found there, moved back (``reuse_next``); 39: step 7b, no second layer over the captured
     # surface (``drop_layers``); 40: on voxelized input step 7b judges a voxel by whether the captured plane
     # (50 voxels within 4) crosses its cube; 41: step 2a', an alignment that misses the bound is tried again coarse to
-    # fine, the crop following the patch (``coarse_retry``)
+    # fine, the crop following the patch (``coarse_retry``); 42: step 6e also on what step 6c left open in a region
+    # that keeps captured points (``membrane_after_poisson``)
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True

@@ -662,6 +662,42 @@ def test_poisson_in_boxes_false_skips_step_6c_in_a_region_that_keeps_captured_po
     assert called == [emptied]
 
 
+def test_step_6e_also_spans_what_step_6c_left_open_in_a_region_that_keeps_captured_points(monkeypatch):
+    """``membrane_after_poisson`` (version 42): in an occlusion box a few points of step 6c no longer pre-empt step
+    6e; the membrane runs on what they left open, with them among its anchors and counted as covered, and both
+    fills are kept. In an emptied region step 6c's fill still ends step 6 there."""
+    import dpcbench.methods.temporal_fusion as module
+
+    directions = np.random.default_rng(0).normal(size=(200000, 3))
+    ball_surface = np.unique(np.floor(30.0 * directions / np.linalg.norm(directions, axis=1)[:, None] + 0.5), axis=0)
+    box = HoleRegion.box([0.0, 0.0, 30.0], [12.0, 12.0, 8.0])
+    unseen = box.contains(ball_surface) & (np.hypot(ball_surface[:, 0] - 4.0, ball_surface[:, 1]) < 4.0)
+    emptied = HoleRegion.ball([30.0, 0.0, 0.0], 6.0)
+    kept = ball_surface[~unseen & ~emptied.contains(ball_surface)]
+    few = {id(box): np.array([[4.0, 0.0, 30.0]]), id(emptied): np.array([[30.0, 0.0, 0.0]])}
+    spanned = np.array([[5.0, 1.0, 30.0], [3.0, -1.0, 30.0]])
+
+    calls = []
+
+    def membrane(captured, region, covered, spacing, *, accepted, **kwargs):
+        calls.append((region, covered.query(few[id(region)])[0][0], accepted))
+        return spanned.copy()
+
+    monkeypatch.setattr(module, "rim_surface_fill", lambda *a, **k: np.zeros((0, 3)))  # step 6 refuses both
+    monkeypatch.setattr(module, "poisson_surface_fill", lambda support, region, *a, **k: few[id(region)].copy())
+    monkeypatch.setattr(module, "membrane_fill", membrane)
+    settings = dict(rim_fill=False, sheet=False, cap=False, drop_layers=False)
+    result = quiet(TemporalFusion(**settings), [kept], [[box, emptied]])[0]
+    assert [region for region, _, _ in calls] == [box]
+    _, distance, anchors = calls[0]
+    assert distance == 0.0 and any(np.array_equal(row, few[id(box)][0]) for row in anchors)
+    for point in (few[id(box)][0], *spanned, few[id(emptied)][0]):
+        assert np.abs(result - point).sum(axis=1).min() < 1e-9
+    calls.clear()
+    result = quiet(TemporalFusion(membrane_after_poisson=False, **settings), [kept], [[box, emptied]])[0]
+    assert calls == [] and np.abs(result - spanned[0]).sum(axis=1).min() > 0.5
+
+
 def test_a_region_deeper_than_its_walled_loop_is_not_capped_first():
     """Version 35: a ball hiding a limb's rounded end (a tube of radius 10 closed by a half sphere; the ball of
     radius 16 centred 5 past the end's base) leaves a loop round the tube whose points are all steep, as at the
