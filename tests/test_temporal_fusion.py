@@ -636,12 +636,9 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     assert len(calls) == 2  # one call a frame: the order is what the parameter changes
 
 
-def test_poisson_in_boxes_false_skips_step_6c_in_a_region_that_keeps_captured_points(monkeypatch):
-    """``poisson_in_boxes=False``: in a region that still holds captured points (an occlusion box; its open parts
-    lie between the data inside it) step 6c's closed surface is not tried, and steps 6d-6e go on as before; an
-    emptied region still gets it. By default (True) both regions get it, as up to version 41."""
-    import dpcbench.methods.temporal_fusion as module
-
+def _box_and_emptied_ball():
+    """A voxelized sphere of radius 30 with an occlusion box at its pole that keeps most of its points (a slit of
+    radius 4 hidden inside it) and an emptied ball on its equator: (kept points, box, ball)."""
     directions = np.random.default_rng(0).normal(size=(200000, 3))
     ball_surface = np.unique(np.floor(30.0 * directions / np.linalg.norm(directions, axis=1)[:, None] + 0.5), axis=0)
     box = HoleRegion.box([0.0, 0.0, 30.0], [12.0, 12.0, 8.0])
@@ -649,6 +646,16 @@ def test_poisson_in_boxes_false_skips_step_6c_in_a_region_that_keeps_captured_po
     emptied = HoleRegion.ball([30.0, 0.0, 0.0], 6.0)
     kept = ball_surface[~unseen & ~emptied.contains(ball_surface)]
     assert box.contains(kept).sum() > 100 and not emptied.contains(kept).any()
+    return kept, box, emptied
+
+
+def test_poisson_in_boxes_false_skips_step_6c_in_a_region_that_keeps_captured_points(monkeypatch):
+    """``poisson_in_boxes=False``: in a region that still holds captured points (an occlusion box; its open parts
+    lie between the data inside it) step 6c's closed surface is not tried, and steps 6d-6e go on as before; an
+    emptied region still gets it. By default (True) both regions get it, as up to version 41."""
+    import dpcbench.methods.temporal_fusion as module
+
+    kept, box, emptied = _box_and_emptied_ball()
 
     called = []
     monkeypatch.setattr(module, "rim_surface_fill", lambda *a, **k: np.zeros((0, 3)))  # step 6 refuses both
@@ -668,12 +675,7 @@ def test_step_6e_also_spans_what_step_6c_left_open_in_a_region_that_keeps_captur
     fills are kept. In an emptied region step 6c's fill still ends step 6 there."""
     import dpcbench.methods.temporal_fusion as module
 
-    directions = np.random.default_rng(0).normal(size=(200000, 3))
-    ball_surface = np.unique(np.floor(30.0 * directions / np.linalg.norm(directions, axis=1)[:, None] + 0.5), axis=0)
-    box = HoleRegion.box([0.0, 0.0, 30.0], [12.0, 12.0, 8.0])
-    unseen = box.contains(ball_surface) & (np.hypot(ball_surface[:, 0] - 4.0, ball_surface[:, 1]) < 4.0)
-    emptied = HoleRegion.ball([30.0, 0.0, 0.0], 6.0)
-    kept = ball_surface[~unseen & ~emptied.contains(ball_surface)]
+    kept, box, emptied = _box_and_emptied_ball()
     few = {id(box): np.array([[4.0, 0.0, 30.0]]), id(emptied): np.array([[30.0, 0.0, 0.0]])}
     spanned = np.array([[5.0, 1.0, 30.0], [3.0, -1.0, 30.0]])
 
