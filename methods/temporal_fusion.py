@@ -499,9 +499,10 @@ Parameters, each with the rule it follows (no value was fitted to a sequence or 
                     `tube_fill`); both bounds are geometry (a tube of radius up to 0.87 r; bent up to 90
                     degrees), the tube's tests step 6's.
   poisson_in_boxes  True: step 6c is tried in a region that keeps captured points too (an occlusion box); False
-                    skips it there, a speed switch (methods/NOTES.md, "poisson_in_boxes", at version 41): 3-10x faster on real
-                    captures with occlusion boxes (Longdress, one 858k-point frame: 88.9 -> 8.9 s CPU), the same
-                    D1 on most rows, but D-FAUST occlusion -0.20 dB D1 and Longdress NSHD 0.212 -> 0.254.
+                    skips it there, a speed switch (methods/NOTES.md, "poisson_in_boxes", at versions 41 and 42): 3-10x
+                    faster on real captures with occlusion boxes (Longdress, one 858k-point frame: 88 -> 8 s CPU), the
+                    same D1 on most rows, but at version 42 D-FAUST occlusion -0.36 dB D1, Longdress -0.28 dB D1 and
+                    NSHD 0.212 -> 0.254.
   cap               True: step 6d (voxelized input); its band, 2 s, is the rim's first rows of samples (one row
                     leaves gaps where the sampling is uneven); its flatness bound max(1 s, r / 20) is step 6's
                     hold-out bound, or on a wide opening a wobble of 3 degrees seen from the loop's centre.
