@@ -90,6 +90,11 @@ against 1.55 / 2.94 / 5.54 s; coherent 800k 48.1 s against 46.2 s for 3 frames: 
 so their alignments miss the bound and are retried (+4 %). Without the retries whose coarse motion nothing would use
 (an own-hole frame at the window's edge; the same output, hashed here and in extra_info), back to back: 46.5 s against
 49.6 s.
+Version 42 (step 6e also after step 6c in an occlusion box; region holes unchanged), 2026-11-28, another machine,
+`-k "size or coherent or longdress"`, CPU, one run: 100k / 290k / 800k 1.25 / 2.50 / 4.88 s (target < 10 s: met);
+coherent 800k 36.8 s for 3 frames (12.3 s a frame, over the target's 10 s: 12.3 s of a 31 s profile is open3d's
+Poisson, 18 reconstructions single-threaded, none of them repeated), whose frame D2 is 18.22 / 20.82 / 18.10 against
+no fill's 17.48 / 16.37 / 19.43; Longdress region 8.1 s, occlusion 83.6 s (1 frame).
 """
 
 from __future__ import annotations
