@@ -43,7 +43,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from dpcbench.bench import compare
+from dpcbench.bench import compare, palette
 from dpcbench.bench.paper_facts import PAPER_SEQUENCES
 
 QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
@@ -57,6 +57,7 @@ METRIC_NAMES = {
 SHOWN_UNITS = ("dB", "s", "MB")
 #: the methods of the paper's columns first, so that their colours never change when other methods come and go
 METHOD_ORDER = ["temporal-graph", "fu-nonlocal", "lozes-pde", "meshlab", "temporal-copy", "none"]
+#: colours of the benchmark lines (not methods: those are `bench.palette`'s)
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
            "#bcbd22", "#17becf"]
 
@@ -162,13 +163,14 @@ def build_history(results: pd.DataFrame) -> History:
 
 
 def method_colours(labels) -> dict[str, str]:
-    """A fixed colour per method configuration: the paper's methods first, then by name."""
+    """A fixed colour per method configuration (`bench.palette`: by the method's registry name, so the
+    same in every figure and report; further configurations of a method in darker shades of its hue)."""
     def rank(label: str):
         method = label.split(" (")[0]
         return (METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER), label)
 
     ordered = sorted(set(labels), key=rank)
-    return {label: PALETTE[i % len(PALETTE)] for i, label in enumerate(ordered)}
+    return palette.configuration_colours((label, label.split(" (")[0]) for label in ordered)
 
 
 # ---------------------------------------------------------------------------------------------

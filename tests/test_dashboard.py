@@ -11,7 +11,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from dpcbench.bench import benchsuite, dashboard
+from dpcbench.bench import benchsuite, dashboard, palette
 from dpcbench.bench.cli import main as cli_main
 from dpcbench.bench.store import ResultsStore
 
@@ -149,7 +149,10 @@ def test_history_and_colours_are_stable(tmp_path):
     first = history.table[history.table["code_version"] == VERSIONS[0][0]].set_index(["method", "metric", "scope"])
     assert first.loc[("none", "nshd", "frame"), "mean"] == pytest.approx(5e-6)
     colours = dashboard.method_colours(["none", "temporal-graph", "zzz", "fu-nonlocal"])
-    assert colours["temporal-graph"] == dashboard.PALETTE[0] and colours["fu-nonlocal"] == dashboard.PALETTE[1]
+    assert colours["temporal-graph"] == palette.METHOD_COLOURS["temporal-graph"]
+    assert colours["fu-nonlocal"] == palette.METHOD_COLOURS["fu-nonlocal"]
+    assert dashboard.method_colours(["zzz", "temporal-graph (variant=paper)"])["temporal-graph (variant=paper)"] == (
+        colours["temporal-graph"])  # by name, whatever else is listed
     assert dashboard.short_version("0123456789abcdef0123+dirty") == "01234567+"
     paper = dashboard.paper_reference()
     row = paper[(paper["sequence"] == "loot") & (paper["method"] == "temporal-graph") & (paper["metric"] == "gpsnr_d1")]
