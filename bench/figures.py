@@ -57,34 +57,95 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
     return out
 
 
+#: print widths (inches) of an IEEE-style page: one column and the full text width
+SINGLE_COLUMN_IN = 3.5
+DOUBLE_COLUMN_IN = 7.2
+#: figures are written at this resolution (PNG) and as vector PDF beside it
+PRINT_DPI = 300
+#: the smallest text size at print width (points)
+MIN_TEXT_PT = 7
+#: metrics shown in a scaled unit, as the tables show them (NSHD in units of 1e-7, like the paper's Table 2)
+DISPLAY_SCALE = {"nshd": 1e7}
+
+
+def print_style() -> dict:
+    """matplotlib rc settings for figures printed at page width: text at least `MIN_TEXT_PT` points."""
+    return {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": MIN_TEXT_PT,
+            "ytick.labelsize": MIN_TEXT_PT, "legend.fontsize": MIN_TEXT_PT, "figure.titlesize": 9,
+            "axes.spines.top": False, "axes.spines.right": False, "pdf.fonttype": 42}
+
+
+def column_colours(sel: pd.DataFrame, columns: list[str]) -> dict[str, str]:
+    """A colour per column label from `bench.palette`, by the registry name of the method behind it
+    (``sel`` has the ``column`` and ``method`` columns)."""
+    from dpcbench.bench import palette
+
+    name_of = sel.drop_duplicates("column").set_index("column")["method"].to_dict() if "method" in sel else {}
+    return palette.configuration_colours((c, str(name_of.get(c, c))) for c in columns)
+
+
+def save_figure(fig, out_png: str | Path) -> Path:
+    """Write ``fig`` as PNG (`PRINT_DPI`) and, beside it, as vector PDF (same stem)."""
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=PRINT_DPI, bbox_inches="tight")
+    fig.savefig(out.with_suffix(".pdf"), bbox_inches="tight")
+    plt.close(fig)
+    return out
+
+
 def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_png: str | Path, *,
-                     column_of=None, columns: list[str] | None = None, title: str = "") -> Path:
-    """One panel per sequence: the metric against frame index, one line per method (mean over seeds)."""
+                     column_of=None, columns: list[str] | None = None, title: str = "",
+                     width_in: float = DOUBLE_COLUMN_IN) -> Path:
+    """One panel per sequence row, in a grid of two columns at double-column width (one at single-column
+    width): the metric against frame index, one line per method (mean over seeds), coloured by method
+    (`bench.palette`), the no-fill floor (method ``none``) dashed black. Lines that coincide stay visible
+    (distinct markers, decreasing line widths); the legend sits below the panels, outside the data."""
+    from dpcbench.bench.dashboard import metric_label
     from dpcbench.bench.tables import method_labels
 
     sel = frame_values(df, metric, scope, peak).copy()
     sel["column"] = column_of(sel) if column_of else method_labels(sel)
     sequences = list(dict.fromkeys(sel["sequence"]))
     columns = columns or list(dict.fromkeys(sel["column"]))
-    fig, axes = plt.subplots(1, max(1, len(sequences)), figsize=(4.5 * max(1, len(sequences)), 3.4), squeeze=False)
-    for ax, seq in zip(axes[0], sequences):
-        for col in columns:
-            curve = sel[(sel["sequence"] == seq) & (sel["column"] == col)].groupby("frame")["value"].mean()
-            if not curve.empty:
-                ax.plot(curve.index, curve.values, marker="o", ms=3, label=col)
-        ax.set_title(seq, fontsize=9)
-        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
-        ax.set_xlabel("frame")
-        ax.set_ylabel(metric + (f" (peak {peak})" if peak else ""))
-        ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=7)
-    fig.suptitle(title or f"{metric} per frame, scope {scope}", fontsize=10)
-    fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    colours = column_colours(sel, columns)
+    scale = DISPLAY_SCALE.get(metric, 1.0)
+    unit = f" (x{1 / scale:.0e})".replace("e-0", "e-") if scale != 1 else ""
+    ncols = 1 if width_in <= SINGLE_COLUMN_IN else min(2, max(1, len(sequences)))
+    nrows = max(1, -(-len(sequences) // ncols))
+    markers = "osD^vP*Xh<>"
+    with plt.rc_context(print_style()):
+        fig, axes = plt.subplots(nrows, ncols, figsize=(width_in, 1.9 * nrows + 0.6), squeeze=False)
+        for ax in axes.flat[len(sequences):]:
+            ax.set_visible(False)
+        method_of = sel.drop_duplicates("column").set_index("column")["method"].to_dict() if "method" in sel else {}
+        for ax, seq in zip(axes.flat, sequences):
+            for k, col in enumerate(columns):
+                curve = sel[(sel["sequence"] == seq) & (sel["column"] == col)].groupby("frame")["value"].mean()
+                if curve.empty:
+                    continue
+                floor = method_of.get(col) == "none"
+                ax.plot(curve.index, curve.values * scale, marker=markers[k % len(markers)], ms=3.5 - 0.2 * k,
+                        linewidth=max(0.6, 1.6 - 0.15 * k), linestyle="--" if floor else "-",
+                        color=colours[col], label=col, markerfacecolor="white" if k % 2 else colours[col])
+            ax.set_title(seq, loc="left")
+            ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+            ax.yaxis.get_major_formatter().set_useOffset(False)
+            ax.set_xlabel("frame")
+            ax.set_ylabel(metric_label(metric) + unit + (f", peak {peak}" if peak else ""))
+            ax.grid(alpha=0.3)
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, lab in zip(*ax.get_legend_handles_labels()):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
+        fig.suptitle(title or f"{metric_label(metric)} per frame ({'whole frame' if scope == 'frame' else 'holes'})")
+        fig.tight_layout()
+        if handles:
+            fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                       ncol=min(len(labels), 3 if width_in <= SINGLE_COLUMN_IN else 4), frameon=False)
+        return save_figure(fig, out_png)
 
 
 def facing_view(points: np.ndarray, center: np.ndarray) -> tuple[float, float]:
