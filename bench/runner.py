@@ -124,8 +124,9 @@ def run_experiment(specs: list[RunSpec], store, *, runs_dir: str | os.PathLike |
         return summary
     warm_caches(todo, quiet)
     runner = make_executor(executor, jobs, scheduler)
-    bar = progress_bar(total=len(specs), desc=f"runs ({runner.name} x{runner.jobs})", unit="run", quiet=quiet)
-    bar.update(len(summary.cached) + len(summary.failed))
+    # runs already in the store start the bar (`initial`), so its rate and ETA count only runs computed now
+    bar = progress_bar(total=len(specs), desc=f"runs ({runner.name} x{runner.jobs})", unit="run", quiet=quiet,
+                       initial=len(summary.cached) + len(summary.failed))
 
     def show():
         bar.set_postfix_str(f"done {len(summary.done)}, cached {len(summary.cached)}, failed {len(summary.failed)}")

@@ -58,3 +58,4 @@ def test_single_column_width_gives_one_panel_per_row(tmp_path):
 def test_print_style_keeps_text_readable():
     style = figures.print_style()
     assert min(v for k, v in style.items() if k.endswith("size")) >= figures.MIN_TEXT_PT
+
