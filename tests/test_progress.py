@@ -1,5 +1,6 @@
 """Progress bars: rates and ETAs count only the work done now."""
 
+
 def test_progress_rate_ignores_runs_done_before():
     import time
 
