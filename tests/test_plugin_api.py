@@ -80,3 +80,42 @@ def test_the_python_examples_of_adding_a_method_run(tmp_path, monkeypatch):
     namespace: dict = {"__name__": "docs_example"}
     for block in blocks:
         exec(compile(block, "docs/adding-a-method.md", "exec"), namespace)
+
+
+# -- housekeeping a release needs ------------------------------------------------------------------
+def test_one_version_for_the_package_the_cli_and_the_citation(capsys):
+    import sys
+
+    from dpcbench.bench import __version__
+    from dpcbench.bench.cli import main
+    from dpcbench.bench.provenance import package_versions
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:
+        import tomli as tomllib
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert capsys.readouterr().out.strip() == f"dpcbench {declared}"
+    assert __version__ == declared and package_versions(["dpcbench"])["dpcbench"] == declared  # run records' env
+    citation = (REPO / "CITATION.cff").read_text()
+    assert re.search(rf'^version: "{re.escape(declared)}"$', citation, flags=re.M)
+    assert "arXiv:1904.10795" in citation and "3D Dynamic Point Cloud Inpainting via Temporal Consistency" in citation
+
+
+def test_license_and_type_markers_ship():
+    import sys
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:
+        import tomli as tomllib
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())
+    assert project["project"]["license"] == "MIT"
+    assert (REPO / "LICENSE").read_text().startswith("MIT License")
+    package_data = project["tool"]["setuptools"]["package-data"]
+    for package, folder in project["tool"]["setuptools"]["package-dir"].items():
+        assert (REPO / folder / "py.typed").is_file(), folder
+        assert "py.typed" in package_data.get(package, []), package
+    assert (REPO / "CHANGELOG.md").read_text().startswith("# Changelog")
