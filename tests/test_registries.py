@@ -1,4 +1,5 @@
-"""The lazy registries (`holes.lazy`) behind hole generators and methods, and "no holes" as the
+"""The lazy registries (`metrics.lazy`, re-exported by `holes.lazy`) behind hole generators, methods and
+metrics, their plug-ins (entry points, import paths) and versions, and "no holes" as the
 registered generator ``none`` (`holes.base.NoHoles`)."""
 
 from __future__ import annotations
@@ -303,3 +304,44 @@ def test_discover_refuses_a_second_distribution_of_the_same_name_and_a_bad_value
     assert "already registered by distribution one" in registry.refused["a (two)"]
     assert "is not 'package.module:Attr'" in registry.refused["b (one)"]
     assert "'path' is a built-in widget" in registry.refused["path (three)"]
+
+
+def _points_ratio(pair, selection, settings):
+    """Result points over reference points (a plug-in metric for the test below)."""
+    return len(pair.result) / len(pair.reference)
+
+
+def _metric():
+    from dpcbench.metrics.registry import Metric
+
+    return Metric("points_ratio", None, "1", "2", "result points over reference points", _points_ratio)
+
+
+POINTS_RATIO = _metric()
+
+
+def test_a_metric_named_by_import_path_is_scored_and_stored_by_a_run(tmp_path, monkeypatch):
+    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.runner import run_experiment
+    from dpcbench.bench.store import ResultsStore
+    from dpcbench.metrics import score_frame
+    from tests import runner_fixtures as helpers
+
+    name = "tests.test_registries:POINTS_RATIO"
+    assert score_frame(np.zeros((4, 3)) + np.arange(4)[:, None], np.arange(6.0).reshape(2, 3), [name, "chamfer"])[name] == 0.5
+    helpers.register(monkeypatch)
+    monkeypatch.chdir(REPO)  # the worker imports tests.* from the repo root
+    seq = helpers.write_sequence(tmp_path / "seq", n_frames=2, n_points=300)
+    specs = parse_config({"experiment": {"name": "m", "timeout_s": 120}, "sequences": [{"path": str(seq)}],
+                          "holes": [{"generator": "test-ball", "params": {"radius": 0.3}}],
+                          "methods": [{"name": "none"}],
+                          "metrics": {"names": ["chamfer", name], "peaks": ["intrinsic"], "scopes": ["frame"]}}).expand()
+    assert specs[0].versions["metrics"][name] == "2"
+    store = ResultsStore(tmp_path / "store.sqlite")
+    summary = run_experiment(specs, store, executor="serial", quiet=True)
+    assert len(summary.done) == 1, summary.errors
+    rows = store.results_frame()
+    ratio = rows[rows.metric == name]
+    removed = rows[rows.metric == "removed_fraction"].sort_values("frame").value.to_numpy()
+    # "none" returns the damaged frame: result points / reference points = 1 - removed fraction
+    np.testing.assert_allclose(ratio.sort_values("frame").value.to_numpy(), 1 - removed)
