@@ -208,6 +208,11 @@ class LazyRegistry(dict):
         return dict.values(self)
 
     # -- loading ------------------------------------------------------------------------------
+    def builtin_names(self) -> list[str]:
+        """The names registered in code (the package's own and any added like a dict entry), sorted:
+        every name but the entry points' plug-ins."""
+        return sorted(name for name in self if name not in self.plugins)
+
     def is_plugin(self, name: str) -> bool:
         """True for an entry point's name or an import path (code this package does not hold)."""
         self._ensure()

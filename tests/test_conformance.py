@@ -17,13 +17,22 @@ from dpcbench.methods.base import InpaintingMethod, PerFrameMethod
 from dpcbench.methods.registry import METHODS, method_class
 from dpcbench.testing import CHECKS, ConformanceError, check_method
 
-BUILTIN = sorted(name for name in METHODS if name not in METHODS.plugins)
+BUILTIN = METHODS.builtin_names()
 
 
 @pytest.mark.parametrize("name", BUILTIN)
 def test_every_builtin_method_passes_check_method(name):
     timings = check_method(method_class(name), name=name)
     assert list(timings) == list(CHECKS)
+
+
+def test_the_example_plugin_passes_check_method(monkeypatch):
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[1] / "examples" / "dpcbench-example-plugin" / "src"
+    monkeypatch.syspath_prepend(str(src))
+    assert list(check_method("dpcbench_example_plugin.fills:QuadricFill")) == list(CHECKS)
+    assert list(check_method("dpcbench_example_plugin.fills:QuadricFill", {"rim_spacings": 2.0})) == list(CHECKS)
 
 
 # -- methods that break the contract, one way each ------------------------------------------------
