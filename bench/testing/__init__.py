@@ -117,9 +117,11 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
     Returns {check: seconds} of the checks run; raises `ConformanceError` at the first failure.
     """
     if isinstance(method, str):
-        from dpcbench.methods.registry import method_class
+        from dpcbench.holes.lazy import is_import_path
+        from dpcbench.methods.registry import METHODS, method_class
 
-        name = method if name is None else name
+        if name is None and (method in METHODS.plugins or not is_import_path(method)):
+            name = method  # a registered name must be the class's `name`; an import path names none
         method = method_class(method)
     cls = method
     label = name or getattr(cls, "name", "") or getattr(cls, "__name__", repr(cls))
