@@ -404,7 +404,8 @@ def _parse_metrics(table: dict) -> dict:
     if names is None:
         if registry is None:
             raise ConfigError("metrics.names: the metrics package is unavailable, so no default list; name the metrics")
-        names = [n for n in registry if n != "temporal_consistency"]
+        # the built-in metrics: an installed metric plug-in does not change a config's runs unless named
+        names = [n for n in registry if n != "temporal_consistency" and n not in registry.plugins]
     if isinstance(names, str):
         names = [names]
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):

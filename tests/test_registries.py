@@ -175,7 +175,10 @@ names = sorted(METHODS)
 lazy = "dpcb_testplug" not in sys.modules and "dpcb_testplug_broken" not in sys.modules
 cls = method_class("centroid-fill")
 status = METHODS.available()
-print(json.dumps({"names": names, "lazy": lazy, "cls": cls.__name__, "builtin_tg": METHODS["temporal-graph"],
+from dpcbench.bench.config import parse_config
+cfg = parse_config({"experiment": {"name": "d"}, "sequences": [{"name": "human", "params": {"size": "tiny"}, "frames": 1}],
+                    "holes": [{"generator": "region"}], "methods": [{"name": "none"}]})
+print(json.dumps({"default_metrics": cfg.metrics["names"], "names": names, "lazy": lazy, "cls": cls.__name__, "builtin_tg": METHODS["temporal-graph"],
                   "plugins": METHODS.plugins, "status": status, "version": method_version("centroid-fill"),
                   "holes": sorted(GENERATORS), "metric": get_metric("size_ratio").version,
                   "metric_level": METRICS["size_ratio"].level}))
@@ -198,6 +201,8 @@ print(json.dumps({"names": names, "lazy": lazy, "cls": cls.__name__, "builtin_tg
     digest = hashlib.sha256((plugin_site / "dpcb_testplug.py").read_bytes()).hexdigest()[:16]
     assert out["version"] == f"sha256:{digest}"
     assert "half" in out["holes"] and out["metric"] == "7" and out["metric_level"] == "frame"
+    # an installed metric plug-in is scored where named, never added to a config's default metrics
+    assert "size_ratio" not in out["default_metrics"] and "gpsnr_d1" in out["default_metrics"]
 
 
 def test_list_shows_plugins_and_a_broken_plugin_breaks_no_other_command(plugin_site, tmp_path):
