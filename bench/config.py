@@ -404,7 +404,8 @@ def _parse_metrics(table: dict) -> dict:
     if names is None:
         if registry is None:
             raise ConfigError("metrics.names: the metrics package is unavailable, so no default list; name the metrics")
-        names = [n for n in registry if n != "temporal_consistency"]
+        # the built-in metrics: an installed metric plug-in does not change a config's runs unless named
+        names = [n for n in registry if n != "temporal_consistency" and n not in registry.plugins]
     if isinstance(names, str):
         names = [names]
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
@@ -413,6 +414,10 @@ def _parse_metrics(table: dict) -> dict:
         for i, n in enumerate(names):
             if n not in registry:
                 raise ConfigError(f"metrics.names[{i}]: unknown metric {n!r}; known metrics: {', '.join(sorted(registry))}")
+            try:
+                registry[n]
+            except ImportError as err:  # a plug-in metric whose module is missing or broken here
+                raise ConfigError(f"metrics.names[{i}]: metric {n!r} cannot be loaded here ({err})") from None
     peaks = table.get("peaks", ["intrinsic"])
     if not isinstance(peaks, list):
         peaks = [peaks]
@@ -507,7 +512,10 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         seeds = hole.get("seeds", [hole.get("seed", 0)])
         if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
             raise ConfigError(f"{where}.seeds: expected a non-empty list of integers, got {seeds!r}")
-        cls = generator_class(gen)
+        try:
+            cls = generator_class(gen)
+        except ImportError as err:  # an optional dependency or a plug-in's module missing here
+            raise ConfigError(f"{where}.generator: hole generator {gen!r} cannot be loaded here ({err})") from None
         if not cls.removes_points:  # the data's own (real) holes: no seed plays a part, one run
             seeds = [0]
         _check_param_types(cls, hole.get("params", {}), f"{where}.params")
@@ -515,7 +523,7 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
             _validate_instance(cls, params, f"{where}.params")
             for seed in seeds:
                 cfg.holes.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
-                                  "entry": GENERATORS[gen], "version": str(getattr(cls, "version", "1"))})
+                                  "entry": GENERATORS[gen], "version": GENERATORS.version_of(gen, cls)})
 
     from dpcbench.methods.registry import METHODS, method_class
 
@@ -533,7 +541,7 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         for params in _expand_params(meth.get("params", {}), f"{where}.params"):
             _validate_instance(cls, params, f"{where}.params")
             cfg.methods.append({"name": name, "params": params, "label": meth.get("label"),
-                                "entry": METHODS[name], "version": str(getattr(cls, "version", "1"))})
+                                "entry": METHODS[name], "version": METHODS.version_of(name, cls)})
 
     cfg.metrics = _parse_metrics(data.get("metrics", {}))
     return cfg

@@ -5,7 +5,9 @@ and only stores them under the same names; all the work happens in `inpaint`. `g
 the parameters back from the ``__init__`` signature, so configs and result records can store them.
 
 ``inpaint(frames, regions=None)``:
-  frames:  list of F arrays of shape (N_f, 3), the damaged sequence. Never modified.
+  frames:  list of F arrays of shape (N_f, 3), the damaged sequence. Never modified. Through
+           `check_sequence` (``self._check_inputs``) a frame may also be an array of another real
+           dtype or an ``open3d.geometry.PointCloud`` (`metrics.points.as_points`).
   regions: None (blind: the method finds the missing data itself, if it can) or a list of F lists
            of `holes.regions.HoleRegion`, the hole regions of each frame. A method never receives
            the removed ground-truth points: the interface has no way to pass them.
@@ -22,6 +24,7 @@ import numpy as np
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.metrics.errors import UserError
 from dpcbench.metrics.params import Parameterized
+from dpcbench.metrics.points import as_points, is_point_cloud_object
 
 #: the hole regions of each frame (F lists), or None (blind: the method finds the holes itself)
 Regions = Sequence[Sequence[HoleRegion]] | None
@@ -79,14 +82,14 @@ class PerFrameMethod(InpaintingMethod):
 def check_sequence(frames: Sequence[np.ndarray], regions: Regions = None, *, method: str = "method",
                    needs_regions: bool = False, detects_holes: bool = True) -> tuple[list[np.ndarray], list | None]:
     """Shared input validation with messages that say what is wrong and what to do."""
-    if isinstance(frames, np.ndarray) and frames.ndim == 2:
+    if (isinstance(frames, np.ndarray) and frames.ndim == 2) or is_point_cloud_object(frames):
         raise UserError(f"{method}: expected a list of (N, 3) frames, got one array; wrap it: [frame]")
     frames = list(frames)
     if not frames:
         raise UserError(f"{method}: the sequence has no frames")
     checked = []
     for i, frame in enumerate(frames):
-        arr = np.asarray(frame, dtype=np.float64)
+        arr = as_points(frame)
         if arr.ndim != 2 or arr.shape[1] != 3:
             raise UserError(f"{method}: frame {i} must be an (N, 3) array, got shape {arr.shape}")
         if len(arr) == 0:

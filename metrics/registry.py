@@ -21,8 +21,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from dpcbench.metrics import geometry
+from dpcbench.metrics.lazy import EntryTypeError, ObjectRegistry
 from dpcbench.metrics.temporal import temporal_consistency
 
 
@@ -53,7 +55,15 @@ def _m(name: str, higher: bool | None, unit: str, description: str, fn: Callable
     return Metric(name, higher, unit, "1", description, fn, **kw)
 
 
-METRICS: dict[str, Metric] = {
+def _check_metric(name: str, obj: Any) -> None:
+    if not isinstance(obj, Metric) or obj.fn is None or obj.level not in ("frame", "sequence"):
+        raise EntryTypeError(f"metric {name!r} is {obj!r}, not a dpcbench.metrics.registry.Metric with a function "
+                        "and level 'frame' or 'sequence'")
+
+
+#: the built-in quality metrics, the entry points of group ``dpcbench.metrics`` (each a `Metric`) and
+#: import paths ``"package.module:attr"`` naming one (`metrics.lazy.ObjectRegistry`)
+METRICS: ObjectRegistry = ObjectRegistry("metric", {
     m.name: m
     for m in [
         _m(
@@ -133,7 +143,7 @@ METRICS: dict[str, Metric] = {
             level="sequence",
         ),
     ]
-}
+}, group="dpcbench.metrics", check=_check_metric)
 
 #: What a run costs, measured by the harness around the method (not computed here).
 RESOURCE_METRICS: dict[str, Metric] = {
@@ -163,13 +173,16 @@ DEFAULT_METRICS: tuple[str, ...] = ("gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff",
 
 def get_metric(name: str) -> Metric:
     """The registered quality metric ``name``; KeyError listing the valid names otherwise."""
-    try:
-        return METRICS[name]
-    except KeyError:
-        raise KeyError(f"unknown metric {name!r}; available: {', '.join(METRICS)}") from None
+    if name not in METRICS:
+        raise KeyError(f"unknown metric {name!r}; available: {', '.join(METRICS)}")
+    return METRICS[name]
 
 
 def describe(name: str) -> Metric | None:
     """The facts of any stored metric (quality, resource or input), None for a name none of the
     three families has (e.g. a metric of a newer code version read from an old store)."""
-    return METRICS.get(name) or RESOURCE_METRICS.get(name) or INPUT_METRICS.get(name)
+    try:
+        found = METRICS.get(name)
+    except ImportError:  # a plug-in metric that does not load here: no facts
+        found = None
+    return found or RESOURCE_METRICS.get(name) or INPUT_METRICS.get(name)

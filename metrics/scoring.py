@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike
 from dpcbench.metrics import geometry
 from dpcbench.metrics.geometry import Selection, Settings, psnr, resolve_peak
 from dpcbench.metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
+from dpcbench.metrics.points import as_points
 from dpcbench.metrics.registry import DEFAULT_METRICS, METRICS, get_metric
 from dpcbench.metrics.types import Frames, Region, RegionsPerFrame
 
@@ -82,9 +83,11 @@ def _evaluate(pair: CloudPair, names, selection: Selection, settings: Settings, 
 
 def make_pair(reference: ArrayLike, result: ArrayLike, reference_normals: ArrayLike | None = None,
               **options: Any) -> CloudPair:
-    """A `CloudPair` built with the pair-related scoring options (drop_duplicates, normal_neighbours)."""
+    """A `CloudPair` built with the pair-related scoring options (drop_duplicates, normal_neighbours).
+    ``reference`` and ``result`` may be arrays of any real dtype or open3d point clouds
+    (`metrics.points.as_points`)."""
     _, pair_kw, _ = _split_options(options)
-    return CloudPair(reference, result, reference_normals, **pair_kw)
+    return CloudPair(as_points(reference), as_points(result), reference_normals, **pair_kw)
 
 
 def score_pair(pair: CloudPair, metrics: MetricNames = None, *, peak: Peak = "intrinsic",
@@ -103,7 +106,8 @@ def score_frame(reference: ArrayLike, result: ArrayLike, metrics: MetricNames = 
                 region_margin: float = 0.0, **options: Any) -> dict[str, float]:
     """Score one result frame against its reference frame.
 
-    reference: (N, 3) ground truth; result: (M, 3); metrics: names from `METRICS` (default
+    reference: (N, 3) ground truth; result: (M, 3) (arrays of any real dtype, or open3d point
+    clouds: `metrics.points.as_points`); metrics: names from `METRICS` (default
     `DEFAULT_METRICS`); peak: "intrinsic" | "bitdepth:B" | number (see `resolve_peak`);
     reference_normals: (N, 3) or None (estimated for D2); regions: None for the whole frame, or the
     frame's hole regions for the hole-region variant (see `metrics.geometry`), grown by
@@ -189,6 +193,8 @@ def score_sequence(references: Frames, results: Frames, metrics: MetricNames = N
         "capped": capped,
     }
     if sequence_names:
+        references = [as_points(r) for r in references]
+        results = [as_points(r) for r in results]
         out["sequence"] = {
             n: _sequence_fn(n)(references, results, regions, region_margin=region_margin) for n in sequence_names
         }

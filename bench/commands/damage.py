@@ -74,7 +74,10 @@ def run(args) -> int:
     if args.holes not in GENERATORS:
         raise UserError(f"--holes: unknown hole generator {args.holes!r}; known: {', '.join(sorted(GENERATORS))} "
                         "(see `dpcbench list`)")
-    cls = generator_class(args.holes)
+    try:
+        cls = generator_class(args.holes)
+    except ImportError as err:  # an optional dependency or a plug-in's module missing or broken here
+        raise UserError(f"--holes {args.holes}: cannot be used here: {err}") from None
     generator = cls(**_known_params(cls, parse_params(args.param), f"--holes {args.holes}"))
     generator.validate_params()
     seq = load_input(args.input, args.frames, args.data_dir, parse_params(args.dataset_param, "--dataset-param"))

@@ -1,5 +1,7 @@
-"""`dpcbench list`: the sequences, hole generators, methods and metrics this install knows, each with
-whether it can be used here and, when not, why."""
+"""`dpcbench list`: the sequences, hole generators, methods and metrics this install knows (built-ins
+and the plug-ins of installed distributions' entry points), each with whether it can be used here
+and, when not, why: a missing optional dependency, a plug-in whose module fails to import, or a
+plug-in refused because its name is taken."""
 
 from __future__ import annotations
 
@@ -15,10 +17,6 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def _reason(err: BaseException) -> str:
-    return f"{type(err).__name__}: {err}"
-
-
 def sequences(data_dir) -> list[dict]:
     from dpcbench.bench.datasets import describe_datasets
 
@@ -30,44 +28,54 @@ def sequences(data_dir) -> list[dict]:
     return rows
 
 
-def hole_generators() -> list[dict]:
-    from dpcbench.holes.registry import GENERATORS, generator_class
+def _origin(registry, name: str) -> str:
+    """Where an entry comes from: "" for a built-in, "plug-in from DIST" for an entry point."""
+    return f"plug-in from {registry.plugins[name]}" if name in registry.plugins else ""
 
+
+def _registry_rows(registry, describe) -> list[dict]:
+    """One row per entry of a `metrics.lazy.LazyRegistry` (refused entry points included): a plug-in
+    that cannot be imported is listed with the reason, never raised."""
     rows = []
-    for name in sorted(GENERATORS):
-        try:
-            cls = generator_class(name)
-            doc = (cls.__doc__ or "").strip().splitlines()
-            rows.append({"name": name, "available": True, "reason": "", "description": doc[0] if doc else ""})
-        except ImportError as err:  # an optional dependency of the generator is missing here
-            rows.append({"name": name, "available": False, "reason": _reason(err), "description": ""})
+    for name, reason in registry.available().items():
+        description = ""
+        if reason is None:
+            description = describe(registry.load(name))
+        row = {"name": name, "available": reason is None, "reason": reason or "", "description": description}
+        origin = _origin(registry, name)
+        if origin:
+            row["origin"] = origin
+        elif name not in registry:  # a refused entry point, "name (distribution)"
+            row["origin"] = "refused plug-in"
+        rows.append(row)
     return rows
+
+
+def _first_doc_line(obj) -> str:
+    doc = (obj.__doc__ or "").strip().splitlines()
+    return doc[0] if doc else ""
+
+
+def hole_generators() -> list[dict]:
+    from dpcbench.holes.registry import GENERATORS
+
+    return _registry_rows(GENERATORS, _first_doc_line)
 
 
 def methods() -> list[dict]:
-    from dpcbench.methods.registry import available_methods, method_class
+    from dpcbench.methods.registry import METHODS
 
-    status = available_methods()
-    rows = []
-    for name, reason in status.items():
-        summary = ""
-        if reason is None:
-            summary = str(getattr(method_class(name), "summary", "") or "")
-        rows.append({"name": name, "available": reason is None, "reason": reason or "", "description": summary})
-    return rows
+    return _registry_rows(METHODS, lambda cls: str(getattr(cls, "summary", "") or ""))
 
 
 def metrics() -> list[dict]:
     from dpcbench.metrics.registry import METRICS
 
-    rows = []
-    for name, metric in METRICS.items():
+    def describe(metric) -> str:
         better = "higher" if getattr(metric, "higher_is_better", True) else "lower"
-        unit = getattr(metric, "unit", "")
-        desc = getattr(metric, "description", "")
-        rows.append({"name": name, "available": True, "reason": "",
-                     "description": f"[{unit}, {better} is better] {desc}".strip()})
-    return rows
+        return f"[{metric.unit}, {better} is better] {metric.description}".strip()
+
+    return _registry_rows(METRICS, describe)
 
 
 def run(args) -> int:
@@ -85,6 +93,7 @@ def run(args) -> int:
         width = max((len(r["name"]) for r in rows), default=4)
         for row in rows:
             kind = f"[{row['kind']}] " if row.get("kind") else ""
+            kind += f"[{row['origin']}] " if row.get("origin") else ""
             state = "" if row["available"] else f"  (unavailable: {row['reason']})"
             print(f"  {row['name']:<{width}}  {kind}{row['description']}{state}")
         print()
