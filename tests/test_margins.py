@@ -72,3 +72,188 @@ def test_unknown_role_on_the_command_line_exits_2(tmp_path, seq_dir, capsys):
     assert main(["run", str(config), "--dry-run", "--store", str(tmp_path / "s.sqlite")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "experiment.data_role: expected one of tuning, heldout" in err
+
+
+# -- the margins computation on a hand-made results frame -----------------------------------------
+def _obs(experiment, row, label, method, values, metric="gpsnr_d1", scope="frame", peak="intrinsic"):
+    """Observation rows: values[seed][frame] of one method on one metric."""
+    return [{"experiment": experiment, "row": row, "row_label": label, "method": method, "seed": s, "frame": f,
+             "metric": metric, "scope": scope, "peak": peak, "value": v}
+            for s, frames in enumerate(values) for f, v in enumerate(frames)]
+
+
+def _frame(rows):
+    import pandas as pd
+
+    return pd.DataFrame([r for block in rows for r in block])
+
+
+def _hand_made():
+    """Three rows of 2 seeds x 4 frames (n = 8): a clear win (D1 +5 dB over the best other, D2 +2 dB over
+    no fill), a D1 margin of +1 +- 0.6 dB (inside the noise) and a D2 loss to the floor (-2 dB on every
+    pair); TC one value per seed."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    base = 30 + rng.normal(0, 1, (2, 4))
+    jitter = np.array([[0.6, -0.6, 0.5, -0.5], [0.4, -0.4, 0.6, -0.6]])
+    rows = []
+    for row, label, d1_gain, d2_gain in (("win", "A | win", 5 + 0 * jitter, 2.0),
+                                         ("noise", "B", 1.0 + jitter, 0.5),
+                                         ("floor", "=C", 3 + 0 * jitter, -2.0)):
+        rows += [_obs("tune", row, label, "fusion", base + d1_gain),
+                 _obs("tune", row, label, "graph", base),
+                 _obs("tune", row, label, "none", base - 4),
+                 _obs("tune", row, label, "fusion", base + d2_gain, "gpsnr_d2"),
+                 _obs("tune", row, label, "graph", base - 1, "gpsnr_d2"),
+                 _obs("tune", row, label, "none", base, "gpsnr_d2"),
+                 _obs("tune", row, label, "fusion", 0.1 + 0 * base, "nshd", peak=""),
+                 _obs("tune", row, label, "graph", 0.2 + 0 * base, "nshd", peak=""),
+                 _obs("tune", row, label, "none", 0.3 + 0 * base, "nshd", peak=""),
+                 _obs("tune", row, label, "fusion", [[0.5], [0.6]], "temporal_consistency", "holes", ""),
+                 _obs("tune", row, label, "graph", [[0.7], [0.9]], "temporal_consistency", "holes", ""),
+                 _obs("tune", row, label, "none", [[1.0], [1.0]], "temporal_consistency", "holes", "")]
+    # the same rows held out, with the win turned into a D1 loss to graph
+    held = [dict(r, experiment="held") for r in (x for block in rows for x in block)]
+    for r in held:
+        if r["row"] == "win" and r["metric"] == "gpsnr_d1" and r["method"] == "graph":
+            r["value"] += 10
+    return _frame(rows + [held])
+
+
+def test_margins_of_a_win_a_tie_and_a_loss_to_the_floor():
+    import numpy as np
+
+    from dpcbench.bench.margins import compute_margins
+
+    report = compute_margins(_hand_made(), "fusion", {"tune": ("tuning", None), "held": ("heldout", "tune")})
+    rows = {(r.experiment, r.row): r for r in report.rows}
+    win, noise, floor = rows[("tune", "win")], rows[("tune", "noise")], rows[("tune", "floor")]
+    # clear win: +5 dB over graph (the best other, not none) on every pair; D2 +2 over none
+    assert win.margins["d1"].against == "graph" and win.margins["d1"].margin == pytest.approx(5.0)
+    assert win.margins["d1"].n == 8 and win.margins["d1"].verdict == "met"
+    assert (win.margins["d1"].low, win.margins["d1"].high) == pytest.approx((5.0, 5.0))
+    assert win.margins["d2"].against == "none" and win.margins["d2"].margin == pytest.approx(2.0)
+    assert win.margins["d2"].verdict == "met"
+    # inside the noise: mean +1 (met, as the target is mean >= 1) but the interval straddles +1
+    m = noise.margins["d1"]
+    assert m.margin == pytest.approx(1.0 + np.mean([0.6, -0.6, 0.5, -0.5, 0.4, -0.4, 0.6, -0.6]))
+    assert m.low < 1.0 < m.high and m.verdict == "met, within noise"
+    # loss to the floor: D2 2 dB below no fill on every pair
+    assert floor.margins["d2"].margin == pytest.approx(-2.0) and floor.margins["d2"].verdict == "missed"
+    # NSHD (lower is better): best other 0.2 - 0.1; TC: one value per seed, n = 2, too few for a claim
+    assert win.margins["nshd"].against == "graph" and win.margins["nshd"].margin == pytest.approx(0.1)
+    tc = win.margins["tc"]
+    assert tc.against == "graph" and tc.n == 2 and tc.margin == pytest.approx(0.25)
+    assert tc.verdict == "met, n too small"
+    # the held-out copy: graph now 5 dB above fusion on the win row
+    lost = rows[("held", "win")].margins["d1"]
+    assert lost.margin == pytest.approx(-5.0) and lost.verdict == "missed"
+    # count lines per role, as the issue's targets read
+    d1, d2 = (t for t in report_targets() if t.key in ("d1", "d2"))
+    assert report.count_line("tuning", d1) == ("D1 >= best other + 1 dB on 3 of 3 rows (2 beyond noise; "
+                                               "0 missed beyond noise)")
+    assert report.count_line("heldout", d1).startswith("D1 >= best other + 1 dB on 2 of 3 rows (1 beyond noise; "
+                                                       "1 missed beyond noise)")
+    assert report.count_line("tuning", d2).startswith("D2 at or above no fill on 2 of 3 rows (2 beyond noise; 1 missed")
+    # Markdown: labels escaped; tuning and held-out side by side in the count table
+    text = report.markdown()
+    assert "A \\| win" in text and "| target | tuning data | held-out data |" in text
+    assert "| D1 &gt;= best other + 1 dB | 3 of 3 (2 beyond noise, 0 missed beyond noise) | 2 of 3" in text
+    # CSV: a label a spreadsheet would run as a formula is quoted
+    lines = report.csv().splitlines()
+    assert any(line.startswith("tuning,tune,,'=C,fusion,d2,") for line in lines)
+
+
+def report_targets():
+    from dpcbench.bench.margins import TARGETS
+
+    return TARGETS
+
+
+def test_rows_are_identities_not_labels_and_the_heldout_check():
+    import pandas as pd
+
+    from dpcbench.bench.margins import compute_margins, heldout_check
+
+    obs = _hand_made()
+    obs = obs[obs["experiment"] == "tune"]
+    same_label = obs.assign(row_label="one label")
+    report = compute_margins(same_label, "fusion", {})
+    assert len(report.rows) == 3 and {r.role for r in report.rows} == {"unmarked"}
+    table = pd.DataFrame({"experiment": ["tune", "tune", "held", "held"], "row": ["a", "a", "a", "b"],
+                          "seed": [0, 1, 1, 0]})
+    roles = {"tune": ("tuning", None), "held": ("heldout", "tune")}
+    assert heldout_check(table, roles) == ["held-out check: held shares 1 of 2 damaged inputs (data, damage, seed) "
+                                          "with tune: NOT held out: the same damaged data was tuned on"]
+    assert "not among the experiments read" in heldout_check(table[table["experiment"] == "held"], roles)[0]
+
+
+# -- the command end to end on a tiny store -----------------------------------------------------------
+def _tiny_config(path, seq_dir, name, role, seeds):
+    holds = '\nholds_out = "tiny-tune"' if role == "heldout" else ""
+    path.write_text(f"""[experiment]
+name = "{name}"
+data_role = "{role}"{holds}
+[[sequences]]
+path = "{seq_dir}"
+frames = 3
+label = "sphere | tiny"
+[[holes]]
+generator = "test-ball"
+params = {{ radius = 0.4 }}
+seeds = {seeds}
+label = "ball holes"
+[[methods]]
+name = "test-identity"
+label = "exact"
+[[methods]]
+name = "test-identity"
+params = {{ shift = 0.02 }}
+label = "shifted"
+[[methods]]
+name = "none"
+[metrics]
+names = ["gpsnr_d1", "gpsnr_d2", "nshd"]
+scopes = ["frame", "holes"]
+temporal_consistency = true
+""")
+    return path
+
+
+def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
+    from dpcbench.bench.cli import main
+
+    helpers.register(monkeypatch)
+    seq_dir = helpers.write_sequence(tmp_path / "seq", n_frames=3, n_points=300)
+    store = tmp_path / "s.sqlite"
+    for name, role, seeds in (("tiny-tune", "tuning", "[0, 1]"), ("tiny-held", "heldout", "[5, 6]")):
+        config = _tiny_config(tmp_path / f"{name}.toml", seq_dir, name, role, seeds)
+        assert main(["run", str(config), "--store", str(store), "--jobs", "2", "--quiet"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "margins"
+    assert main(["margins", str(store), "--method", "exact", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert (out / "margins.md").read_text() in text
+    assert "| target | tuning data | held-out data |" in text
+    assert "## held-out data: tiny-held (holds out from tiny-tune)" in text
+    assert "held-out check: tiny-held shares 0 of 2 damaged inputs" in text and "held out" in text
+    # "exact" returns the damaged frames: every pair equals no fill's, so D1 is 0 dB above the best other
+    # (none, tied with it) and misses +1 dB on all 6 pairs (3 frames x 2 seeds) beyond noise; D2 = no fill's: met
+    import csv
+
+    rows = list(csv.DictReader((out / "margins.csv").open()))
+    assert {r["role"] for r in rows} == {"tuning", "heldout"} and len(rows) == 2 * 4
+    d1 = [r for r in rows if r["target"] == "d1"]
+    assert all(float(r["margin"]) == 0 and r["n"] == "6" and r["verdict"] == "missed" for r in d1), d1
+    d2 = [r for r in rows if r["target"] == "d2"]
+    assert all(r["against"] == "none" and float(r["margin"]) == 0 and r["verdict"] == "met, within noise"
+               for r in d2), d2
+    assert all(r["row"] == "sphere | tiny · ball holes" for r in rows)
+    assert "sphere \\| tiny · ball holes" in text
+    # a configuration of several, asked by its registry name, and an unknown experiment: one-line errors
+    assert main(["margins", str(store), "--method", "test-identity"]) == 2
+    assert "2 configurations of it (exact, shifted)" in capsys.readouterr().err
+    assert main(["margins", str(store), "--experiments", "nope"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no experiment 'nope'" in err
