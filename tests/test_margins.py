@@ -257,3 +257,68 @@ def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
     assert main(["margins", str(store), "--experiments", "nope"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "no experiment 'nope'" in err
+
+
+# -- the oracle fill ------------------------------------------------------------------------------
+def _plane_with_hole(radius: float = 6.0):
+    """A 41 x 41 unit grid on z = 0 and the same with a disc of ``radius`` around its centre removed."""
+    import numpy as np
+
+    g = np.arange(41.0)
+    truth = np.column_stack([np.repeat(g, 41), np.tile(g, 41), np.zeros(41 * 41)])
+    mask = np.linalg.norm(truth[:, :2] - 20.0, axis=1) <= radius
+    return truth, truth[~mask], mask
+
+
+def test_oracle_on_a_plane_with_a_hole():
+    import numpy as np
+
+    from dpcbench.bench.oracle import missing_points, off_surface_rms, oracle_fill, score_oracles
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    truth, damaged, mask = _plane_with_hole()
+    # the missing points, found with the mask or by matching, are the removed ones
+    assert np.array_equal(missing_points(truth, damaged), truth[mask])
+    surface = oracle_fill(truth, damaged, "surface", mask=mask, seed=3)
+    fill = surface[len(damaged):]
+    assert len(fill) == mask.sum() and np.all(fill[:, 2] == 0)  # on the plane, at the truth's density
+    offsets = np.abs(fill[:, :2] - truth[mask][:, :2])
+    assert offsets.max() <= 0.5 and offsets.max() > 0.3  # moved within half the spacing, not left in place
+    scores = score_oracles([truth], [damaged], masks=[mask], sigma=0.2)
+    d1 = {v: s["frame"]["mean"]["gpsnr_d1"] for v, s in scores.items()}
+    d2 = {v: s["frame"]["mean"]["gpsnr_d2"] for v, s in scores.items()}
+    # closed form: every surface sample lies on the plane, so its point-to-plane error is 0: D2 at the ceiling
+    assert d2["surface"] == DEFAULT_MAX_PSNR and d1["truth"] == d2["truth"] == DEFAULT_MAX_PSNR
+    assert d1["none"] < d1["jitter"] and d1["none"] < d1["surface"] < d1["truth"]
+    assert d2["jitter"] < DEFAULT_MAX_PSNR
+    more = score_oracles([truth], [damaged], ["jitter"], masks=[mask], sigma=0.4)["jitter"]["frame"]["mean"]
+    assert more["gpsnr_d2"] < d2["jitter"]
+    # a method's off-surface error: its fill 0.3 above the plane
+    lifted = np.vstack([damaged, truth[mask] + [0, 0, 0.3]])
+    rms, count = off_surface_rms(truth, damaged, lifted)
+    assert count == mask.sum() and rms == pytest.approx(0.3)
+
+
+def test_oracle_command(tmp_path, capsys):
+    import json
+
+    import numpy as np
+
+    from dpcbench.bench.cli import main
+    from dpcbench.bench.sequences import save_sequence
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    truth, damaged, mask = _plane_with_hole()
+    save_sequence([truth, truth], tmp_path / "truth", prefix="t")
+    save_sequence([damaged, damaged], tmp_path / "damaged", prefix="d")
+    lifted = np.vstack([damaged, truth[mask] + [0, 0, 0.25]])
+    save_sequence([lifted, lifted], tmp_path / "result", prefix="r")
+    argv = ["oracle", str(tmp_path / "truth"), str(tmp_path / "damaged"), "--json"]
+    assert main(argv + ["--method-result", str(tmp_path / "result")]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["sigma"] == pytest.approx(0.25, rel=1e-6)
+    assert payload["measured"]["fill_points"] == 2 * mask.sum()
+    assert set(payload["variants"]) == {"none", "surface", "jitter", "truth"}
+    assert payload["variants"]["surface"]["frame"]["gpsnr_d2"] == DEFAULT_MAX_PSNR
+    assert main(argv[:-1] + ["--variant", "jitter"]) == 2
+    assert "give its sigma with --jitter SIGMA" in capsys.readouterr().err
