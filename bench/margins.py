@@ -26,6 +26,13 @@ included; every configuration of every other method, ``none`` too). A target is 
     met / missed, within noise     otherwise
     ..., n too small       n < stats.min_pairs(1): no test of n pairs can reach ALPHA
 
+With the surface oracle (`oracle_observations`, ``dpcbench margins --oracle``: samples on the ground
+truth's own surface at the damaged frame's spacing, `bench.oracle`, scored on each cell's damaged
+frames as the runs are scored) two more margins are shown: the oracle's D1 minus the best method
+other than the measured one, and its D2 minus no fill. A row where the method misses a target and
+the oracle misses it too, beyond noise, is out of reach by measurement (`out_of_reach_line`). The
+oracle is never "another method" of a row.
+
 A role (`experiment.data_role` in the config: "tuning" or "heldout") is read from the runs' stored
 specs, else from the preset (bench/presets/*.toml) of that experiment name (runs recorded before
 the key existed), else "unmarked". The held-out check counts the damaged inputs (data, damage,
@@ -99,6 +106,18 @@ TARGETS = (
 )
 
 
+#: observations of an oracle fill (`bench.oracle`) carry this method label prefix; they are never "another method"
+ORACLE_PREFIX = "oracle: "
+#: the oracle margins shown beside the method's (`add_oracle`): what a fill on the truth's own surface
+#: reaches against the same references as the method's D1 and D2 targets
+ORACLE_TARGETS = (
+    Target("oracle_d1", "surface oracle D1 >= best other + 1 dB", "gpsnr_d1", "frame", "intrinsic", "best", 1.0,
+           True, "surface oracle: D1 − best other (dB)"),
+    Target("oracle_d2", "surface oracle D2 at or above no fill", "gpsnr_d2", "frame", "intrinsic", "floor", 0.0,
+           True, "surface oracle: D2 − no fill (dB)"),
+)
+
+
 @dataclass
 class Margin:
     target: Target
@@ -153,13 +172,31 @@ class MarginReport:
     roles: dict[str, tuple[str, str | None]]   # experiment -> (role, holds_out)
     notes: list[str] = field(default_factory=list)
 
+    def targets(self) -> tuple[Target, ...]:
+        """TARGETS, and ORACLE_TARGETS where an oracle was scored (`add_oracle`)."""
+        with_oracle = any(t.key in r.margins for r in self.rows for t in ORACLE_TARGETS)
+        return TARGETS + (ORACLE_TARGETS if with_oracle else ())
+
+    def out_of_reach_line(self, role: str) -> str | None:
+        """How many rows that miss a D1 / D2 target the surface oracle misses too, beyond noise."""
+        if not any(t.key in r.margins for r in self.rows if r.role == role for t in ORACLE_TARGETS):
+            return None
+        parts = []
+        for mine, oracle in (("d1", "oracle_d1"), ("d2", "oracle_d2")):
+            rows = [r for r in self.rows if r.role == role and oracle in r.margins and r.margins[mine].defined
+                    and not r.margins[mine].met]
+            beyond = sum(1 for r in rows if not r.margins[oracle].met and r.margins[oracle].beyond_noise)
+            parts.append(f"{mine.upper()}: {beyond} of the {len(rows)} rows that miss it")
+        return "out of reach by measurement (the surface oracle misses the same target beyond noise): " + "; ".join(parts)
+
     def roles_present(self) -> list[str]:
         have = {r.role for r in self.rows}
         return [r for r in ROLES if r in have]
 
     def counts(self, role: str, target: Target) -> dict[str, int]:
         """rows (with a value), met, met beyond noise, missed beyond noise, for one role and target."""
-        margins = [r.margins[target.key] for r in self.rows if r.role == role and r.margins[target.key].defined]
+        margins = [r.margins[target.key] for r in self.rows
+                   if r.role == role and target.key in r.margins and r.margins[target.key].defined]
         return {"rows": len(margins), "met": sum(m.met for m in margins),
                 "met_beyond": sum(m.met and m.beyond_noise for m in margins),
                 "missed_beyond": sum((not m.met) and m.beyond_noise for m in margins)}
@@ -175,9 +212,10 @@ class MarginReport:
         if command:
             lines += [f"Made by `{command}`.", ""]
         roles = self.roles_present()
+        targets = self.targets()
         lines += ["| target | " + " | ".join(ROLE_TITLES[r] for r in roles) + " |",
                   "|---|" + "---|" * len(roles)]
-        for t in TARGETS:
+        for t in targets:
             cells = []
             for r in roles:
                 c = self.counts(r, t)
@@ -191,16 +229,20 @@ class MarginReport:
                 md_escape(e) + (f" (holds out from {md_escape(self.roles[e][1])})" if self.roles[e][1] else "")
                 for e in exps))
             lines.append("")
-            heads = ["row", "experiment", "D1 / D2"] + [t.heading for t in TARGETS]
+            heads = ["row", "experiment", "D1 / D2"] + [t.heading for t in targets]
             lines += ["| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
             for r in (x for x in self.rows if x.role == role):
                 d1d2 = f"{_num(r.means.get('d1'))} / {_num(r.means.get('d2'))}"
                 cells = [md_escape(r.label), md_escape(r.experiment), d1d2]
-                cells += [md_escape(_margin_cell(r.margins[t.key])) for t in TARGETS]
+                cells += [md_escape(_margin_cell(r.margins[t.key])) if t.key in r.margins else "–"
+                          for t in targets]
                 lines.append("| " + " | ".join(cells) + " |")
             lines.append("")
-            for t in TARGETS:
+            for t in targets:
                 lines.append(f"- {md_escape(self.count_line(role, t))}")
+            reach = self.out_of_reach_line(role)
+            if reach:
+                lines.append(f"- {md_escape(reach)}")
             lines.append("")
         lines += ["Each margin: mean of the paired differences d over (seed, frame) pairs, oriented so that "
                   "d > 0 is better for the method, [paired bootstrap 95% interval], the method it is measured "
@@ -213,13 +255,16 @@ class MarginReport:
         return "\n".join(lines).rstrip() + "\n"
 
     def csv(self) -> str:
+        targets = self.targets()
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(["role", "experiment", "holds_out", "row", "method", "target", "metric", "scope", "peak",
                          "against", "method_mean", "against_mean", "margin", "low", "high", "n", "threshold",
                          "p_value", "met", "verdict"])
         for r in self.rows:
-            for t in TARGETS:
+            for t in targets:
+                if t.key not in r.margins:
+                    continue
                 m = r.margins[t.key]
                 writer.writerow([r.role, csv_safe(r.experiment), csv_safe(self.roles[r.experiment][1] or ""),
                                  csv_safe(r.label), csv_safe(r.method), t.key, t.metric, t.scope, t.peak,
@@ -302,11 +347,20 @@ def compute_margins(obs: pd.DataFrame, method: str, roles: dict[str, tuple[str, 
             continue
         role = roles.get(experiment, ("unmarked", None))[0]
         result = MarginRow(experiment, role, row, str(block["row_label"].iloc[0]), method)
+        is_oracle = block["method"].astype(str).str.startswith(ORACLE_PREFIX)
+        methods, oracles = block[~is_oracle], block[is_oracle]
         for t in TARGETS:
-            sub = block[(block["metric"] == t.metric) & (block["scope"] == t.scope) & (block["peak"] == t.peak)]
+            sub = methods[(methods["metric"] == t.metric) & (methods["scope"] == t.scope)
+                          & (methods["peak"] == t.peak)]
             result.margins[t.key] = margin(_pairs(sub), method, t)
             if t.key in ("d1", "d2"):
                 result.means[t.key] = result.margins[t.key].method_mean
+        surface = ORACLE_PREFIX + "surface"
+        if (oracles["method"] == surface).any():
+            for t in ORACLE_TARGETS:
+                keep = (block["metric"] == t.metric) & (block["scope"] == t.scope) & (block["peak"] == t.peak)
+                sub = block[keep & (~is_oracle | (block["method"] == surface)) & (block["method"] != method)]
+                result.margins[t.key] = margin(_pairs(sub), surface, t)
         rows.append(result)
     if not rows:
         raise UserError(f"no row holds results of {method!r}; check --method and --experiments")
@@ -335,8 +389,8 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
     from dpcbench.bench.config import RunSpec
 
     records = []
-    for run_id, experiment, spec_text, finished in zip(runs["run_id"], runs["experiment"], runs["spec"],
-                                                      runs["finished_at"]):
+    for run_id, experiment, spec_text, finished, output_dir in zip(runs["run_id"], runs["experiment"], runs["spec"],
+                                                                  runs["finished_at"], runs["output_dir"]):
         spec = json.loads(spec_text) if spec_text else {}
         if not spec.get("sequence"):
             continue
@@ -352,10 +406,12 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
                         "method_name": spec["method"]["name"], "method_params": _canonical(spec["method"]["params"]),
                         "method_label": spec["method"].get("label"), "seed": int(seed),
                         "declared_role": spec.get("data_role"), "declared_holds_out": spec.get("holds_out"),
-                        "spec_experiment": spec.get("experiment"), "finished_at": finished or ""})
+                        "spec_experiment": spec.get("experiment"), "finished_at": finished or "",
+                        "output_dir": output_dir if isinstance(output_dir, str) else None,
+                        "sequence_spec": _canonical(spec["sequence"])})
     return pd.DataFrame(records, columns=["run_id", "experiment", "row", "row_label", "method_name", "method_params",
                                           "method_label", "seed", "declared_role", "declared_holds_out",
-                                          "spec_experiment", "finished_at"])
+                                          "spec_experiment", "finished_at", "output_dir", "sequence_spec"])
 
 
 def preset_roles(folder: Path = PRESETS) -> dict[str, tuple[str, str | None]]:
@@ -432,9 +488,49 @@ def store_observations(results: pd.DataFrame, runs: pd.DataFrame, experiments: l
     return df[OBS_COLUMNS], table
 
 
-def margins_from_store(store, method: str, experiments: list[str] | None = None) -> MarginReport:
+def oracle_observations(table: pd.DataFrame, method: str) -> tuple[pd.DataFrame, list[str]]:
+    """The surface oracle (`bench.oracle`) scored like a method on the damaged frames of every
+    (experiment, row, seed) where ``method`` ran: whole-frame D1, D2 (intrinsic peak, the truth's own
+    normals where it has them, as the runs are scored) and NSHD, as observations labelled
+    ``ORACLE_PREFIX + "surface"``; and notes on cells whose run folder is gone. Frame f of seed s is
+    sampled with seed f."""
+    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.oracle import score_oracles
+    from dpcbench.bench.provenance import read_run_folder
+
+    records, notes, truths = [], [], {}
+    cells = table[table["method"] == method][["experiment", "row", "seed"]].drop_duplicates()
+    for experiment, row, seed in cells.itertuples(index=False):
+        cell = table[(table["experiment"] == experiment) & (table["row"] == row) & (table["seed"] == seed)]
+        cell = cell.sort_values("method_name", key=lambda m: m != FLOOR, kind="stable")  # the floor's run first
+        folder = next((Path(d) for d in cell["output_dir"] if d and (Path(d) / "manifest.json").is_file()), None)
+        label = cell["row_label"].iloc[0]
+        if folder is None:
+            notes.append(f"oracle: {experiment} · {label} · seed {seed}: no run folder left with its damaged frames; "
+                         "not scored")
+            continue
+        key = cell["sequence_spec"].iloc[0]
+        if key not in truths:
+            truths[key] = load_run_sequence(json.loads(key))
+        truth = truths[key]
+        damaged = read_run_folder(folder)["damaged"]
+        normals = [f.normals for f in truth.frames]
+        scores = score_oracles(truth.points, damaged, ["surface"],
+                               reference_normals=normals if any(n is not None for n in normals) else None)
+        for f, values in enumerate(scores["surface"]["frame"]["frames"]):
+            for metric in ("gpsnr_d1", "gpsnr_d2", "nshd"):
+                records.append({"experiment": experiment, "row": row, "row_label": label,
+                                "method": ORACLE_PREFIX + "surface", "seed": int(seed), "frame": f, "metric": metric,
+                                "scope": "frame", "peak": "intrinsic" if metric.startswith("gpsnr") else "",
+                                "value": values.get(metric, math.nan)})
+    return pd.DataFrame(records, columns=OBS_COLUMNS), notes
+
+
+def margins_from_store(store, method: str, experiments: list[str] | None = None, *,
+                       oracle: bool = False) -> MarginReport:
     """`compute_margins` of ``method`` over the experiments of a `bench.store.ResultsStore` (default:
-    every experiment that holds a run of the method)."""
+    every experiment that holds a run of the method); ``oracle``: with the surface oracle's margins
+    (`oracle_observations`: every row's sequence is loaded and scored once more)."""
     known = store.experiments()
     if experiments:
         unknown = [e for e in experiments if e not in known]
@@ -458,4 +554,8 @@ def margins_from_store(store, method: str, experiments: list[str] | None = None)
     label = method if method in set(table["method"]) or not labels else labels[0]
     roles, notes = resolve_roles(table)
     notes += heldout_check(table, roles)
+    if oracle:
+        extra, oracle_notes = oracle_observations(table, label)
+        obs = pd.concat([obs, extra], ignore_index=True)
+        notes += oracle_notes
     return compute_margins(obs, label, roles, notes)

@@ -232,7 +232,7 @@ def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
         assert main(["run", str(config), "--store", str(store), "--jobs", "2", "--quiet"]) == 0
     capsys.readouterr()
     out = tmp_path / "margins"
-    assert main(["margins", str(store), "--method", "exact", "--out", str(out)]) == 0
+    assert main(["margins", str(store), "--method", "exact", "--oracle", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert (out / "margins.md").read_text() in text
     assert "| target | tuning data | held-out data |" in text
@@ -243,7 +243,11 @@ def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
     import csv
 
     rows = list(csv.DictReader((out / "margins.csv").open()))
-    assert {r["role"] for r in rows} == {"tuning", "heldout"} and len(rows) == 2 * 4
+    assert {r["role"] for r in rows} == {"tuning", "heldout"} and len(rows) == 2 * 6
+    # the surface oracle, scored on each cell's damaged frames: 6 pairs against the same references
+    oracle = [r for r in rows if r["target"] == "oracle_d2"]
+    assert len(oracle) == 2 and all(r["against"] == "none" and r["n"] == "6" for r in oracle), oracle
+    assert "surface oracle: D2 − no fill (dB)" in text
     d1 = [r for r in rows if r["target"] == "d1"]
     assert all(float(r["margin"]) == 0 and r["n"] == "6" and r["verdict"] == "missed" for r in d1), d1
     d2 = [r for r in rows if r["target"] == "d2"]
@@ -322,3 +326,25 @@ def test_oracle_command(tmp_path, capsys):
     assert payload["variants"]["surface"]["frame"]["gpsnr_d2"] == DEFAULT_MAX_PSNR
     assert main(argv[:-1] + ["--variant", "jitter"]) == 2
     assert "give its sigma with --jitter SIGMA" in capsys.readouterr().err
+
+
+def test_a_row_out_of_reach_by_measurement():
+    """The method misses D2 against no fill on the floor row; a surface oracle 1 dB below no fill on
+    every pair misses it too: that row is out of reach by measurement."""
+    import pandas as pd
+
+    from dpcbench.bench.margins import ORACLE_PREFIX, compute_margins
+
+    obs = _hand_made()
+    obs = obs[obs["experiment"] == "tune"]
+    none = obs[(obs["method"] == "none") & obs["metric"].isin(["gpsnr_d1", "gpsnr_d2"])]
+    oracle = none.assign(method=ORACLE_PREFIX + "surface",
+                         value=none["value"] + [8.0 if m == "gpsnr_d1" else -1.0 for m in none["metric"]])
+    report = compute_margins(pd.concat([obs, oracle]), "fusion", {"tune": ("tuning", None)})
+    floor = next(r for r in report.rows if r.row == "floor")
+    assert floor.margins["oracle_d2"].margin == pytest.approx(-1.0) and floor.margins["oracle_d2"].verdict == "missed"
+    # the oracle is never "another method": the best other stays graph, and the oracle's D1 is measured
+    # against the best other than the method (graph: none + 4; oracle none + 8)
+    assert floor.margins["d1"].against == "graph" and floor.margins["oracle_d1"].margin == pytest.approx(4.0)
+    assert report.out_of_reach_line("tuning").endswith("D1: 0 of the 0 rows that miss it; D2: 1 of the 1 rows that "
+                                                       "miss it")

@@ -24,6 +24,10 @@ def register(subparsers) -> None:
                    "name, or a configuration's label when the store holds several)")
     p.add_argument("--experiments", nargs="+", default=None, metavar="NAME",
                    help="experiments to read (default: every one holding a run of the method)")
+    p.add_argument("--oracle", action="store_true",
+                   help="also score the surface oracle (samples on the ground truth's own surface, `dpcbench oracle`) "
+                        "on every row's damaged frames: its D1 - best other and D2 - no fill show which targets are "
+                        "out of reach of any fill; loads every sequence again (minutes on a full grid)")
     p.add_argument("--out", default=None, help="folder for margins.md and margins.csv")
     p.add_argument("--overwrite", action="store_true",
                    help="replace existing files in the output folder that dpcbench did not write")
@@ -39,10 +43,12 @@ def main(args) -> int:
     store = ResultsStore(resolve_store(args.store), readonly=True, verify=True)
     guard = Outputs(args.overwrite, inputs=[store.path])
     out = guard.folder(args.out, "--out", names=["margins.md", "margins.csv"]) if args.out else None
-    report = margins_from_store(store, args.method, args.experiments)
+    report = margins_from_store(store, args.method, args.experiments, oracle=args.oracle)
     words = ["dpcbench", "margins", str(args.store), "--method", args.method]
     if args.experiments:
         words += ["--experiments", *args.experiments]
+    if args.oracle:
+        words.append("--oracle")
     text = report.markdown(" ".join(shlex.quote(w) for w in words))
     print(text, end="")
     if out is not None:
