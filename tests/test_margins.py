@@ -348,3 +348,22 @@ def test_a_row_out_of_reach_by_measurement():
     assert floor.margins["d1"].against == "graph" and floor.margins["oracle_d1"].margin == pytest.approx(4.0)
     assert report.out_of_reach_line("tuning").endswith("D1: 0 of the 0 rows that miss it; D2: 1 of the 1 rows that "
                                                        "miss it")
+
+
+def test_roles_of_runs_stored_before_the_key_come_from_the_presets():
+    import pandas as pd
+
+    from dpcbench.bench.margins import preset_roles, resolve_roles
+
+    presets = preset_roles()
+    assert presets["fusion-targets"] == ("tuning", None)
+    assert presets["fusion-heldout-frames"] == ("heldout", "fusion-targets")
+    table = pd.DataFrame({"experiment": ["fusion-heldout", "mine", "new"], "spec_experiment": ["fusion-heldout", "mine",
+                                                                                              "new"],
+                          "declared_role": [None, None, "heldout"], "declared_holds_out": [None, None, "mine"],
+                          "finished_at": ["a", "b", "c"]})
+    roles, notes = resolve_roles(table, presets)
+    assert roles == {"fusion-heldout": ("heldout", "fusion-targets"), "mine": ("unmarked", None),
+                     "new": ("heldout", "mine")}
+    assert any(n.startswith("fusion-heldout: its runs record no data role") for n in notes)
+    assert any(n.startswith("mine: no data role declared") for n in notes)
