@@ -12,6 +12,10 @@ grids), and the metrics with their options::
                                     # on each damaged frame: the real-hole protocol) or "none" (blind)
     detection = { min_points = 5 }  # with regions = "detected": keyword arguments of detect_holes
     data_dir = "/data/8i"           # where named paper sequences (longdress, ...) are found
+    data_role = "heldout"           # optional: "tuning" (data a method's defaults were judged on) or
+                                    # "heldout" (data they never saw); recorded in every run's spec
+    holds_out = "my-tuning-sweep"   # with data_role = "heldout" (required there): the experiment
+                                    # name of the tuning data it is held out from (`dpcbench margins`)
 
     [[sequences]]
     name = "human"                  # an embedded, paper or mesh (samba) dataset name (bench.datasets), or ...
@@ -48,7 +52,8 @@ Run ids. ``inpaint_key = H(sequence spec, data fingerprint, holes spec + seed + 
 method spec + method version, protocol [+ detector version])`` names the inpainted frames on disk;
 ``run_id = H(inpaint_key, metrics spec + metric versions)``. H is the first 16 hex digits of the
 SHA-256 of canonical JSON (sorted keys, floats that are whole numbers written as ints, so 1 and 1.0
-give the same id). Labels and descriptions are presentation only and never change an id. The data
+give the same id). Labels, descriptions and the data role (``data_role``, ``holds_out``) are
+presentation only and never change an id. The data
 fingerprint is the dataset's name and parameters (embedded data, generated deterministically) or
 the name, size and modification time of every frame file (folders).
 
@@ -86,7 +91,9 @@ DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
-_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection"}
+_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection", "data_role", "holds_out"}
+#: values of experiment.data_role: data a method was tuned on, and data it never saw
+DATA_ROLES = ("tuning", "heldout")
 REGION_MODES = ("given", "detected", "none")
 _SEQUENCE_KEYS = {"name", "path", "params", "frames", "label", "optional"}
 _HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
@@ -150,6 +157,10 @@ class RunSpec:
     protocol: dict
     versions: dict
     timeout_s: float = DEFAULT_TIMEOUT_S
+    #: the experiment's data role ("tuning" | "heldout" | None) and the tuning experiment a held-out
+    #: one holds out from: recorded with the run, never hashed (presentation, like labels)
+    data_role: str | None = None
+    holds_out: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -376,6 +387,8 @@ class ExperimentConfig:
     regions: str = "given"
     detection: dict = field(default_factory=dict)
     data_dir: str | None = None
+    data_role: str | None = None
+    holds_out: str | None = None
     sequences: list[dict] = field(default_factory=list)
     holes: list[dict] = field(default_factory=list)
     methods: list[dict] = field(default_factory=list)
@@ -456,8 +469,17 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
     regions = exp.get("regions", "given")
     if regions not in REGION_MODES:
         raise ConfigError(f"experiment.regions: expected one of {', '.join(REGION_MODES)}, got {regions!r}")
+    role, holds_out = exp.get("data_role"), exp.get("holds_out")
+    if role is not None and role not in DATA_ROLES:
+        raise ConfigError(f"experiment.data_role: expected one of {', '.join(DATA_ROLES)}, got {role!r}")
+    if holds_out is not None and role != "heldout":
+        raise ConfigError("experiment.holds_out: only with data_role = \"heldout\"; set data_role or remove it")
+    if role == "heldout" and (not isinstance(holds_out, str) or not holds_out or holds_out == exp["name"]):
+        raise ConfigError(f"experiment.holds_out: a held-out experiment names the tuning experiment it holds out "
+                          f"from (another experiment's name), got {holds_out!r}")
     cfg = ExperimentConfig(name=exp["name"], description=str(exp.get("description", "")), timeout_s=float(timeout),
-                           regions=regions, data_dir=exp.get("data_dir"), source=source)
+                           regions=regions, data_dir=exp.get("data_dir"), data_role=role, holds_out=holds_out,
+                           source=source)
     detection = exp.get("detection", {})
     if detection:
         if regions != "detected":
@@ -628,7 +650,7 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
                     protocol=copy.deepcopy(protocol),
                     versions={"method": meth["version"], "generator": hole["version"], "data": fingerprint,
                               "metrics": metric_versions, **detector},
-                    timeout_s=cfg.timeout_s,
+                    timeout_s=cfg.timeout_s, data_role=cfg.data_role, holds_out=cfg.holds_out,
                 )
                 compute_ids(spec)
                 if spec.run_id not in seen:  # the same run listed twice in a grid runs once

@@ -25,6 +25,7 @@ from dpcbench.bench.paper_facts import (  # noqa: F401  (re-exported: bench.pape
 #: column is one line here (reproduce-paper runs exactly these; tests/test_reports.py checks that
 #: the paper presets list the same methods for `dpcbench run paper-quick`).
 TABLE_COLUMNS: list[tuple[str, str, dict, str]] = [
+    ("none", "No fill (floor)", {}, "floor"),
     ("meshlab", "Meshlab", {"output": "whole"}, "paper"),
     ("lozes-pde", "Lozes", {}, "paper"),
     ("fu-nonlocal", "Hu", {"variant": "paper"}, "paper"),
@@ -33,7 +34,8 @@ TABLE_COLUMNS: list[tuple[str, str, dict, str]] = [
     ("temporal-fusion", "temporal-fusion (ours)", {}, "ours"),
     ("temporal-copy", "temporal-copy (reference)", {}, "reference"),
 ]
-ROLES = {"paper": "the paper's column, in the paper configuration", "ours": "ours (not in the paper)",
+ROLES = {"floor": "the floor: the damaged input, holes left open (not in the paper)",
+         "paper": "the paper's column, in the paper configuration", "ours": "ours (not in the paper)",
          "reference": "reference (not in the paper)"}
 
 #: (registry name, column label in the paper, parameters) of the paper's four columns, in its order
@@ -103,7 +105,8 @@ def columns_caption() -> str:
             f"(Hu: {HU_ET_AL}): Hu and "
             "Proposed in the paper configuration (variant=paper: every step as the paper writes it, every addition "
             "of ours off), MeshLab resampling the whole frame as the paper describes, Lozes as lozes-pde implements "
-            "Lozes et al.; '(ours)' and '(reference)' columns are not in the paper. Every parameter value: "
+            "Lozes et al.; '(ours)' and '(reference)' columns are not in the paper, nor is the floor (no fill: the damaged "
+            "input unchanged). Every parameter value: "
             "REPORT.md, 'Columns'.")
 
 

@@ -120,6 +120,7 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
 def _label_rows_and_methods(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
     """Methods take their config labels (or name + distinguishing parameters); rows as `hole_rows`."""
     df = hole_rows(df, runs)
+    df["registry_method"] = df["method"]  # the floor (registry method "none") is found by its name, not its label
     df["method"] = method_labels(df, given=given_labels(runs, "method"))
     df["method_params"] = "{}"
     return df

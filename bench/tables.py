@@ -1,13 +1,18 @@
 """Method comparison tables in the paper's layout (rows = sequences, columns = methods), shared by
 `reproduce-paper` and `report`.
 
-A cell is the mean ± standard deviation over frames (every frame of every run of that sequence and
-method: several seeds pool their frames) of one metric in one scope with one PSNR peak, read from the
-results store's tidy table (`bench.store.ResultsStore.results_frame`). Standard deviation is the
-sample one (ddof=1; a cell of a single value shows the value alone). The best mean of each row is bold (highest for
-higher-is-better metrics, lowest otherwise). The paper's published values, when given, are printed
-as extra rows "<sequence> (paper)" with their own best in bold. The conventions (metric, peak,
-scope, scale, frames) are printed under every table.
+A cell is the mean over the values of one metric in one scope with one PSNR peak, one value per
+(frame, seed) of the row's sequence and damage (several seeds pool their frames), read from the
+results store's tidy table (`bench.store.ResultsStore.results_frame`), with the Student-t 95%
+interval of that mean (`bench.stats.mean_interval`). Columns are compared paired, on the same
+(frame, seed) pairs (`bench.stats.row_verdict`): bold marks the row's best when it is better than
+every other column beyond its interval (Wilcoxon signed-rank, Holm-corrected, and a paired bootstrap
+interval), `TIED_MARK` every column not distinguishable from the best; a row with too few pairs for
+any claim has no bold and the caption says why. `FLOOR_MARK` marks a cell worse than the floor
+(`FLOOR_METHOD`, the damaged input left as it is). Every value of a table has the same number of
+decimals. The paper's published values, when given, are printed as extra rows "<sequence> (paper)"
+with their own best in bold. The conventions (metric, peak, scope, scale, n, the test) are printed
+under every table. Labels are escaped for each format (`md_escape`, `latex_escape`, `csv_safe`).
 """
 
 from __future__ import annotations
@@ -18,7 +23,10 @@ import json
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
 import pandas as pd
+
+from dpcbench.bench import stats
 
 
 def higher_is_better(metric: str) -> bool | None:
@@ -75,9 +83,51 @@ def given_labels(runs: pd.DataFrame, part: str) -> dict:
     return out
 
 
+#: marks of a cell (Markdown and CSV text; LaTeX has its own): tied with the row's best, and below the floor
+TIED_MARK = "†"
+FLOOR_MARK = "▽"
+#: the registry method that leaves the damaged input unchanged: every comparison's floor
+FLOOR_METHOD = "none"
+
+
+def md_escape(text) -> str:
+    """A label as one Markdown table cell: backslash, ``|``, ``*``, ``_`` and backtick escaped, ``<``,
+    ``>`` and ``&`` as HTML entities (no raw HTML), line breaks as spaces."""
+    text = " ".join(str(text).splitlines())
+    for ch in ("\\", "|", "*", "_", "`"):
+        text = text.replace(ch, "\\" + ch)
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+_LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
+          "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "±": r"$\pm$", "–": "--", "—": "---",
+          "·": r"$\cdot$", "×": r"$\times$", "≈": r"$\approx$", "<": r"\textless{}", ">": r"\textgreater{}",
+          TIED_MARK: r"$^{\dagger}$", FLOOR_MARK: r"$^{\nabla}$", "\n": " ", "\r": " "}
+
+
+def latex_escape(text) -> str:
+    """Text for LaTeX: its special characters (``\\ & % $ # _ { } ~ ^``) escaped, ``±·×≈–—`` and the
+    cell marks as LaTeX, line breaks as spaces."""
+    return "".join(_LATEX.get(ch, ch) for ch in str(text))
+
+
+def csv_safe(value):
+    """A CSV field that a spreadsheet will not run as a formula: text starting with ``= + - @``, a tab
+    or a carriage return gets a ``'`` prefix (numbers are left as they are)."""
+    if isinstance(value, str) and value[:1] in ("=", "+", "-", "@", "\t", "\r"):
+        return "'" + value
+    return value
+
+
 @dataclass
 class ComparisonTable:
-    """rows x columns of mean/std/n; ``paper``: row -> column -> value (already in display scale)."""
+    """rows x columns of one metric; ``paper``: row -> column -> value (already in display scale).
+
+    mean / std / n: per (row, column), the mean, the sample standard deviation (ddof=1) and the
+    count of the cell's values; observations: per (row, column), {(frame, seed): value} (unscaled),
+    the pairs `bench.stats` compares; ``floor``: the column that leaves the holes open (no fill).
+    A cell shows its mean and the Student-t 95% interval of the mean (`bench.stats.mean_interval`).
+    """
 
     title: str
     metric: str
@@ -94,27 +144,69 @@ class ComparisonTable:
     decimals: int | None = 2
     paper: dict | None = None
     notes: list[str] = field(default_factory=list)
+    observations: dict = field(default_factory=dict)
+    floor: str | None = None
 
     def best(self, row: str, values: dict) -> str | None:
+        """The column of the row's best mean (no statistics: see `verdict`)."""
         present = {c: values[(row, c)] for c in self.columns if (row, c) in values and not math.isnan(values[(row, c)])}
         if not present or self.higher_is_better is None:
             return None
         pick = max if self.higher_is_better else min
         return pick(present, key=present.get)
 
-    def _cell(self, row, col, bold: bool, fmt_bold) -> str:
-        if (row, col) not in self.mean:
-            return "–"
-        m, s = self.mean[(row, col)] * self.scale, self.std[(row, col)] * self.scale
-        # one value (e.g. a sequence-level metric of one run) has no spread to show
-        text = self._fmt(m) if self.n[(row, col)] < 2 else f"{self._fmt(m)} ± {self._fmt(s)}"
-        return fmt_bold(text) if bold else text
+    def verdict(self, row: str) -> stats.RowVerdict:
+        """`bench.stats.row_verdict` of the row's columns, over their (frame, seed) pairs."""
+        cache = self.__dict__.setdefault("_verdicts", {})
+        if row not in cache:
+            cache[row] = stats.row_verdict({c: self.observations[(row, c)] for c in self.columns
+                                            if (row, c) in self.observations}, self.higher_is_better)
+        return cache[row]
+
+    def interval(self, row: str, col: str) -> tuple[float, float]:
+        """The 95% interval of the cell's mean, unscaled ((nan, nan) for fewer than 2 values)."""
+        values = list(self.observations.get((row, col), {}).values())
+        return stats.mean_interval(values)
+
+    def below_floor(self, row: str, col: str) -> bool:
+        """Whether the cell's mean is worse than the floor column's mean of its row."""
+        if (self.floor is None or col == self.floor or self.higher_is_better is None
+                or (row, col) not in self.mean or (row, self.floor) not in self.mean):
+            return False
+        m, f = self.mean[(row, col)], self.mean[(row, self.floor)]
+        return m < f if self.higher_is_better else m > f
+
+    def _digits(self) -> int:
+        """Decimals of every value of the table: ``decimals``, or (None) enough for 3 significant
+        digits of the smallest non-zero mean, at least 2 and at most 6."""
+        if self.decimals is not None:
+            return self.decimals
+        values = [abs(v * self.scale) for v in self.mean.values() if v and math.isfinite(v)]
+        if not values:
+            return 2
+        return int(min(6, max(2, 2 - math.floor(math.log10(min(values))))))
 
     def _fmt(self, x: float) -> str:
-        """``decimals`` fixed decimals; with decimals=None, 2 decimals for |x| >= 1, else 3 significant digits."""
-        if self.decimals is not None:
-            return f"{x:.{self.decimals}f}"
-        return f"{x:.2f}" if abs(x) >= 1 or x == 0 else f"{x:.3g}"
+        return f"{x:.{self._digits()}f}"
+
+    def cell_text(self, row, col) -> str:
+        """mean [low, high] (scaled), or the mean alone for a single value; "–" for no value."""
+        if (row, col) not in self.mean:
+            return "–"
+        m = self.mean[(row, col)] * self.scale
+        lo, hi = self.interval(row, col)
+        if math.isnan(lo):
+            return self._fmt(m)
+        return f"{self._fmt(m)} [{self._fmt(lo * self.scale)}, {self._fmt(hi * self.scale)}]"
+
+    def marks(self, row, col) -> tuple[bool, str]:
+        """(bold, suffix marks) of a cell: bold for the best beyond every other's interval,
+        `TIED_MARK` for a column not distinguishable from the best, `FLOOR_MARK` below the floor."""
+        if (row, col) not in self.mean:
+            return False, ""
+        v = self.verdict(row)
+        suffix = (TIED_MARK if v.verdicts.get(col) == stats.TIED else "") + (FLOOR_MARK if self.below_floor(row, col) else "")
+        return v.bold == col, suffix
 
     def _paper_rows(self):
         for row in self.paper or {}:
@@ -123,63 +215,98 @@ class ComparisonTable:
             best = pick(values, key=values.get) if values and self.higher_is_better is not None else None
             yield row, values, best
 
+    def sample_size(self) -> str:
+        """n of the cells as frames x seeds ("3 frames x 3 seeds = 9 pairs"), or a range when cells differ."""
+        sizes = set()
+        for pairs in self.observations.values():
+            frames, seeds = {k[0] for k in pairs}, {k[1] for k in pairs}
+            sizes.add((len(frames), len(seeds), len(pairs)))
+        if not sizes:
+            return "n not recorded"
+        text = [f"{f} frame{'s' * (f != 1)} x {s} seed{'s' * (s != 1)}" + (f" = {n} pairs" if n != f * s else
+                                                                            f" = {n}") for f, s, n in sorted(sizes)]
+        return "n = " + " or ".join(text)
+
     def conventions(self) -> str:
         peak = f", PSNR peak {self.peak}" if self.peak else ""
         scale = f", in units of {1 / self.scale:.0e}".replace("e-0", "e-") if self.scale != 1 else ""
         direction = {True: "higher is better", False: "lower is better", None: "no better direction"}[
             self.higher_is_better]
-        return (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
-                f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}; "
-                "mean ± std over frames (all frames of all seeds); best of each row in bold.")
+        text = (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
+                f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}. "
+                f"Cells: mean [95% interval of the mean, Student t] over {self.sample_size()} per cell "
+                "(all frames of all seeds).")
+        if self.higher_is_better is not None and self.observations:
+            text += (f" Bold: the row's best, beyond every other column ({stats.TEST_NAME}; a column is worse "
+                     f"when its interval excludes 0 and its adjusted p <= {stats.ALPHA}); {TIED_MARK}: tied-best, "
+                     "not distinguishable from the row's best (the best itself carries it when it cannot be "
+                     "told apart from another).")
+        if self.floor is not None and self.higher_is_better is not None:
+            text += (f" {FLOOR_MARK}: below the floor, i.e. a mean worse than the `{self.floor}` column (the damaged "
+                     "input with its holes left open): such a method makes the frame worse than doing nothing.")
+        small = sorted({(v.n, len(v.comparisons)) for v in (self.verdict(r) for r in self.rows) if v.too_small})
+        for n, k in small:
+            text += " " + stats.too_small_text(n, k)
+        return text
 
     def markdown(self) -> str:
-        out = [f"**{self.title}**", "", "| Sequence | " + " | ".join(self.columns) + " |",
+        out = [f"**{md_escape(self.title)}**", "", "| Sequence | " + " | ".join(md_escape(c) for c in self.columns) + " |",
                "|---|" + "---|" * len(self.columns)]
         for row in self.rows:
-            best = self.best(row, self.mean)
-            out.append(f"| {row} | " + " | ".join(self._cell(row, c, c == best, lambda t: f"**{t}**")
-                                               for c in self.columns) + " |")
+            cells = []
+            for c in self.columns:
+                bold, suffix = self.marks(row, c)
+                text = self.cell_text(row, c)
+                cells.append((f"**{text}**" if bold else text) + suffix)
+            out.append(f"| {md_escape(row)} | " + " | ".join(cells) + " |")
         for row, values, best in self._paper_rows():
             cells = [("–" if c not in values else (f"**{values[c]:.4f}**" if c == best else f"{values[c]:.4f}"))
                      for c in self.columns]
-            out.append(f"| *{row} (paper)* | " + " | ".join(cells) + " |")
-        out += ["", f"_{self.conventions()}_"] + [f"_{note}_" for note in self.notes]
+            out.append(f"| *{md_escape(row)} (paper)* | " + " | ".join(cells) + " |")
+        out += ["", f"_{self.conventions()}_"] + [f"_{note}_" for note in self.notes if note]
         return "\n".join(out) + "\n"
 
     def latex(self) -> str:
-        def esc(t: str) -> str:
-            return t.replace("_", r"\_").replace("±", r"$\pm$").replace("&", r"\&")
-
+        esc = latex_escape
         out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{esc(self.title)}}}",
                r"\begin{tabular}{l" + "c" * len(self.columns) + "}", r"\hline",
                "Sequence & " + " & ".join(esc(c) for c in self.columns) + r" \\", r"\hline"]
         for row in self.rows:
-            best = self.best(row, self.mean)
             cells = []
             for c in self.columns:
-                text = esc(self._cell(row, c, False, str))
-                cells.append(r"\textbf{" + text + "}" if c == best else text)
+                bold, suffix = self.marks(row, c)
+                text = esc(self.cell_text(row, c))
+                cells.append((r"\textbf{" + text + "}" if bold else text) + esc(suffix))
             out.append(esc(row) + " & " + " & ".join(cells) + r" \\")
         for row, values, best in self._paper_rows():
             cells = ["--" if c not in values else (rf"\textbf{{{values[c]:.4f}}}" if c == best else f"{values[c]:.4f}")
                      for c in self.columns]
             out.append(rf"\textit{{{esc(row)} (paper)}} & " + " & ".join(cells) + r" \\")
         out += [r"\hline", r"\end{tabular}", "", r"\smallskip", r"{\footnotesize " + esc(self.conventions())
-                + "".join(" " + esc(n) for n in self.notes) + "}", r"\end{table}"]
+                + "".join(" " + esc(n) for n in self.notes if n) + "}", r"\end{table}"]
         return "\n".join(out) + "\n"
 
     def csv(self) -> str:
+        """One line per cell: mean, std, the 95% interval, n, the verdict (`bench.stats`), whether it is
+        below the floor, and the conventions; the paper's values as source "paper". Text fields
+        pass through `csv_safe`."""
         buf = io.StringIO()
         writer = csv.writer(buf)
-        writer.writerow(["sequence", "source", "method", "mean", "std", "n_frames", "metric", "scope", "peak", "scale"])
+        writer.writerow(["sequence", "source", "method", "mean", "std", "ci95_low", "ci95_high", "n_frames",
+                         "verdict", "below_floor", "metric", "scope", "peak", "scale"])
         for row in self.rows:
+            verdict = self.verdict(row)
             for c in self.columns:
                 if (row, c) in self.mean:
-                    writer.writerow([row, "ours", c, self.mean[(row, c)] * self.scale, self.std[(row, c)] * self.scale,
-                                     self.n[(row, c)], self.metric, self.scope, self.peak, self.scale])
+                    lo, hi = self.interval(row, c)
+                    writer.writerow([csv_safe(row), "ours", csv_safe(c), self.mean[(row, c)] * self.scale,
+                                     self.std[(row, c)] * self.scale, lo * self.scale, hi * self.scale,
+                                     self.n[(row, c)], verdict.verdicts.get(c, ""), self.below_floor(row, c),
+                                     self.metric, self.scope, self.peak, self.scale])
         for row, values, _ in self._paper_rows():
             for c, v in values.items():
-                writer.writerow([row, "paper", c, v, "", "", self.metric, self.scope, self.peak, self.scale])
+                writer.writerow([csv_safe(row), "paper", csv_safe(c), v, "", "", "", "", "", "", self.metric,
+                                 self.scope, self.peak, self.scale])
         return buf.getvalue()
 
 
@@ -227,24 +354,37 @@ def frame_values(df: pd.DataFrame, metric: str, scope: str, peak: str = "") -> p
 def comparison_table(df: pd.DataFrame, metric: str, scope: str = "frame", peak: str = "", *,
                      title: str | None = None, column_of=None, columns: list[str] | None = None,
                      rows: list[str] | None = None, scale: float = 1.0, decimals: int | None = 2,
-                     paper: dict | None = None, notes: list[str] | None = None) -> ComparisonTable:
-    """Build the table from the tidy results ``df``.
+                     paper: dict | None = None, notes: list[str] | None = None,
+                     floor: str | None = None) -> ComparisonTable:
+    """Build the table from the tidy results ``df`` (columns sequence, method, frame, seed, value, ...).
 
     column_of: function(df) -> Series of column labels (default: `method_labels`).
     columns/rows: order (default: as first seen). Missing cells print as "–".
+    floor: the no-fill column's label (default: the column of registry method `FLOOR_METHOD`, if any).
     """
     sel = frame_values(df, metric, scope, peak).copy()
     sel["column"] = column_of(sel) if column_of else method_labels(sel)
-    grouped = sel.groupby(["sequence", "column"])["value"]
-    stats = grouped.agg(["mean", "std", "count"]).reset_index()
-    mean = {(r.sequence, r.column): float(r["mean"]) for _, r in stats.iterrows()}
-    std = {(r.sequence, r.column): (0.0 if r["count"] < 2 else float(r["std"])) for _, r in stats.iterrows()}
-    n = {(r.sequence, r.column): int(r["count"]) for _, r in stats.iterrows()}
+    if "seed" not in sel:
+        sel["seed"] = 0
+    # one value per (cell, frame, seed): the pairs the statistics compare (duplicates, e.g. a run
+    # listed in two experiments, are one value)
+    per_pair = sel.groupby(["sequence", "column", "frame", "seed"])["value"].mean().reset_index()
+    observations: dict = {}
+    for r in per_pair.itertuples(index=False):
+        observations.setdefault((r.sequence, r.column), {})[(int(r.frame), int(r.seed))] = float(r.value)
+    mean = {k: float(np.mean(list(v.values()))) for k, v in observations.items()}
+    std = {k: (float(np.std(list(v.values()), ddof=1)) if len(v) > 1 else 0.0) for k, v in observations.items()}
+    n = {k: len(v) for k, v in observations.items()}
     rows = rows or list(dict.fromkeys(sel["sequence"]))
     columns = columns or list(dict.fromkeys(sel["column"]))
+    if floor is None:
+        registry = "registry_method" if "registry_method" in sel else "method"  # the name before any relabelling
+        floor_rows = sel[sel[registry] == FLOOR_METHOD] if registry in sel else sel.iloc[:0]
+        floor = floor_rows["column"].iloc[0] if len(floor_rows) else None
     return ComparisonTable(title or f"{metric} ({scope})", metric, scope, peak, higher_is_better(metric),
                            [r for r in rows if any((r, c) in mean for c in columns)], columns, mean, std, n,
-                           scale=scale, decimals=decimals, paper=paper, notes=list(notes or []))
+                           scale=scale, decimals=decimals, paper=paper, notes=list(notes or []),
+                           observations=observations, floor=floor if floor in columns else None)
 
 
 def runtime_table(df: pd.DataFrame, column_of=None) -> pd.DataFrame:

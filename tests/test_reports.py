@@ -21,57 +21,75 @@ METHODS = ["meshlab", "lozes-pde", "fu-nonlocal", "temporal-graph"]
 PAPER_PARAMS = {name: params for name, _, params in paper.PAPER_METHODS}
 
 
-def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)"), frames=3, experiment="exp"):
-    """Per frame f of method k on sequence s: gpsnr_d1 = 10 + 5k + f (+1 on the second sequence),
-    nshd = (4 - k) * 1e-7 * (f + 1)."""
+def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)"), frames=3, experiment="exp",
+                        seeds=(0,)):
+    """Per frame f of method k on sequence s, with every seed: gpsnr_d1 = 10 + 5k + f (+1 on the
+    second sequence), nshd = (4 - k) * 1e-7 * (f + 1)."""
     store = ResultsStore(path)
     for s_i, seq in enumerate(sequences):
         for k, method in enumerate(METHODS):
-            rows = []
-            for f in range(frames):
-                rows.append({"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic",
-                             "value": 10.0 + 5 * k + f + s_i})
-                rows.append({"frame": f, "metric": "nshd", "scope": "frame", "peak": "",
-                             "value": (4 - k) * 1e-7 * (f + 1)})
-                rows.append({"frame": f, "metric": "time_s", "scope": "frame", "peak": "", "value": 0.5 * (k + 1)})
-            rows.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "",
-                         "value": 0.5 * (k + 1) * frames})
-            rows.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "", "value": 100.0 + k})
-            record = {"sequence": seq, "holes": "region", "holes_params": {"preset": "medium"}, "seed": 0,
-                      "method": method, "method_params": PAPER_PARAMS[method], "method_version": "1",
-                      "code_version": "abc", "spec": {},
-                      "env": {"git_commit": "abc", "python": "3.11", "packages": {}, "machine": {}}}
-            store.record_run(f"{seq[:3]}-{method}", record, rows, [experiment])
+            for seed in seeds:
+                rows = []
+                for f in range(frames):
+                    rows.append({"frame": f, "metric": "gpsnr_d1", "scope": "frame", "peak": "intrinsic",
+                                 "value": 10.0 + 5 * k + f + s_i})
+                    rows.append({"frame": f, "metric": "nshd", "scope": "frame", "peak": "",
+                                 "value": (4 - k) * 1e-7 * (f + 1)})
+                    rows.append({"frame": f, "metric": "time_s", "scope": "frame", "peak": "", "value": 0.5 * (k + 1)})
+                rows.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "",
+                             "value": 0.5 * (k + 1) * frames})
+                rows.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "", "value": 100.0 + k})
+                record = {"sequence": seq, "holes": "region", "holes_params": {"preset": "medium"}, "seed": seed,
+                          "method": method, "method_params": PAPER_PARAMS[method], "method_version": "1",
+                          "code_version": "abc", "spec": {},
+                          "env": {"git_commit": "abc", "python": "3.11", "packages": {}, "machine": {}}}
+                store.record_run(f"{seq[:3]}-{method}" + (f"-{seed}" if seed else ""), record, rows, [experiment])
     store.record_failure("bad-run", {"sequence": sequences[0], "method": "meshlab", "spec": {}}, "MeshlabError: boom",
                          [experiment])
     return store
 
 
 def test_table_cells_best_and_formats(tmp_path):
-    store = _store_with_results(tmp_path / "s.sqlite")
+    store = _store_with_results(tmp_path / "s.sqlite", seeds=(0, 1, 2))
     df = store.results_frame("exp")
     t1, t2 = paper_tables(df, standins=True)
-    # closed form: mean over frames 0..2 of 10 + 5k + f + s_i = 11 + 5k + s_i, sample std = 1
+    # closed form: mean over frames 0..2 (each for 3 seeds) of 10 + 5k + f + s_i = 11 + 5k + s_i;
+    # sample std over the 9 values sqrt(6/8); 95% t interval half-width t(0.975, 8) * std / 3
+    half = 2.306004135204166 * np.sqrt(6 / 8) / 3
     assert t1.mean[("Human (stand-in)", "Proposed")] == pytest.approx(26.0)
     assert t1.mean[("Bunny (stand-in)", "Meshlab")] == pytest.approx(12.0)
-    assert t1.std[("Human (stand-in)", "Hu")] == pytest.approx(1.0)
-    assert t1.n[("Human (stand-in)", "Lozes")] == 3
+    assert t1.std[("Human (stand-in)", "Hu")] == pytest.approx(np.sqrt(6 / 8))
+    assert t1.interval("Human (stand-in)", "Hu") == pytest.approx((21 - half, 21 + half))
+    assert t1.n[("Human (stand-in)", "Lozes")] == 9
     assert t1.best("Human (stand-in)", t1.mean) == "Proposed"  # highest GPSNR
     assert t2.best("Human (stand-in)", t2.mean) == "Proposed"  # lowest NSHD
     assert t2.mean[("Human (stand-in)", "Meshlab")] == pytest.approx(8e-7)
     md = t1.markdown()
-    assert "| Human (stand-in) | 11.00 ± 1.00 | 16.00 ± 1.00 | 21.00 ± 1.00 | **26.00 ± 1.00** |" in md
-    assert "| *Loot (paper)* | 16.4451 | 27.3715 | 40.1546 | **47.5648** |" in md
+    # Proposed is 5 dB above the next on every pair: best beyond every interval, in bold
+    assert ("| Human (stand-in) | – | 11.00 [10.33, 11.67] | 16.00 [15.33, 16.67] | 21.00 [20.33, 21.67] | "
+            "**26.00 [25.33, 26.67]** |") in md
+    assert "| *Loot (paper)* | – | 16.4451 | 27.3715 | 40.1546 | **47.5648** |" in md
     assert "peak intrinsic" in md and "scope `frame`" in md and "STAND-IN" in md
+    assert "n = 3 frames x 3 seeds = 9" in md and "Wilcoxon signed-rank" in md and "Holm" in md
     md2 = t2.markdown()
-    assert "**2.0000 ± 1.0000**" in md2  # Proposed: (4-3) * (1,2,3) x1e-7 -> mean 2, std 1 in units of 1e-7
+    assert "**2.0000 [1.3343, 2.6657]**" in md2  # Proposed: (4-3) * (f+1) x1e-7 -> mean 2 in units of 1e-7
     assert "in units of 1e-7" in md2
     tex = t1.latex()
-    assert r"\textbf{26.00 $\pm$ 1.00}" in tex and r"\textit{Longdress (paper)}" in tex
+    assert r"\textbf{26.00 [25.33, 26.67]}" in tex and r"\textit{Longdress (paper)}" in tex
     rows = list(csv.DictReader(io.StringIO(t1.csv())))
-    ours = {(r["sequence"], r["method"]): float(r["mean"]) for r in rows if r["source"] == "ours"}
-    assert ours[("Bunny (stand-in)", "Hu")] == pytest.approx(22.0)
+    ours = {(r["sequence"], r["method"]): r for r in rows if r["source"] == "ours"}
+    assert float(ours[("Bunny (stand-in)", "Hu")]["mean"]) == pytest.approx(22.0)
+    assert float(ours[("Bunny (stand-in)", "Hu")]["ci95_low"]) == pytest.approx(22 - half)
+    assert ours[("Bunny (stand-in)", "Proposed")]["verdict"] == "best"
+    assert ours[("Bunny (stand-in)", "Hu")]["verdict"] == "worse"
     assert {r["sequence"] for r in rows if r["source"] == "paper"} == set(paper.TABLE1_GPSNR)
+
+
+def test_one_seed_of_three_frames_is_too_small_for_any_claim(tmp_path):
+    t1, _ = paper_tables(_store_with_results(tmp_path / "s.sqlite").results_frame("exp"), standins=True)
+    md = t1.markdown()
+    assert "**" not in md.split("(paper)")[0].split("\n", 1)[1]  # no bold among our rows
+    assert "n = 3 pairs is too small for any claim" in md and "needs n >= 7" in md  # Holm over 3 comparisons
 
 
 def test_paper_values_and_headline():
@@ -111,7 +129,7 @@ def test_missing_cells_and_order(tmp_path):
     df = df[~((df.method == "lozes-pde") & (df.sequence == "Bunny (stand-in)"))]
     t1, _ = paper_tables(df, standins=True)
     assert ("Bunny (stand-in)", "Lozes") not in t1.mean
-    assert "| Bunny (stand-in) | 12.00 ± 1.00 | – |" in t1.markdown()
+    assert "| Bunny (stand-in) | – | 12.00 [9.52, 14.48] | – |" in t1.markdown()
     generic = comparison_table(df, "gpsnr_d1", "frame", "intrinsic")
     assert set(generic.columns) == set(METHODS)
 
@@ -162,12 +180,13 @@ def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
     assert proto.standins
     columns = [(s.method["name"], s.method["params"]) for s in proto.synthetic[:len(paper.TABLE_COLUMNS)]]
     assert columns == [(name, params) for name, _, params, _ in paper.TABLE_COLUMNS]
-    assert columns[:4] == [("meshlab", {"output": "whole"}), ("lozes-pde", {}), ("fu-nonlocal", {"variant": "paper"}),
-                           ("temporal-graph", {"variant": "paper"})]
-    assert {s.holes["seed"] for s in proto.synthetic} == {0}
+    assert columns[:5] == [("none", {}), ("meshlab", {"output": "whole"}), ("lozes-pde", {}),
+                           ("fu-nonlocal", {"variant": "paper"}), ("temporal-graph", {"variant": "paper"})]
+    assert {s.holes["seed"] for s in proto.synthetic} == {0, 1, 2}
+    assert {s.holes["seed"] for s in paper.paper_protocol(quick=True, size="tiny", frames=2, seeds=[0]).synthetic} == {0}
     seeded = paper.paper_protocol(quick=True, size="tiny", frames=2, seeds=[0, 1, 2])
     assert {s.holes["seed"] for s in seeded.synthetic} == {0, 1, 2}
-    assert len(seeded.synthetic) == 3 * len(proto.synthetic)
+    assert len(seeded.synthetic) == len(proto.synthetic)
     with pytest.raises(ValueError, match="--seeds"):
         paper.paper_protocol(quick=True, seeds=[-1])
     assert all("stand-in" in s.sequence_label for s in proto.synthetic + proto.real)
@@ -263,10 +282,10 @@ def test_report_keeps_hole_configurations_apart_and_uses_config_labels(tmp_path)
     header, body = [c.strip() for c in lines[0]], lines[1:]
     cells = {(r[0].strip(), col): r[i].strip("* ") for r in body for i, col in enumerate(header) if i}
     assert sorted(header[1:]) == ["temporal-graph", "temporal-graph (beta=0.25)", "tg (paper)"]
-    assert cells[("Human · region (coherent=False)", "temporal-graph")] == "20.00 ± 0.00"
-    assert cells[("Human · region (coherent=False)", "tg (paper)")] == "21.00 ± 0.00"
-    assert cells[("Human · region (coherent=True)", "temporal-graph")] == "23.00 ± 0.00"
-    assert cells[("Human · region (coherent=True)", "temporal-graph (beta=0.25)")] == "24.00 ± 0.00"
+    assert cells[("Human · region (coherent=False)", "temporal-graph")] == "20.00 [20.00, 20.00]"
+    assert cells[("Human · region (coherent=False)", "tg (paper)")] == "21.00 [21.00, 21.00]"
+    assert cells[("Human · region (coherent=True)", "temporal-graph")] == "23.00 [23.00, 23.00]"
+    assert cells[("Human · region (coherent=True)", "temporal-graph (beta=0.25)")] == "24.00 [24.00, 24.00]"
 
 
 def test_a_label_given_to_a_grid_keeps_its_configurations_apart():
@@ -286,7 +305,8 @@ def test_a_single_value_cell_shows_no_spread():
                        "metric": ["gpsnr_d1"] * 3, "scope": ["frame"] * 3, "peak": ["intrinsic"] * 3,
                        "frame": [0, 0, 1], "value": [30.0, 20.0, 22.0]})
     md = comparison_table(df, "gpsnr_d1", "frame", "intrinsic").markdown()
-    assert "| S | **30.00** | 21.00 ± 1.41 |" in md
+    # b: 21 ± t(0.975, 1) * sqrt(2) / sqrt(2) = 21 ± 12.706; one shared pair is too few for any claim
+    assert "| S | 30.00 | 21.00 [8.29, 33.71] |" in md and "n = 1 pairs is too small for any claim" in md
 
 
 def test_facing_view_looks_at_the_hole_from_outside():
@@ -385,3 +405,56 @@ def test_d2_tables_say_which_normals_d2_used(tmp_path):
     assert "estimated by PCA of 12 neighbours" in tex
     assert "estimated by PCA of 12 neighbours" in report.read_text()
     assert "PCA" not in (out / "tables" / "table2_nshd.md").read_text()  # NSHD does not use normals
+
+
+def _tidy(cells: dict, frames=3, seeds=3, metric="gpsnr_d1", step=1.0) -> pd.DataFrame:
+    """A tidy results table: cells (sequence, method) -> value of frame f, seed s = base + step (f + 0.1 s)."""
+    rows = [{"sequence": seq, "method": m, "method_params": "{}", "metric": metric, "scope": "frame",
+             "peak": "intrinsic" if metric.startswith("gpsnr") else "", "frame": f, "seed": s,
+             "value": base + step * (f + 0.1 * s)}
+            for (seq, m), base in cells.items() for f in range(frames) for s in range(seeds)]
+    return pd.DataFrame(rows)
+
+
+def test_the_floor_marks_cells_below_no_fill():
+    from dpcbench.bench.tables import FLOOR_MARK, TIED_MARK
+
+    df = _tidy({("S", "none"): 15.0, ("S", "a"): 10.0, ("S", "b"): 20.0, ("S", "c"): 20.0, ("T", "none"): 5.0,
+                ("T", "a"): 10.0})
+    t = comparison_table(df, "gpsnr_d1", "frame", "intrinsic")
+    assert t.floor == "none"
+    assert t.below_floor("S", "a") and not t.below_floor("S", "b") and not t.below_floor("T", "a")
+    md = t.markdown()
+    row = next(line for line in md.splitlines() if line.startswith("| S |"))
+    cells = [c.strip() for c in row.strip("|").split("|")][1:]
+    # a is below the floor; b and c are identical: tied-best, nobody bold
+    assert cells[1].endswith(FLOOR_MARK) and not cells[0].endswith(FLOOR_MARK)
+    assert cells[2].endswith(TIED_MARK) and cells[3].endswith(TIED_MARK) and "**" not in row
+    assert "below the floor" in md and f"{TIED_MARK}: tied-best" in md
+    assert r"$^{\nabla}$" in t.latex()
+    rows = list(csv.DictReader(io.StringIO(t.csv())))
+    assert {r["method"] for r in rows if r["below_floor"] == "True"} == {"a"}
+    # lower is better: a larger NSHD than no fill is below the floor
+    t2 = comparison_table(_tidy({("S", "none"): 1.0, ("S", "a"): 2.0}, metric="nshd"), "nshd", "frame")
+    assert t2.below_floor("S", "a")
+
+
+def test_labels_are_escaped_in_every_format():
+    from dpcbench.bench.tables import csv_safe, latex_escape, md_escape
+
+    evil = "x|y\n<b>z</b> 50% {a}_\\"
+    assert md_escape(evil) == "x\\|y &lt;b&gt;z&lt;/b&gt; 50% {a}\\_\\\\"
+    assert latex_escape(evil) == r"x|y \textless{}b\textgreater{}z\textless{}/b\textgreater{} 50\% \{a\}\_\textbackslash{}"
+    assert [csv_safe(v) for v in ("=1+1", "+a", "-b", "@c", "ok", -1.5)] == ["'=1+1", "'+a", "'-b", "'@c", "ok", -1.5]
+    df = _tidy({("=HYPERLINK(1)", "a|b"): 10.0, ("=HYPERLINK(1)", "50%"): 11.0})
+    t = comparison_table(df, "gpsnr_d1", "frame", "intrinsic")
+    assert "| a\\|b |" in t.markdown() and r"50\%" in t.latex()
+    rows = list(csv.reader(io.StringIO(t.csv())))
+    assert {r[0] for r in rows[1:]} == {"'=HYPERLINK(1)"}
+
+
+def test_one_precision_per_table():
+    t = comparison_table(_tidy({("S", "a"): 0.001, ("S", "b"): 12.0}, metric="nshd", step=1e-4), "nshd", "frame",
+                         decimals=None)
+    # the smallest mean (0.00111) gets 3 significant digits: 5 decimals for every value
+    assert t.cell_text("S", "b").startswith("12.00011 [") and t.cell_text("S", "a").startswith("0.00111 [")

@@ -1,0 +1,369 @@
+"""The held-out discipline: data roles in experiment configs, `dpcbench margins`, the oracle fill."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from dpcbench.bench.config import ConfigError, load_config, parse_config
+from tests import runner_fixtures as helpers
+
+PRESETS = Path(__file__).resolve().parents[1] / "bench" / "presets"
+
+
+@pytest.fixture
+def seq_dir(tmp_path, monkeypatch):
+    helpers.register(monkeypatch)
+    return helpers.write_sequence(tmp_path / "seq", n_frames=2, n_points=200)
+
+
+def _config(seq_dir, **experiment):
+    return {
+        "experiment": {"name": "t", "timeout_s": 60, **experiment},
+        "sequences": [{"path": str(seq_dir), "frames": 2}],
+        "holes": [{"generator": "test-ball", "params": {"radius": 0.2}, "seeds": [0]}],
+        "methods": [{"name": "test-identity"}],
+        "metrics": {"names": ["gpsnr_d1"], "peaks": ["intrinsic"], "scopes": ["frame"]},
+    }
+
+
+# -- the config key ------------------------------------------------------------------------------
+def test_data_role_is_parsed_recorded_and_not_hashed(seq_dir):
+    plain = parse_config(_config(seq_dir)).expand()
+    tuning = parse_config(_config(seq_dir, data_role="tuning")).expand()
+    heldout = parse_config(_config(seq_dir, data_role="heldout", holds_out="tune")).expand()
+    assert [r.data_role for r in plain] == [None]
+    assert [(r.data_role, r.holds_out) for r in tuning] == [("tuning", None)]
+    assert [(r.data_role, r.holds_out) for r in heldout] == [("heldout", "tune")]
+    # the role is recorded in the spec a run stores, and never changes an id (cached runs stay cached)
+    assert heldout[0].to_dict()["data_role"] == "heldout" and heldout[0].to_dict()["holds_out"] == "tune"
+    assert plain[0].run_id == tuning[0].run_id == heldout[0].run_id
+
+
+@pytest.mark.parametrize("experiment, message", [
+    ({"data_role": "validation"}, "experiment.data_role: expected one of tuning, heldout, got 'validation'"),
+    ({"data_role": "heldout"}, "experiment.holds_out: a held-out experiment names the tuning experiment"),
+    ({"data_role": "heldout", "holds_out": "t"}, "experiment.holds_out: a held-out experiment names"),
+    ({"data_role": "tuning", "holds_out": "x"}, "experiment.holds_out: only with data_role = \"heldout\""),
+    ({"holds_out": "x"}, "experiment.holds_out: only with data_role"),
+])
+def test_bad_data_role_is_refused_in_one_line(seq_dir, experiment, message):
+    with pytest.raises(ConfigError) as err:
+        parse_config(_config(seq_dir, **experiment))
+    assert str(err.value).startswith(message) and "\n" not in str(err.value)
+
+
+def test_every_fusion_preset_declares_its_role():
+    roles = {}
+    for path in sorted(PRESETS.glob("temporal-fusion-*.toml")):
+        cfg = load_config(path)
+        roles[cfg.name] = (cfg.data_role, cfg.holds_out)
+    assert roles.pop("fusion-targets") == ("tuning", None)
+    assert roles and all(role == ("heldout", "fusion-targets") for role in roles.values()), roles
+
+
+def test_unknown_role_on_the_command_line_exits_2(tmp_path, seq_dir, capsys):
+    from dpcbench.bench.cli import main
+
+    config = tmp_path / "c.toml"
+    config.write_text(f'[experiment]\nname = "t"\ndata_role = "train"\n[[sequences]]\npath = "{seq_dir}"\n'
+                      '[[holes]]\ngenerator = "test-ball"\n[[methods]]\nname = "test-identity"\n')
+    assert main(["run", str(config), "--dry-run", "--store", str(tmp_path / "s.sqlite")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "experiment.data_role: expected one of tuning, heldout" in err
+
+
+# -- the margins computation on a hand-made results frame -----------------------------------------
+def _obs(experiment, row, label, method, values, metric="gpsnr_d1", scope="frame", peak="intrinsic"):
+    """Observation rows: values[seed][frame] of one method on one metric."""
+    return [{"experiment": experiment, "row": row, "row_label": label, "method": method, "seed": s, "frame": f,
+             "metric": metric, "scope": scope, "peak": peak, "value": v}
+            for s, frames in enumerate(values) for f, v in enumerate(frames)]
+
+
+def _frame(rows):
+    import pandas as pd
+
+    return pd.DataFrame([r for block in rows for r in block])
+
+
+def _hand_made():
+    """Three rows of 2 seeds x 4 frames (n = 8): a clear win (D1 +5 dB over the best other, D2 +2 dB over
+    no fill), a D1 margin of +1 +- 0.6 dB (inside the noise) and a D2 loss to the floor (-2 dB on every
+    pair); TC one value per seed."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    base = 30 + rng.normal(0, 1, (2, 4))
+    jitter = np.array([[0.6, -0.6, 0.5, -0.5], [0.4, -0.4, 0.6, -0.6]])
+    rows = []
+    for row, label, d1_gain, d2_gain in (("win", "A | win", 5 + 0 * jitter, 2.0),
+                                         ("noise", "B", 1.0 + jitter, 0.5),
+                                         ("floor", "=C", 3 + 0 * jitter, -2.0)):
+        rows += [_obs("tune", row, label, "fusion", base + d1_gain),
+                 _obs("tune", row, label, "graph", base),
+                 _obs("tune", row, label, "none", base - 4),
+                 _obs("tune", row, label, "fusion", base + d2_gain, "gpsnr_d2"),
+                 _obs("tune", row, label, "graph", base - 1, "gpsnr_d2"),
+                 _obs("tune", row, label, "none", base, "gpsnr_d2"),
+                 _obs("tune", row, label, "fusion", 0.1 + 0 * base, "nshd", peak=""),
+                 _obs("tune", row, label, "graph", 0.2 + 0 * base, "nshd", peak=""),
+                 _obs("tune", row, label, "none", 0.3 + 0 * base, "nshd", peak=""),
+                 _obs("tune", row, label, "fusion", [[0.5], [0.6]], "temporal_consistency", "holes", ""),
+                 _obs("tune", row, label, "graph", [[0.7], [0.9]], "temporal_consistency", "holes", ""),
+                 _obs("tune", row, label, "none", [[1.0], [1.0]], "temporal_consistency", "holes", "")]
+    # the same rows held out, with the win turned into a D1 loss to graph
+    held = [dict(r, experiment="held") for r in (x for block in rows for x in block)]
+    for r in held:
+        if r["row"] == "win" and r["metric"] == "gpsnr_d1" and r["method"] == "graph":
+            r["value"] += 10
+    return _frame(rows + [held])
+
+
+def test_margins_of_a_win_a_tie_and_a_loss_to_the_floor():
+    import numpy as np
+
+    from dpcbench.bench.margins import compute_margins
+
+    report = compute_margins(_hand_made(), "fusion", {"tune": ("tuning", None), "held": ("heldout", "tune")})
+    rows = {(r.experiment, r.row): r for r in report.rows}
+    win, noise, floor = rows[("tune", "win")], rows[("tune", "noise")], rows[("tune", "floor")]
+    # clear win: +5 dB over graph (the best other, not none) on every pair; D2 +2 over none
+    assert win.margins["d1"].against == "graph" and win.margins["d1"].margin == pytest.approx(5.0)
+    assert win.margins["d1"].n == 8 and win.margins["d1"].verdict == "met"
+    assert (win.margins["d1"].low, win.margins["d1"].high) == pytest.approx((5.0, 5.0))
+    assert win.margins["d2"].against == "none" and win.margins["d2"].margin == pytest.approx(2.0)
+    assert win.margins["d2"].verdict == "met"
+    # inside the noise: mean +1 (met, as the target is mean >= 1) but the interval straddles +1
+    m = noise.margins["d1"]
+    assert m.margin == pytest.approx(1.0 + np.mean([0.6, -0.6, 0.5, -0.5, 0.4, -0.4, 0.6, -0.6]))
+    assert m.low < 1.0 < m.high and m.verdict == "met, within noise"
+    # loss to the floor: D2 2 dB below no fill on every pair
+    assert floor.margins["d2"].margin == pytest.approx(-2.0) and floor.margins["d2"].verdict == "missed"
+    # NSHD (lower is better): best other 0.2 - 0.1; TC: one value per seed, n = 2, too few for a claim
+    assert win.margins["nshd"].against == "graph" and win.margins["nshd"].margin == pytest.approx(0.1)
+    tc = win.margins["tc"]
+    assert tc.against == "graph" and tc.n == 2 and tc.margin == pytest.approx(0.25)
+    assert tc.verdict == "met, n too small"
+    # the held-out copy: graph now 5 dB above fusion on the win row
+    lost = rows[("held", "win")].margins["d1"]
+    assert lost.margin == pytest.approx(-5.0) and lost.verdict == "missed"
+    # count lines per role, as the issue's targets read
+    d1, d2 = (t for t in report_targets() if t.key in ("d1", "d2"))
+    assert report.count_line("tuning", d1) == ("D1 >= best other + 1 dB on 3 of 3 rows (2 beyond noise; "
+                                               "0 missed beyond noise)")
+    assert report.count_line("heldout", d1).startswith("D1 >= best other + 1 dB on 2 of 3 rows (1 beyond noise; "
+                                                       "1 missed beyond noise)")
+    assert report.count_line("tuning", d2).startswith("D2 at or above no fill on 2 of 3 rows (2 beyond noise; 1 missed")
+    # Markdown: labels escaped; tuning and held-out side by side in the count table
+    text = report.markdown()
+    assert "A \\| win" in text and "| target | tuning data | held-out data |" in text
+    assert "| D1 &gt;= best other + 1 dB | 3 of 3 (2 beyond noise, 0 missed beyond noise) | 2 of 3" in text
+    # CSV: a label a spreadsheet would run as a formula is quoted
+    lines = report.csv().splitlines()
+    assert any(line.startswith("tuning,tune,,'=C,fusion,d2,") for line in lines)
+
+
+def report_targets():
+    from dpcbench.bench.margins import TARGETS
+
+    return TARGETS
+
+
+def test_rows_are_identities_not_labels_and_the_heldout_check():
+    import pandas as pd
+
+    from dpcbench.bench.margins import compute_margins, heldout_check
+
+    obs = _hand_made()
+    obs = obs[obs["experiment"] == "tune"]
+    same_label = obs.assign(row_label="one label")
+    report = compute_margins(same_label, "fusion", {})
+    assert len(report.rows) == 3 and {r.role for r in report.rows} == {"unmarked"}
+    table = pd.DataFrame({"experiment": ["tune", "tune", "held", "held"], "row": ["a", "a", "a", "b"],
+                          "seed": [0, 1, 1, 0]})
+    roles = {"tune": ("tuning", None), "held": ("heldout", "tune")}
+    assert heldout_check(table, roles) == ["held-out check: held shares 1 of 2 damaged inputs (data, damage, seed) "
+                                          "with tune: NOT held out: the same damaged data was tuned on"]
+    assert "not among the experiments read" in heldout_check(table[table["experiment"] == "held"], roles)[0]
+
+
+# -- the command end to end on a tiny store -----------------------------------------------------------
+def _tiny_config(path, seq_dir, name, role, seeds):
+    holds = '\nholds_out = "tiny-tune"' if role == "heldout" else ""
+    path.write_text(f"""[experiment]
+name = "{name}"
+data_role = "{role}"{holds}
+[[sequences]]
+path = "{seq_dir}"
+frames = 3
+label = "sphere | tiny"
+[[holes]]
+generator = "test-ball"
+params = {{ radius = 0.4 }}
+seeds = {seeds}
+label = "ball holes"
+[[methods]]
+name = "test-identity"
+label = "exact"
+[[methods]]
+name = "test-identity"
+params = {{ shift = 0.02 }}
+label = "shifted"
+[[methods]]
+name = "none"
+[metrics]
+names = ["gpsnr_d1", "gpsnr_d2", "nshd"]
+scopes = ["frame", "holes"]
+temporal_consistency = true
+""")
+    return path
+
+
+def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
+    from dpcbench.bench.cli import main
+
+    helpers.register(monkeypatch)
+    seq_dir = helpers.write_sequence(tmp_path / "seq", n_frames=3, n_points=300)
+    store = tmp_path / "s.sqlite"
+    for name, role, seeds in (("tiny-tune", "tuning", "[0, 1]"), ("tiny-held", "heldout", "[5, 6]")):
+        config = _tiny_config(tmp_path / f"{name}.toml", seq_dir, name, role, seeds)
+        assert main(["run", str(config), "--store", str(store), "--jobs", "2", "--quiet"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "margins"
+    assert main(["margins", str(store), "--method", "exact", "--oracle", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert (out / "margins.md").read_text() in text
+    assert "| target | tuning data | held-out data |" in text
+    assert "## held-out data: tiny-held (holds out from tiny-tune)" in text
+    assert "held-out check: tiny-held shares 0 of 2 damaged inputs" in text and "held out" in text
+    # "exact" returns the damaged frames: every pair equals no fill's, so D1 is 0 dB above the best other
+    # (none, tied with it) and misses +1 dB on all 6 pairs (3 frames x 2 seeds) beyond noise; D2 = no fill's: met
+    import csv
+
+    rows = list(csv.DictReader((out / "margins.csv").open()))
+    assert {r["role"] for r in rows} == {"tuning", "heldout"} and len(rows) == 2 * 6
+    # the surface oracle, scored on each cell's damaged frames: 6 pairs against the same references
+    oracle = [r for r in rows if r["target"] == "oracle_d2"]
+    assert len(oracle) == 2 and all(r["against"] == "none" and r["n"] == "6" for r in oracle), oracle
+    assert "surface oracle: D2 − no fill (dB)" in text
+    d1 = [r for r in rows if r["target"] == "d1"]
+    assert all(float(r["margin"]) == 0 and r["n"] == "6" and r["verdict"] == "missed" for r in d1), d1
+    d2 = [r for r in rows if r["target"] == "d2"]
+    assert all(r["against"] == "none" and float(r["margin"]) == 0 and r["verdict"] == "met, within noise"
+               for r in d2), d2
+    assert all(r["row"] == "sphere | tiny · ball holes" for r in rows)
+    assert "sphere \\| tiny · ball holes" in text
+    # a configuration of several, asked by its registry name, and an unknown experiment: one-line errors
+    assert main(["margins", str(store), "--method", "test-identity"]) == 2
+    assert "2 configurations of it (exact, shifted)" in capsys.readouterr().err
+    assert main(["margins", str(store), "--experiments", "nope"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no experiment 'nope'" in err
+
+
+# -- the oracle fill ------------------------------------------------------------------------------
+def _plane_with_hole(radius: float = 6.0):
+    """A 41 x 41 unit grid on z = 0 and the same with a disc of ``radius`` around its centre removed."""
+    import numpy as np
+
+    g = np.arange(41.0)
+    truth = np.column_stack([np.repeat(g, 41), np.tile(g, 41), np.zeros(41 * 41)])
+    mask = np.linalg.norm(truth[:, :2] - 20.0, axis=1) <= radius
+    return truth, truth[~mask], mask
+
+
+def test_oracle_on_a_plane_with_a_hole():
+    import numpy as np
+
+    from dpcbench.bench.oracle import missing_points, off_surface_rms, oracle_fill, score_oracles
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    truth, damaged, mask = _plane_with_hole()
+    # the missing points, found with the mask or by matching, are the removed ones
+    assert np.array_equal(missing_points(truth, damaged), truth[mask])
+    surface = oracle_fill(truth, damaged, "surface", mask=mask, seed=3)
+    fill = surface[len(damaged):]
+    assert len(fill) == mask.sum() and np.all(fill[:, 2] == 0)  # on the plane, at the truth's density
+    offsets = np.abs(fill[:, :2] - truth[mask][:, :2])
+    assert offsets.max() <= 0.5 and offsets.max() > 0.3  # moved within half the spacing, not left in place
+    scores = score_oracles([truth], [damaged], masks=[mask], sigma=0.2)
+    d1 = {v: s["frame"]["mean"]["gpsnr_d1"] for v, s in scores.items()}
+    d2 = {v: s["frame"]["mean"]["gpsnr_d2"] for v, s in scores.items()}
+    # closed form: every surface sample lies on the plane, so its point-to-plane error is 0: D2 at the ceiling
+    assert d2["surface"] == DEFAULT_MAX_PSNR and d1["truth"] == d2["truth"] == DEFAULT_MAX_PSNR
+    assert d1["none"] < d1["jitter"] and d1["none"] < d1["surface"] < d1["truth"]
+    assert d2["jitter"] < DEFAULT_MAX_PSNR
+    more = score_oracles([truth], [damaged], ["jitter"], masks=[mask], sigma=0.4)["jitter"]["frame"]["mean"]
+    assert more["gpsnr_d2"] < d2["jitter"]
+    # a method's off-surface error: its fill 0.3 above the plane
+    lifted = np.vstack([damaged, truth[mask] + [0, 0, 0.3]])
+    rms, count = off_surface_rms(truth, damaged, lifted)
+    assert count == mask.sum() and rms == pytest.approx(0.3)
+
+
+def test_oracle_command(tmp_path, capsys):
+    import json
+
+    import numpy as np
+
+    from dpcbench.bench.cli import main
+    from dpcbench.bench.sequences import save_sequence
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    truth, damaged, mask = _plane_with_hole()
+    save_sequence([truth, truth], tmp_path / "truth", prefix="t")
+    save_sequence([damaged, damaged], tmp_path / "damaged", prefix="d")
+    lifted = np.vstack([damaged, truth[mask] + [0, 0, 0.25]])
+    save_sequence([lifted, lifted], tmp_path / "result", prefix="r")
+    argv = ["oracle", str(tmp_path / "truth"), str(tmp_path / "damaged"), "--json"]
+    assert main(argv + ["--method-result", str(tmp_path / "result")]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["sigma"] == pytest.approx(0.25, rel=1e-6)
+    assert payload["measured"]["fill_points"] == 2 * mask.sum()
+    assert set(payload["variants"]) == {"none", "surface", "jitter", "truth"}
+    assert payload["variants"]["surface"]["frame"]["gpsnr_d2"] == DEFAULT_MAX_PSNR
+    assert main(argv[:-1] + ["--variant", "jitter"]) == 2
+    assert "give its sigma with --jitter SIGMA" in capsys.readouterr().err
+
+
+def test_a_row_out_of_reach_by_measurement():
+    """The method misses D2 against no fill on the floor row; a surface oracle 1 dB below no fill on
+    every pair misses it too: that row is out of reach by measurement."""
+    import pandas as pd
+
+    from dpcbench.bench.margins import ORACLE_PREFIX, compute_margins
+
+    obs = _hand_made()
+    obs = obs[obs["experiment"] == "tune"]
+    none = obs[(obs["method"] == "none") & obs["metric"].isin(["gpsnr_d1", "gpsnr_d2"])]
+    oracle = none.assign(method=ORACLE_PREFIX + "surface",
+                         value=none["value"] + [8.0 if m == "gpsnr_d1" else -1.0 for m in none["metric"]])
+    report = compute_margins(pd.concat([obs, oracle]), "fusion", {"tune": ("tuning", None)})
+    floor = next(r for r in report.rows if r.row == "floor")
+    assert floor.margins["oracle_d2"].margin == pytest.approx(-1.0) and floor.margins["oracle_d2"].verdict == "missed"
+    # the oracle is never "another method": the best other stays graph, and the oracle's D1 is measured
+    # against the best other than the method (graph: none + 4; oracle none + 8)
+    assert floor.margins["d1"].against == "graph" and floor.margins["oracle_d1"].margin == pytest.approx(4.0)
+    assert report.out_of_reach_line("tuning").endswith("D1: 0 of the 0 rows that miss it; D2: 1 of the 1 rows that "
+                                                       "miss it")
+
+
+def test_roles_of_runs_stored_before_the_key_come_from_the_presets():
+    import pandas as pd
+
+    from dpcbench.bench.margins import preset_roles, resolve_roles
+
+    presets = preset_roles()
+    assert presets["fusion-targets"] == ("tuning", None)
+    assert presets["fusion-heldout-frames"] == ("heldout", "fusion-targets")
+    table = pd.DataFrame({"experiment": ["fusion-heldout", "mine", "new"], "spec_experiment": ["fusion-heldout", "mine",
+                                                                                              "new"],
+                          "declared_role": [None, None, "heldout"], "declared_holds_out": [None, None, "mine"],
+                          "finished_at": ["a", "b", "c"]})
+    roles, notes = resolve_roles(table, presets)
+    assert roles == {"fusion-heldout": ("heldout", "fusion-targets"), "mine": ("unmarked", None),
+                     "new": ("heldout", "mine")}
+    assert any(n.startswith("fusion-heldout: its runs record no data role") for n in notes)
+    assert any(n.startswith("mine: no data role declared") for n in notes)
