@@ -1,21 +1,24 @@
-"""The regression dashboard: one self-contained static HTML page (`dpcbench dashboard`).
+"""The regression dashboard: one self-contained HTML page (`dpcbench dashboard`).
 
 Input: the results store's tidy table (one or several stores, concatenated), optionally its runs
 table, a baseline summary, and pytest-benchmark runs (`bench.benchsuite`). Output: an HTML file
-with inline CSS and inline SVG charts (matplotlib, text kept as text) and no script, link or
-request to anything outside the file, so it opens from disk, from a CI artifact, or by mail.
+with inline CSS, interactive charts (plotly.js inlined once at the end of the page, each chart's
+figure as an inline JSON block) and the benchmark history as an inline matplotlib SVG. Nothing is
+fetched from outside the file, so it opens from disk, from a CI artifact, or by mail, offline.
 
 Sections:
   cards        commits tracked, runs done/failed, regressions in the latest comparison, benchmarks
   comparison   the newest code version against the previous one (or against a baseline summary):
                every row beyond tolerance first (REGRESSED rows in red), the full table folded
-  quality      per (sequence, holes): rows = scopes, columns = quality metrics, x = code versions
-               in time order, one line per method configuration (same colour everywhere), the
-               paper's value as a dashed line where the sequence is one of the paper's
+  quality      a filter bar (sequence, holes, metric, scope) and one chart per (sequence, holes,
+               metric, scope): x = code versions in time order, one line per method configuration
+               (`bench.palette` colours), the paper's value dashed where the sequence is one of the
+               paper's; hover gives value, std, n, commit, date and machine; drag zooms
   paper        temporal-graph's gains over the paper's other columns beside the paper's own
   latest       the newest code version's means per method (best per column in bold)
-  speed        wall and CPU time per frame over code versions (from the store) and the pytest-benchmark
-               history (median seconds per session, log scale) with the newest figures
+  speed        wall and CPU time per frame over code versions (one chart per sequence and holes, a
+               change of machine marked), and the pytest-benchmark history (median seconds per
+               session, log scale) with the newest figures
   runs         code versions with their dates, run counts and the runs' summed wall and CPU time
                (the runs table; "-" where no run recorded CPU time), and failed runs with their messages
 
@@ -25,7 +28,9 @@ their first run. Summaries come from `bench.compare.summarize`, one per code ver
 Code: `prepare_page` computes what the sections share (the history, colours, latest comparison)
 into a `Page`; each section is one function of it (`cards_section`, `comparison_section`,
 `quality_section`, `paper_section`, `latest_section`, `speed_section`, `runs_section`; `SECTIONS`
-lists them in page order); `render_dashboard` joins them. The style sheet is the package data file
+lists them in page order); `render_dashboard` joins them. Charts are `Chart`s (plotly figures as
+plain JSON data, built by `quality_charts` / `time_charts`); the page's script (`DASHBOARD_JS`)
+draws those the filters let through, each once. The style sheet is the package data file
 bench/static/dashboard.css, inlined (`stylesheet`). The paper's values come from `bench.paper_facts`.
 """
 
@@ -37,7 +42,7 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -110,6 +115,8 @@ class History:
     versions: list[str]
     version_dates: dict[str, str]
     table: pd.DataFrame
+    #: code version -> the machine its runs ran on ("node, x86_64, 2 cpus"), where known (`machine_name`)
+    version_machines: dict[str, str] = field(default_factory=dict)
 
 
 def summary_as_results(summary: pd.DataFrame, meta: dict, *, run_prefix: str = "summary") -> pd.DataFrame:
@@ -139,8 +146,9 @@ def method_label(method: str, params_json: str) -> str:
     return method if params_json in ("", "{}") else f"{method} ({compare.short_params(params_json, 32)})"
 
 
-def build_history(results: pd.DataFrame) -> History:
-    """Summarize the results table at each code version (see History)."""
+def build_history(results: pd.DataFrame, machines: dict[str, str] | None = None) -> History:
+    """Summarize the results table at each code version (see History); ``machines``: code version ->
+    machine (`version_machines`)."""
     columns = compare.SUMMARY_COLUMNS + ["code_version", "label", "measured"]
     if results.empty:
         return History([], {}, pd.DataFrame(columns=columns))
@@ -159,7 +167,42 @@ def build_history(results: pd.DataFrame) -> History:
     table = pd.concat(parts, ignore_index=True)
     table["label"] = [method_label(m, p) for m, p in zip(table["method"], table["method_params"])]
     dates = {v: str(first_seen[v])[:16].replace("T", " ") for v in versions}
-    return History(versions, dates, table[columns])
+    known = {v: m for v, m in (machines or {}).items() if v in dates and m}
+    return History(versions, dates, table[columns], known)
+
+
+def machine_name(env: dict) -> str:
+    """A machine as the history compares them: 'node, arch, N cpus[, processor]' from a run's env
+    (``{"machine": {"node", "arch", "cpus"}}``) or a summary's meta (``env.node``, ``env.arch``,
+    ``env.cpus``; or ``env.machine`` and ``env.processor`` as `provenance.summary_environment` writes
+    them); '' when neither says."""
+    machine = env.get("machine") if isinstance(env.get("machine"), dict) else None
+    if machine is not None:
+        parts = [machine.get("node"), machine.get("arch"), machine.get("cpus") and f"{machine['cpus']} cpus"]
+    elif env.get("env.node") or env.get("env.cpus"):
+        parts = [env.get("env.node"), env.get("env.arch"), env.get("env.cpus") and f"{env['env.cpus']} cpus"]
+    else:
+        parts = [env.get("env.machine"), env.get("env.processor")]
+    return ", ".join(str(p) for p in parts if p)
+
+
+def run_machines(runs: pd.DataFrame | None) -> dict[str, str]:
+    """Code version -> the machine most of its runs ran on (the runs table's env JSON); versions
+    whose runs recorded none are left out."""
+    import json
+
+    if runs is None or runs.empty or "env" not in runs.columns:
+        return {}
+    names = {}
+    for version, env_text in zip(runs["code_version"].fillna("unknown").astype(str), runs["env"]):
+        try:
+            env = json.loads(env_text) if isinstance(env_text, str) and env_text else {}
+        except json.JSONDecodeError:
+            continue
+        name = machine_name(env) if isinstance(env, dict) else ""
+        if name:
+            names.setdefault(version, []).append(name)
+    return {v: max(set(found), key=found.count) for v, found in names.items()}
 
 
 def method_colours(labels) -> dict[str, str]:
@@ -213,98 +256,6 @@ def _seconds_axis(axis) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
-def _plot_line(ax, line: pd.DataFrame, colour: str, linestyle: str = "-", label: str | None = None) -> None:
-    """One method's values over versions: filled markers where measured at that version, hollow
-    where carried over from an earlier one."""
-    ax.plot(line["x"], line["mean"], color=colour, linewidth=1.6, linestyle=linestyle, label=label, marker="o",
-            markersize=4, markevery=[i for i, m in enumerate(line["measured"]) if m] or None)
-    carried = line[~line["measured"].astype(bool)]
-    if len(carried):
-        ax.plot(carried["x"], carried["mean"], linestyle="none", marker="o", markersize=4.5,
-                markerfacecolor="white", markeredgecolor=colour)
-
-
-def quality_chart(history: History, sequence: str, holes: str, holes_params: str, metrics: list[str],
-                  colours: dict[str, str], paper: pd.DataFrame) -> str:
-    """rows = scopes, columns = metrics; x = code versions; one line per method configuration."""
-    plt = _matplotlib()
-    sub = history.table[(history.table["sequence"] == sequence) & (history.table["holes"] == holes)
-                        & (history.table["holes_params"] == holes_params)]
-    scopes = [s for s in ("frame", "holes") if s in set(sub["scope"])] + \
-        sorted(set(sub["scope"]) - {"frame", "holes"})
-    x_of = {v: i for i, v in enumerate(history.versions)}
-    fig, axes = plt.subplots(len(scopes), len(metrics), figsize=(3.3 * len(metrics), 2.5 * len(scopes) + 0.5),
-                             squeeze=False)
-    paper_rows = paper[paper["sequence"] == sequence.lower()]
-    for r, scope in enumerate(scopes):
-        for c, metric in enumerate(metrics):
-            ax = axes[r][c]
-            cell = sub[(sub["scope"] == scope) & (sub["metric"] == metric)]
-            for label, rows in cell.groupby("label", sort=False):
-                rows = rows.assign(x=rows["code_version"].map(x_of)).sort_values("x")
-                for peak, line in rows.groupby("peak"):
-                    _plot_line(ax, line, colours[label], linestyle="-" if peak in ("", "intrinsic") else ":")
-            for _, ref in paper_rows[paper_rows["metric"] == metric].iterrows():
-                colour = next((v for k, v in colours.items() if k.split(" (")[0] == ref["method"]), "#6b7280")
-                ax.axhline(ref["value"], color=colour, linestyle="--", linewidth=0.9, alpha=0.7)
-            if metric in ("nshd", "hausdorff", "chamfer") and (cell["mean"] > 0).all() and len(cell):
-                ax.set_yscale("log")
-            ax.set_xticks(range(len(history.versions)))
-            ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right",
-                               fontsize=7.5)
-            ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
-            ax.set_title(f"{metric_label(metric)} · {scope}", loc="left")
-    handles = [plt.Line2D([], [], color=colours[name], marker="o", linewidth=1.6, label=name)
-               for name in sorted(set(sub["label"]), key=list(colours).index)]
-    if any(p not in ("", "intrinsic") for p in set(sub["peak"])):
-        handles.append(plt.Line2D([], [], color="#6b7280", linestyle=":", label="dotted: PSNR peak "
-                                  + ", ".join(sorted(p for p in set(sub["peak"]) if p not in ("", "intrinsic")))))
-    if not sub["measured"].all():
-        handles.append(plt.Line2D([], [], color="#6b7280", marker="o", markerfacecolor="white", linestyle="none",
-                                  label="carried over (not rerun)"))
-    if not paper_rows.empty:
-        handles.append(plt.Line2D([], [], color="#6b7280", linestyle="--", label="paper (Table 1/2)"))
-    fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 6), frameon=False,
-               bbox_to_anchor=(0.5, 1.0))
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))
-    return _svg(fig)
-
-
-def time_chart(history: History, colours: dict[str, str], metric: str = "time_s") -> str | None:
-    """Time per frame (``metric``: "time_s" wall, "cpu_time_s" CPU) over code versions: one panel per
-    sequence, one line per method."""
-    plt = _matplotlib()
-    times = history.table[history.table["metric"] == metric]
-    if times.empty:
-        return None
-    groups = list(times.groupby(["sequence", "holes", "holes_params"], sort=True))
-    fig, axes = plt.subplots(1, len(groups), figsize=(max(4.2 * len(groups), 6), 2.9), squeeze=False)
-    x_of = {v: i for i, v in enumerate(history.versions)}
-    for ax, ((sequence, holes, _), rows) in zip(axes[0], groups):
-        for label, line in rows.groupby("label", sort=False):
-            line = line.assign(x=line["code_version"].map(x_of)).sort_values("x")
-            _plot_line(ax, line, colours[label], label=label)
-        if (rows["mean"] > 0).all():
-            ax.set_yscale("log")
-            _seconds_axis(ax.yaxis)
-        ax.set_xticks(range(len(history.versions)))
-        ax.set_xticklabels([short_version(v) for v in history.versions], rotation=30, ha="right", fontsize=7.5)
-        ax.set_xlim(-0.4, max(len(history.versions) - 0.6, 0.4))
-        ax.set_title(f"{sequence} · {holes}: {'CPU ' if metric == 'cpu_time_s' else ''}seconds per frame", loc="left")
-    handles, labels = [], []
-    for ax in axes[0]:
-        for h, name in zip(*ax.get_legend_handles_labels()):
-            if name not in labels:
-                handles.append(h)
-                labels.append(name)
-    order = sorted(range(len(labels)), key=lambda i: list(colours).index(labels[i]))
-    handles, labels = [handles[i] for i in order], [labels[i] for i in order]
-    fig.legend(handles, labels, loc="upper center", ncol=min(len(labels), 6), frameon=False,
-               bbox_to_anchor=(0.5, 1.0))
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))
-    return _svg(fig)
-
-
 def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
     """Median seconds per pytest-benchmark session: one panel per group, one line per benchmark;
     with a single session, horizontal bars of the figures instead."""
@@ -349,6 +300,288 @@ def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
         ax.set_visible(False)
     fig.tight_layout()
     return _svg(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# interactive charts (plotly.js, inlined once per page; figures as JSON beside their <div>)
+#: the id of the page's one inline copy of plotly.js (`external_references` skips its text: the URLs
+#: in it are map-tile attributions and the "made with" link of features this page does not use)
+PLOTLY_SCRIPT_ID = "plotly-js"
+#: the marker of a chart's box in a section's HTML (a page with none gets no plotly.js)
+PLOT_BOX = 'class="plot-box"'
+#: plotly options for every chart: no logo link, no "edit in chart studio", resized with the window
+PLOTLY_CONFIG = {"displaylogo": False, "responsive": True, "showLink": False, "showSendToCloud": False,
+                 "modeBarButtonsToRemove": ["sendDataToCloud", "lasso2d", "select2d"]}
+#: where values are positive, these metrics span decades: a log axis
+LOG_METRICS = ("nshd", "hausdorff", "chamfer", "time_s", "cpu_time_s")
+
+
+@dataclass
+class Chart:
+    """One interactive chart: ``figure`` is a plotly figure as plain JSON data ({"data", "layout"});
+    ``filters`` are the values the page's filters match (sequence, holes, metric, scope)."""
+
+    key: str
+    title: str
+    figure: dict
+    filters: dict[str, str]
+
+
+def plotly_library() -> str:
+    """plotly.js of the installed plotly package (``plotly.offline.get_plotlyjs``), minified, ~4.8 MB."""
+    from plotly.offline import get_plotlyjs
+
+    return get_plotlyjs()
+
+
+def holes_key(holes: str, holes_params: str) -> str:
+    """A hole configuration as the page names it: 'region (count=2, preset=medium)'."""
+    return holes + ("" if holes_params in ("", "{}") else f" ({compare.short_params(holes_params, 60)})")
+
+
+def version_ticks(history: History) -> dict[str, str]:
+    """Code version -> its x-axis label (`short_version`, made unique with '#k' if two collide)."""
+    ticks, used = {}, set()
+    for version in history.versions:
+        label = short_version(version)
+        k = 2
+        while label in used:
+            label, k = f"{short_version(version)}#{k}", k + 1
+        used.add(label)
+        ticks[version] = label
+    return ticks
+
+
+def _spread(std, n) -> str:
+    """'± 0.12 std, n = 3' (the std over frames and seeds, and how many values it is over)."""
+    n_text = f"n = {int(n)}" if n is not None and not (isinstance(n, float) and math.isnan(n)) else "n = ?"
+    if std is None or (isinstance(std, float) and math.isnan(std)):
+        return n_text
+    return f"± {_fmt(std)} std, {n_text}"
+
+
+def _point_text(history: History, label: str, row, note: str = "") -> str:
+    """The hover text of one point: method, value ± std and n, commit, date, machine."""
+    version = row.code_version
+    machine = history.version_machines.get(version, "")
+    carried = "" if bool(row.measured) else "<br><i>carried over: not rerun at this version</i>"
+    return (f"<b>{html.escape(label)}</b><br>{_fmt(row.mean)} ({_spread(row.std, row.n_frames)})<br>"
+            f"commit {html.escape(str(version))}<br>{html.escape(history.version_dates.get(version, ''))}"
+            + (f"<br>machine: {html.escape(machine)}" if machine else "") + carried + note)
+
+
+def _trace(history: History, label: str, rows: pd.DataFrame, colour: str, ticks: dict[str, str], *,
+           dash: str = "solid", notes: dict[str, str] | None = None, name: str | None = None) -> dict:
+    """One method's line over code versions (in version order): filled markers where measured at that
+    version, hollow where carried over from an earlier one; hover as `_point_text`."""
+    order = {v: i for i, v in enumerate(history.versions)}
+    rows = rows.assign(_x=rows["code_version"].map(order)).sort_values("_x")
+    notes = notes or {}
+    return {
+        "type": "scatter", "mode": "lines+markers", "name": name or label,
+        "x": [ticks[v] for v in rows["code_version"]],
+        "y": [None if pd.isna(v) else float(v) for v in rows["mean"]],
+        "text": [_point_text(history, label, r, notes.get(r.code_version, "")) for r in rows.itertuples(index=False)],
+        "hovertemplate": "%{text}<extra></extra>",
+        "line": {"color": colour, "width": 2, "dash": dash},
+        "marker": {"color": colour, "size": 7,
+                   "symbol": ["circle" if m else "circle-open" for m in rows["measured"].astype(bool)]},
+    }
+
+
+def _layout(title: str, y_title: str, ticks: dict[str, str], log: bool) -> dict:
+    return {
+        "title": {"text": title, "font": {"size": 12.5}, "x": 0.01, "xanchor": "left"},
+        "height": 290, "margin": {"l": 62, "r": 14, "t": 34, "b": 62}, "showlegend": False,
+        "hovermode": "closest", "font": {"family": "system-ui, DejaVu Sans, sans-serif", "size": 11},
+        "paper_bgcolor": "#ffffff", "plot_bgcolor": "#ffffff",
+        "xaxis": {"type": "category", "categoryorder": "array", "categoryarray": list(ticks.values()),
+                  "tickangle": -30, "title": {"text": "code version (oldest → newest)", "font": {"size": 10.5}},
+                  "gridcolor": "#e5e7eb"},
+        "yaxis": {"type": "log" if log else "linear", "title": {"text": y_title, "font": {"size": 10.5}},
+                  "gridcolor": "#e5e7eb", "zeroline": False,
+                  **({"dtick": 1, "tickformat": "~g"} if log else {})},  # log: 0.01, 0.1, 1 (decades only)
+    }
+
+
+def quality_charts(history: History, colours: dict[str, str], metrics: list[str], paper: pd.DataFrame) -> list[Chart]:
+    """One chart per (sequence, holes, metric, scope): x = code versions, one line per method
+    configuration (dotted for a PSNR peak other than the default), the paper's value for the
+    sequence as a dashed line in the method's colour."""
+    ticks = version_ticks(history)
+    charts = []
+    table = history.table
+    keys = table[["sequence", "holes", "holes_params"]].drop_duplicates().sort_values(["sequence", "holes", "holes_params"])
+    for sequence, holes, holes_params in keys.itertuples(index=False):
+        sub = table[(table["sequence"] == sequence) & (table["holes"] == holes) & (table["holes_params"] == holes_params)]
+        scopes = [s for s in ("frame", "holes") if s in set(sub["scope"])] + sorted(set(sub["scope"]) - {"frame", "holes"})
+        paper_rows = paper[paper["sequence"] == sequence.lower()]
+        for metric in metrics:
+            for scope in scopes:
+                cell = sub[(sub["scope"] == scope) & (sub["metric"] == metric)]
+                if cell.empty:
+                    continue
+                traces = []
+                for label in sorted(set(cell["label"]), key=list(colours).index):
+                    for peak, line in cell[cell["label"] == label].groupby("peak", sort=True):
+                        default_peak = peak in ("", "intrinsic")
+                        traces.append(_trace(history, label, line, colours[label], ticks,
+                                             dash="solid" if default_peak else "dot",
+                                             name=label if default_peak else f"{label} @peak {peak}"))
+                for ref in paper_rows[paper_rows["metric"] == metric].itertuples(index=False):
+                    colour = next((v for k, v in colours.items() if k.split(" (")[0] == ref.method), "#6b7280")
+                    traces.append({"type": "scatter", "mode": "lines", "name": f"paper: {ref.method}",
+                                   "x": list(ticks.values()), "y": [ref.value] * len(ticks),
+                                   "line": {"color": colour, "width": 1, "dash": "dash"}, "opacity": 0.7,
+                                   "hovertemplate": f"paper (Tables 1-2): {html.escape(ref.method)} "
+                                                    f"{_fmt(ref.value)}<extra></extra>"})
+                log = metric in LOG_METRICS and bool((cell["mean"] > 0).all())
+                title = f"{metric_label(metric)} · {scope}"
+                charts.append(Chart(f"quality-{len(charts)}", title,
+                                    {"data": traces, "layout": _layout(title, metric_label(metric), ticks, log)},
+                                    {"sequence": sequence, "holes": holes_key(holes, holes_params),
+                                     "metric": metric, "scope": scope}))
+    return charts
+
+
+def machine_changes(history: History) -> dict[str, str]:
+    """Code version -> 'machine changed: A → B' where its machine differs from the previous version's
+    (both known); versions are in `history.versions` order."""
+    changes, previous = {}, None
+    for version in history.versions:
+        machine = history.version_machines.get(version)
+        if machine and previous and machine != previous:
+            changes[version] = f"machine changed: {previous} → {machine}"
+        if machine:
+            previous = machine
+    return changes
+
+
+def time_charts(history: History, colours: dict[str, str], metric: str = "time_s") -> list[Chart]:
+    """Time per frame (``metric``: "time_s" wall, "cpu_time_s" CPU) over code versions, one chart per
+    (sequence, holes), one line per method; a version run on another machine than the one before it
+    gets a dashed vertical line, a label and a line in every hover that says so (times across
+    machines are not comparable)."""
+    ticks = version_ticks(history)
+    changes = machine_changes(history)
+    times = history.table[history.table["metric"] == metric]
+    charts = []
+    for (sequence, holes, holes_params), rows in times.groupby(["sequence", "holes", "holes_params"], sort=True):
+        notes = {v: f"<br><b>{html.escape(text)}</b>: not comparable with the point before" for v, text in changes.items()}
+        traces = [_trace(history, label, rows[rows["label"] == label], colours[label], ticks, notes=notes)
+                  for label in sorted(set(rows["label"]), key=list(colours).index)]
+        shown = set(rows["code_version"])
+        shapes = [{"type": "line", "xref": "x", "yref": "paper", "x0": ticks[v], "x1": ticks[v], "y0": 0, "y1": 1,
+                   "line": {"color": "#b45309", "width": 1.5, "dash": "dash"}} for v in changes if v in shown]
+        annotations = [{"xref": "x", "yref": "paper", "x": ticks[v], "y": 1.0, "yanchor": "bottom",
+                        "text": "machine changed", "showarrow": False, "font": {"size": 10, "color": "#b45309"}}
+                       for v in changes if v in shown]
+        what = "CPU seconds per frame" if metric == "cpu_time_s" else "seconds per frame"
+        title = f"{sequence} · {holes}: {what}"
+        layout = _layout(title, f"{what} (s)", ticks, bool((rows["mean"] > 0).all()))
+        layout.update(shapes=shapes, annotations=annotations)
+        charts.append(Chart(f"{metric}-{len(charts)}", title, {"data": traces, "layout": layout},
+                            {"sequence": sequence, "holes": holes_key(holes, holes_params)}))
+    return charts
+
+
+def _json_script(data, css_class: str) -> str:
+    """``data`` as an inline JSON <script> (never executed; "</" escaped so it cannot end the element)."""
+    import json
+
+    text = json.dumps(data, separators=(",", ":"), allow_nan=False, default=str).replace("</", "<\\/")
+    return f'<script type="application/json" class="{css_class}">{text}</script>'
+
+
+def charts_html(charts: list[Chart], kind: str) -> str:
+    """The charts as a grid of boxes (each with its filter values as data- attributes and an empty
+    plot <div> that the page's script draws) and their figures as one JSON block."""
+    boxes = []
+    for chart in charts:
+        attrs = "".join(f' data-{k}="{_e(v)}"' for k, v in chart.filters.items())
+        caption = " · ".join(_e(chart.filters[k]) for k in ("sequence", "holes") if k in chart.filters)
+        boxes.append(f'<figure class="plot-box" data-kind="{_e(kind)}"{attrs}><figcaption>{caption}</figcaption>'
+                     f'<div class="plot" id="{_e(chart.key)}" data-fig="{_e(chart.key)}"></div></figure>')
+    figures = {chart.key: chart.figure for chart in charts}
+    return f'<div class="plots">{"".join(boxes)}</div>{_json_script(figures, "dash-figures")}'
+
+
+def colour_key(labels, colours: dict[str, str]) -> str:
+    """The methods' colours as a line of swatches (the charts carry no legend of their own)."""
+    items = "".join(f'<span class="key-item"><span class="swatch" style="background:{colours[label]}"></span>'
+                    f'{_e(label)}</span>' for label in sorted(set(labels), key=list(colours).index))
+    return f'<p class="key">{items}</p>'
+
+
+def filters_html(history: History, metrics: list[str]) -> str:
+    """The filter bar: one <select> per filter (sequence, holes, metric, scope; '' = all). The page
+    starts on the first quality metric so that it does not draw every chart at once."""
+    table = history.table
+    holes = sorted({holes_key(h, p) for h, p in zip(table["holes"], table["holes_params"])})
+    scopes = [s for s in ("frame", "holes") if s in set(table["scope"])] + sorted(set(table["scope"]) - {"frame", "holes"})
+    options = {"sequence": sorted(set(table["sequence"])), "holes": holes, "metric": metrics, "scope": scopes}
+    start = {"metric": metrics[0] if metrics else ""}
+    parts = []
+    for name, values in options.items():
+        items = [f'<option value=""{"" if start.get(name) else " selected"}>all</option>']
+        for value in values:
+            label = metric_label(value) if name == "metric" else value
+            selected = " selected" if start.get(name) == value else ""
+            items.append(f'<option value="{_e(value)}"{selected}>{_e(label)}</option>')
+        parts.append(f'<label>{name} <select data-filter="{name}">{"".join(items)}</select></label>')
+    return (f'<div class="filters" id="filters">{"".join(parts)}<span class="note" id="filter-count"></span>'
+            f'</div>')
+
+
+#: the page's behaviour: draw the charts the filters let through (each once, on first show), hide the others
+DASHBOARD_JS = """
+(function () {
+  var figures = {};
+  document.querySelectorAll('script.dash-figures').forEach(function (s) {
+    var part = JSON.parse(s.textContent);
+    for (var k in part) { figures[k] = part[k]; }
+  });
+  var config = %CONFIG%;
+  function draw(div) {
+    if (div.dataset.drawn) { Plotly.Plots.resize(div); return; }
+    var f = figures[div.dataset.fig];
+    Plotly.newPlot(div, f.data, f.layout, config);
+    div.dataset.drawn = '1';
+  }
+  function apply() {
+    var chosen = {};
+    document.querySelectorAll('select[data-filter]').forEach(function (s) { chosen[s.dataset.filter] = s.value; });
+    var shown = 0, total = 0;
+    document.querySelectorAll('.plot-box').forEach(function (box) {
+      var show = Object.keys(chosen).every(function (k) {
+        var v = box.dataset[k];
+        return chosen[k] === '' || v === undefined || v === chosen[k];
+      });
+      box.hidden = !show;
+      total += 1;
+      if (show) { shown += 1; draw(box.querySelector('.plot')); }
+    });
+    var count = document.getElementById('filter-count');
+    if (count) { count.textContent = shown + ' of ' + total + ' charts shown'; }
+  }
+  document.querySelectorAll('select[data-filter]').forEach(function (s) { s.addEventListener('change', apply); });
+  window.dashboardFilter = function (name, value) {
+    var s = document.querySelector('select[data-filter="' + name + '"]');
+    s.value = value; apply();
+  };
+  apply();
+})();
+"""
+
+
+def page_scripts(with_plots: bool) -> str:
+    """plotly.js (once) and the page's script, for the end of <body>; '' for a page without charts."""
+    import json
+
+    if not with_plots:
+        return ""
+    return (f'<script id="{PLOTLY_SCRIPT_ID}">{plotly_library()}</script>'
+            f'<script>{DASHBOARD_JS.replace("%CONFIG%", json.dumps(PLOTLY_CONFIG))}</script>')
 
 
 # ---------------------------------------------------------------------------------------------
@@ -526,9 +759,11 @@ class Page:
 
 
 def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: pd.DataFrame | None,
-                 baseline: tuple[pd.DataFrame, dict] | None, tolerances: dict[str, float] | None) -> Page:
-    """The history, colours, metrics and latest comparison that the sections share."""
-    history = build_history(results)
+                 baseline: tuple[pd.DataFrame, dict] | None, tolerances: dict[str, float] | None,
+                 machines: dict[str, str] | None = None) -> Page:
+    """The history, colours, metrics and latest comparison that the sections share; ``machines``
+    (code version -> machine, e.g. of history summaries) adds to those of the runs table."""
+    history = build_history(results, {**run_machines(runs), **(machines or {})})
     colours = method_colours(history.table["label"]) if len(history.table) else {}
     metrics_present = set(history.table["metric"]) if len(history.table) else set()
     quality_metrics = [m for m in QUALITY_ORDER if m in metrics_present] + \
@@ -612,27 +847,23 @@ def comparison_section(page: Page) -> str:
 
 
 def quality_section(page: Page) -> str:
-    """One chart per (sequence, holes): quality over code versions, the paper's values dashed."""
+    """The filter bar and one interactive chart per (sequence, holes, metric, scope) over code
+    versions, the paper's values dashed."""
     history, paper = page.history, page.paper
     if not history.versions:
         return ""
-    charts = []
-    keys = history.table[["sequence", "holes", "holes_params"]].drop_duplicates().sort_values(
-        ["sequence", "holes", "holes_params"])
-    for sequence, holes, holes_params in keys.itertuples(index=False):
-        params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
-        chart = quality_chart(history, sequence, holes, holes_params, page.quality_metrics, page.colours, paper)
-        charts.append(f'<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>'
-                      f'<div class="figure" data-chart="quality" data-sequence="{_e(sequence)}" '
-                      f'data-commits="{len(history.versions)}">{chart}</div>')
+    charts = quality_charts(history, page.colours, page.quality_metrics, paper)
     has_paper = bool(set(history.table["sequence"].str.lower()) & set(paper["sequence"]))
     paper_note = ("Dashed lines: the paper's Table 1 (GPSNR) and Table 2 (NSHD) values for this sequence."
                   if has_paper else
                   f"The paper's values (Tables 1-2) are for its own sequences ({', '.join(PAPER_SEQUENCES.values())}); "
                   "none is in this store, so no reference lines are drawn.")
     return (f'<section id="quality"><h2>Quality over code versions</h2><p class="note">Mean over frames (and seeds) '
-            f'of the newest run per cell, per code version in time order. Scope "frame" scores whole frames, '
-            f'"holes" only the hole regions. {_e(paper_note)}</p>{"".join(charts)}</section>')
+            f'of the newest run per cell, per code version in time order; hover a point for its value, std, '
+            f'number of values, commit, date and machine; drag to zoom, double-click to reset. Hollow points are '
+            f'carried over from an earlier version (not rerun). Scope "frame" scores whole frames, "holes" only '
+            f'the hole regions. {_e(paper_note)}</p>{filters_html(history, page.quality_metrics)}'
+            f'{colour_key(history.table["label"], page.colours)}{charts_html(charts, "quality")}</section>')
 
 
 def paper_section(page: Page) -> str:
@@ -672,15 +903,19 @@ def speed_section(page: Page) -> str:
     """Time per frame over code versions and the pytest-benchmark history; '' when there is neither."""
     history, benchmarks = page.history, page.benchmarks
     speed = []
-    chart = time_chart(history, page.colours) if history.versions else None
-    if chart:
-        speed.append(f'<h3>Inpainting time per frame (results store)</h3>'
-                     f'<div class="figure" data-chart="time" data-commits="{len(history.versions)}">{chart}</div>')
-    cpu_chart = time_chart(history, page.colours, "cpu_time_s") if history.versions else None
-    if cpu_chart:
+    changes = machine_changes(history) if history.versions else {}
+    machine_note = (f' Dashed orange lines mark a change of machine ({len(changes)}): times on either side of one '
+                    f'are not comparable.' if changes else '')
+    charts = time_charts(history, page.colours) if history.versions else []
+    if charts:
+        speed.append(f'<h3>Inpainting time per frame (results store)</h3><p class="note">Wall seconds per frame, '
+                     f'log scale; the filters above choose sequence and holes.{_e(machine_note)}</p>'
+                     f'{charts_html(charts, "time")}')
+    cpu_charts = time_charts(history, page.colours, "cpu_time_s") if history.versions else []
+    if cpu_charts:
         speed.append(f'<h3>Inpainting CPU time per frame (results store)</h3><p class="note">user + system, all '
                      f'threads: on a loaded machine the wall time grows with the load, the CPU time barely does.</p>'
-                     f'<div class="figure" data-chart="cpu-time" data-commits="{len(history.versions)}">{cpu_chart}</div>')
+                     f'{charts_html(cpu_charts, "cpu-time")}')
     if page.n_bench:
         from dpcbench.bench import benchsuite
 
@@ -762,9 +997,9 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
                      benchmarks: pd.DataFrame | None = None,
                      baseline: tuple[pd.DataFrame, dict] | None = None,
                      tolerances: dict[str, float] | None = None, title: str = "dpcbench regression dashboard",
-                     sources: list[str] | None = None) -> str:
+                     sources: list[str] | None = None, machines: dict[str, str] | None = None) -> str:
     """The dashboard page as one HTML string (see the module docstring for its sections)."""
-    page = prepare_page(results, runs, benchmarks, baseline, tolerances)
+    page = prepare_page(results, runs, benchmarks, baseline, tolerances, machines)
     sections = [html_text for html_text in (section(page) for section in SECTIONS) if html_text]
     if not sections:
         sections.append('<section><h2>No results yet</h2><p>Run <code>dpcbench run bench/presets/regression.toml'
@@ -777,7 +1012,8 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
         f"<style>\n{stylesheet()}</style></head><body><header><h1>{_e(title)}</h1>"
         f"<p>3D dynamic point cloud inpainting · generated {generated} from {_e(source_text)}</p></header><main>"
         f"{cards_section(page)}{''.join(sections)}"
-        "<footer>dpcbench · static page: every chart and number is inside this file</footer></main></body></html>\n"
+        "<footer>dpcbench · self-contained page: every chart, number and script is inside this file"
+        f"</footer></main>{page_scripts(any(PLOT_BOX in part for part in sections))}</body></html>\n"
     )
 
 
@@ -792,4 +1028,6 @@ def external_references(page: str) -> list[str]:
     """URLs the page would fetch (src/href/url() to http(s) or protocol-relative); [] for a static page.
     SVG namespace declarations (xmlns=...) are identifiers, not requests, and are not counted."""
     pattern = r"""(?:src|href)\s*=\s*["'](?:https?:)?//[^"']+|url\(\s*["']?(?:https?:)?//[^)]+\)|@import"""
+    # the inlined plotly.js is not searched: its URLs are attributions of map layers this page never draws
+    page = re.sub(rf'<script id="{PLOTLY_SCRIPT_ID}">.*?</script>', "", page, flags=re.DOTALL)
     return re.findall(pattern, page, flags=re.IGNORECASE)
