@@ -119,17 +119,108 @@ class History:
     version_machines: dict[str, str] = field(default_factory=dict)
 
 
+def summary_values(mean: float, std: float, n: int) -> list[float]:
+    """``n`` values whose mean is ``mean`` and population std is ``std`` (the statistics a summary
+    keeps of a cell's frames), so that `compare.summarize` of them gives the summary's row back:
+    n even: mean ± std alternately; n odd: mean, then mean ± std * sqrt(n / (n - 1)) alternately
+    (squared deviations sum to n std²). A NaN std, or n < 2, gives n copies of the mean (at least one)."""
+    n = max(int(n), 1)
+    if n < 2 or std is None or math.isnan(std) or std == 0:
+        return [float(mean)] * n
+    if n % 2 == 0:
+        return [float(mean + (std if i % 2 == 0 else -std)) for i in range(n)]
+    step = std * math.sqrt(n / (n - 1))
+    return [float(mean)] + [float(mean + (step if i % 2 == 0 else -step)) for i in range(n - 1)]
+
+
 def summary_as_results(summary: pd.DataFrame, meta: dict, *, run_prefix: str = "summary") -> pd.DataFrame:
-    """A summary file's rows as store-shaped results (one value per cell: its mean), so a committed
-    baseline can join the history as one code version (its std and frame count are not kept)."""
+    """A summary file's rows as store-shaped results, so a committed baseline or a history folder's
+    summary joins the history as one code version: one run per cell, its frames `summary_values`
+    (the cell's mean, std and frame count are kept; its per-frame values are not in a summary).
+    The code version is the meta's (the last one where it lists several), the time its commit_date
+    (the commit's own date, as asv orders by commit), else its run_date (its newest run), else its
+    date (when the file was written)."""
     version = str(meta.get("code_version") or "unknown").split(",")[-1]
-    rows = summary.assign(
-        run_id=[f"{run_prefix}:{s}|{h}|{hp}|{m}|{mp}" for s, h, hp, m, mp in
-                zip(summary["sequence"], summary["holes"], summary["holes_params"], summary["method"],
-                    summary["method_params"])],
-        experiment=str(meta.get("experiment", "")), seed=0, method_version="", code_version=version,
-        frame=0, value=summary["mean"], created_at=str(meta.get("date", "")))
-    return rows.drop(columns=["mean", "std", "n_frames"])
+    when = str(meta.get("commit_date") or meta.get("run_date") or meta.get("date", ""))
+    rows = []
+    for row in summary.itertuples(index=False):
+        run_id = f"{run_prefix}:{row.sequence}|{row.holes}|{row.holes_params}|{row.method}|{row.method_params}"
+        mean = float(row.mean) if not pd.isna(row.mean) else float("nan")
+        values = [mean] if math.isnan(mean) else summary_values(mean, float(row.std), int(row.n_frames))
+        for frame, value in enumerate(values):
+            rows.append({"run_id": run_id, "sequence": row.sequence, "holes": row.holes,
+                         "holes_params": row.holes_params, "method": row.method, "method_params": row.method_params,
+                         "metric": row.metric, "scope": row.scope, "peak": row.peak, "frame": frame, "value": value})
+    columns = ["run_id", "sequence", "holes", "holes_params", "method", "method_params", "metric", "scope", "peak",
+               "frame", "value"]
+    from dpcbench.bench.store import RESULT_COLUMNS
+
+    table = pd.DataFrame(rows, columns=columns)
+    return table.assign(experiment=str(meta.get("experiment", "")), seed=0, method_version="", code_version=version,
+                        created_at=when)[RESULT_COLUMNS]
+
+
+HISTORY_SUFFIXES = (".csv", ".json")
+
+
+def read_history(folder: str | os.PathLike) -> list[tuple[pd.DataFrame, dict, Path]]:
+    """Every summary (.csv/.json, the format `compare.write_summary` writes) in ``folder``, by file
+    name: [(table, meta, path)]. A file there that is not a summary is a `UserError` naming it."""
+    from dpcbench.bench.errors import UserError
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder}: no such history folder; give a folder of summaries written by "
+                        "`dpcbench dashboard --save-history DIR` (or `dpcbench compare --save-current`)")
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in HISTORY_SUFFIXES)
+    return [(*compare.read_summary(path), path) for path in files]
+
+
+def history_file_name(meta: dict) -> str:
+    """The file of a commit's summary in a history folder: '<time>_<commit>.csv', the time as
+    `summary_as_results` orders by (sorting by name is sorting by time; one file per commit)."""
+    version = str(meta.get("code_version") or "unknown")
+    when = str(meta.get("commit_date") or meta.get("run_date") or meta.get("date") or "")
+    when = when[:19].replace(":", "").replace("-", "")
+    safe = re.sub(r"[^0-9A-Za-z+]", "_", version)[:48]
+    return f"{when}_{safe}.csv" if when else f"{safe}.csv"
+
+
+def commit_date(version: str, repo: str | os.PathLike | None = None) -> str:
+    """The committer date (ISO 8601) of ``version`` ("+dirty" stripped) in the git checkout ``repo``
+    (default: this source tree), or '' when git cannot tell."""
+    import subprocess
+
+    cwd = Path(repo) if repo else Path(__file__).resolve().parents[1]
+    commit = re.sub(r"[+-]dirty$", "", str(version))
+    if not re.fullmatch(r"[0-9a-f]{7,40}", commit):
+        return ""
+    try:
+        text = subprocess.run(["git", "show", "-s", "--format=%cI", commit], cwd=cwd, capture_output=True, text=True,
+                              timeout=10, check=True).stdout.strip()
+        # in UTC, as the store's times: the history sorts times as text
+        return _dt.datetime.fromisoformat(text).astimezone(_dt.timezone.utc).isoformat()
+    except (OSError, subprocess.SubprocessError, ValueError):
+        return ""
+
+
+def history_summary(results: pd.DataFrame, runs: pd.DataFrame | None, environment: dict | None = None,
+                    **extra) -> tuple[pd.DataFrame, dict]:
+    """(summary, meta) of a store's results for a history folder: `compare.summarize` of the newest
+    run per cell; meta code_version = the code version of the newest run (the commit the summary
+    stands for), code_versions = all of them, run_date the newest run's time, commit_date from git
+    where it knows the commit, the runs' environment (`environment`: flat, e.g. env.node / env.cpus:
+    the machine)."""
+    summary = compare.summarize(results)
+    newest = results.sort_values("created_at")["code_version"].dropna().astype(str)
+    version = newest.iloc[-1] if len(newest) else "unknown"
+    last_run = str(results["created_at"].dropna().max()) if results["created_at"].notna().any() else ""
+    meta = compare.summary_meta(version, environment=environment, run_date=last_run,
+                                code_versions=",".join(sorted(set(newest))), **extra)
+    when = commit_date(version)
+    if when:
+        meta["commit_date"] = when
+    return summary, meta
 
 
 def short_version(version: str) -> str:
@@ -503,7 +594,7 @@ def charts_html(charts: list[Chart], kind: str) -> str:
         boxes.append(f'<figure class="plot-box" data-kind="{_e(kind)}"{attrs}><figcaption>{caption}</figcaption>'
                      f'<div class="plot" id="{_e(chart.key)}" data-fig="{_e(chart.key)}"></div></figure>')
     figures = {chart.key: chart.figure for chart in charts}
-    return f'<div class="plots">{"".join(boxes)}</div>{_json_script(figures, "dash-figures")}'
+    return f'<div class="plots" data-chart="{_e(kind)}">{"".join(boxes)}</div>{_json_script(figures, "dash-figures")}'
 
 
 def colour_key(labels, colours: dict[str, str]) -> str:
@@ -775,8 +866,10 @@ def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: p
         current = history.table[history.table["code_version"] == history.versions[-1]]
         if baseline is not None:
             base, base_meta = baseline
+            where = f" {base_meta['path']}" if base_meta.get("path") else ""
             compared_what = (f"code {short_version(history.versions[-1])} against the baseline summary "
-                             f"(code {short_version(base_meta.get('code_version', '?'))}, {base_meta.get('date', '?')})")
+                             f"(code {short_version(base_meta.get('code_version', '?'))}, {base_meta.get('date', '?')})"
+                             f"{where}")
         else:
             base = history.table[history.table["code_version"] == history.versions[-2]]
             compared_what = (f"code {short_version(history.versions[-1])} against the previous version "
@@ -1017,11 +1110,21 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
     )
 
 
-def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, **kwargs) -> Path:
-    """Render and write the page atomically; returns its path."""
+def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, *, pages: bool = False, **kwargs) -> list[Path]:
+    """Render and write the page atomically; returns the paths written, the page first."""
     from dpcbench.bench.atomic import atomic_write_text
 
-    return atomic_write_text(out, render_dashboard(results, **kwargs))
+    return [atomic_write_text(out, render_dashboard(results, **kwargs))]
+
+
+def shares_rows(summary: pd.DataFrame, results: pd.DataFrame) -> bool:
+    """Whether a summary has a row of a cell the results have (same `compare.KEY_COLUMNS`), i.e.
+    whether comparing them says anything (a baseline of other data would only list missing rows)."""
+    if summary.empty or results.empty:
+        return False
+    mine = compare.summarize(results)[compare.KEY_COLUMNS]
+    theirs = compare._normalize_keys(summary)[compare.KEY_COLUMNS]
+    return len(mine.merge(theirs.drop_duplicates(), on=compare.KEY_COLUMNS)) > 0
 
 
 def external_references(page: str) -> list[str]:

@@ -20,9 +20,10 @@ VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"),
             ("2222222222bbbbbbbbbb", "2026-01-02T10:00:00+00:00")]
 
 
-def make_store(path, *, versions=(0, 1), spec_ids=False):
+def make_store(path, *, versions=(0, 1), spec_ids=False, machine=None):
     """Runs of 3 methods on 1 sequence at two code versions; at the second, fu-nonlocal loses 2 dB
-    GPSNR D1 and doubles its NSHD (both scopes), everything else is identical."""
+    GPSNR D1 and doubles its NSHD (both scopes), everything else is identical. ``machine``: the node
+    name the runs' env records (none by default)."""
     store = ResultsStore(path)
     rng = np.random.default_rng(0)
     noise = rng.normal(0, 0.01, size=3)
@@ -44,7 +45,9 @@ def make_store(path, *, versions=(0, 1), spec_ids=False):
             store.record_run(method if spec_ids else f"{version[:4]}-{method}", dict(
                 sequence="human", holes="region", holes_params={"preset": "small"}, seed=0, method=method,
                 method_params={}, method_version="1", code_version=version, spec={}, created_at=when,
-                finished_at=when, env={"packages": {"numpy": np.__version__}}), rows, ["regression"])
+                finished_at=when, env={"packages": {"numpy": np.__version__},
+                                       **({"machine": {"node": machine, "arch": "x86_64", "cpus": 2}}
+                                          if machine else {})}), rows, ["regression"])
     if 1 not in versions:
         return store
     store.record_failure("broken", dict(sequence="human", holes="region", holes_params={}, seed=0, method="meshlab",
@@ -175,6 +178,14 @@ def test_cli_dashboard_errors(tmp_path, capsys):
     assert ".html" in capsys.readouterr().err
     assert cli_main(["dashboard", "--out", str(tmp_path / "x.html"), "--store", str(tmp_path / "absent.sqlite")]) == 2
     assert "no results store there" in capsys.readouterr().err
+    assert cli_main(["dashboard", "--store", str(tmp_path / "s")]) == 2
+    assert "give --out FILE.html" in capsys.readouterr().err
+    assert cli_main(["dashboard", "--out", str(tmp_path / "x.html"), "--history", str(tmp_path / "none")]) == 2
+    assert "no such history folder" in capsys.readouterr().err
+    (tmp_path / "h").mkdir()
+    (tmp_path / "h" / "notes.csv").write_text("a,b\n1,2\n")
+    assert cli_main(["dashboard", "--out", str(tmp_path / "x.html"), "--history", str(tmp_path / "h")]) == 2
+    assert "notes.csv: not a dpcbench summary" in capsys.readouterr().err
 
 
 def run_chromium(args: list[str], profile) -> subprocess.CompletedProcess:
@@ -195,7 +206,7 @@ def test_dashboard_in_headless_chromium(tmp_path, capsys):
     make_store(tmp_path / "second.sqlite", versions=(1,), spec_ids=True)
     out = tmp_path / "dash.html"
     bench_dir = write_benchmark_sessions(tmp_path / "bench")
-    assert cli_main(["dashboard", "--out", str(out), "--store", str(tmp_path / "first.sqlite"),
+    assert cli_main(["dashboard", "--no-history", "--out", str(out), "--store", str(tmp_path / "first.sqlite"),
                      "--store", str(tmp_path / "second.sqlite"), "--benchmarks", str(bench_dir)]) == 0
     assert "2 code version(s)" in capsys.readouterr().out
     result = run_chromium(["--dump-dom", out.resolve().as_uri()], tmp_path / "profile")
@@ -249,7 +260,7 @@ def test_summary_files_join_the_history(tmp_path, capsys):
     compare.write_summary(compare.summarize(old.results_frame()), summary, meta)
     make_store(tmp_path / "new.sqlite", versions=(1,))
     out = tmp_path / "d.html"
-    assert cli_main(["dashboard", "--out", str(out), "--store", str(tmp_path / "new.sqlite"),
+    assert cli_main(["dashboard", "--no-history", "--out", str(out), "--store", str(tmp_path / "new.sqlite"),
                      "--summary", str(summary)]) == 0
     page = out.read_text()
     quality = [f for k, f in page_figures(page).items() if k.startswith("quality")]
@@ -323,7 +334,7 @@ def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypat
     assert code == 0, out
     assert (tmp_path / "r" / "REPORT.md").is_file()
     page = tmp_path / "d.html"
-    assert cli_main(["dashboard", "--out", str(page), "--store", store]) == 0
+    assert cli_main(["dashboard", "--no-history", "--out", str(page), "--store", store]) == 0
     assert "dashboard written" in capsys.readouterr().out
     result = run_chromium(["--dump-dom", page.resolve().as_uri()], tmp_path / "profile")
     assert result.returncode == 0, result.stderr[-2000:]
@@ -337,3 +348,82 @@ def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypat
     for sequence in ("Human (stand-in)", "Bunny (stand-in)"):
         assert {(sequence, "independent holes"), (sequence, "coherent holes")} <= configurations, configurations
     assert len(re.findall(r" dB</td>", gaps)) >= 3 * len(rows)  # a gain vs every other method in each row
+
+
+def test_history_folder_over_two_commits_marks_the_machine_change(tmp_path, capsys):
+    """Two regression runs at two commits on two machines, each saved to a history folder with
+    --save-history (one summary file per commit), then the page from the folder alone: every chart
+    has one point per commit, the hover names commit, date and machine, and the speed chart marks
+    the change of machine."""
+    from dpcbench.bench import compare
+
+    folder = tmp_path / "history"
+    for v, node in ((0, "ci-a"), (1, "ci-b")):
+        make_store(tmp_path / f"{v}.sqlite", versions=(v,), machine=node)
+        assert cli_main(["dashboard", "--save-history", str(folder), "--store", str(tmp_path / f"{v}.sqlite")]) == 0
+    assert "summary of code 22222222" in capsys.readouterr().out
+    files = sorted(p.name for p in folder.iterdir())
+    assert files == ["20260101T100000_1111111111aaaaaaaaaa.csv", "20260102T100000_2222222222bbbbbbbbbb.csv"]
+    # saving the same commit again replaces its file
+    assert cli_main(["dashboard", "--save-history", str(folder), "--store", str(tmp_path / "1.sqlite")]) == 0
+    assert len(list(folder.iterdir())) == 2
+    table, meta = compare.read_summary(folder / files[0])
+    assert meta["code_version"] == VERSIONS[0][0] and meta["env.node"] == "ci-a" and meta["experiment"] == "regression"
+    # mean, std and n of each cell survive the round trip through the history
+    again = compare.summarize(dashboard.summary_as_results(table, meta))
+    merged = table.merge(again, on=compare.KEY_COLUMNS, suffixes=("", "_again"))
+    assert len(merged) == len(table)
+    assert np.allclose(merged["mean"], merged["mean_again"]) and np.allclose(merged["std"], merged["std_again"])
+    assert (merged["n_frames"] == merged["n_frames_again"]).all()
+
+    out = tmp_path / "d.html"
+    assert cli_main(["dashboard", "--out", str(out), "--history", str(folder), "--summary", str(folder / files[0]),
+                     "--no-pages"]) == 0
+    assert "2 code version(s)" in capsys.readouterr().out
+    figures = page_figures(out.read_text())
+    quality = [f for k, f in figures.items() if k.startswith("quality")]
+    assert len(quality) == 3 * 2  # gpsnr_d1, gpsnr_d2, nshd x frame, holes
+    for figure in quality:
+        assert figure["layout"]["xaxis"]["categoryarray"] == ["11111111", "22222222"]
+        assert all(trace["x"] == ["11111111", "22222222"] for trace in figure["data"])
+    fu = [t for t in quality[0]["data"] if t["name"] == "fu-nonlocal"][0]
+    assert fu["y"] == pytest.approx([46.0, 44.0], abs=0.02)  # GPSNR D1, frame scope: the regression
+    assert "commit 2222222222bbbbbbbbbb" in fu["text"][1] and "2026-01-02 10:00" in fu["text"][1]
+    assert "± 0.0" in fu["text"][1] and "n = 3" in fu["text"][1]
+    speed = figures["time_s-0"]
+    assert [s["x0"] for s in speed["layout"]["shapes"]] == ["22222222"]
+    assert all("machine changed: ci-a, x86_64, 2 cpus → ci-b, x86_64, 2 cpus" in t["text"][1] for t in speed["data"])
+    assert "machine changed" not in speed["data"][0]["text"][0]
+
+
+def test_regressions_card_compares_with_the_committed_baseline(tmp_path, capsys):
+    """A store of the regression preset's cells (the committed baseline's values, one cell 1 dB
+    worse): by default the card and the comparison are against results/regression-baseline.csv,
+    as `dpcbench compare` is; `--baseline previous` compares code versions instead (one here: none)."""
+    from dpcbench.bench import compare
+    from dpcbench.bench.commands.compare import DEFAULT_BASELINE
+
+    table, meta = compare.read_summary(DEFAULT_BASELINE)
+    results = dashboard.summary_as_results(table, meta)
+    worse = ((results["method"] == "fu-nonlocal") & (results["metric"] == "gpsnr_d1") & (results["scope"] == "frame")
+             & (results["sequence"] == results["sequence"].iloc[0]))
+    assert worse.any()
+    results.loc[worse, "value"] -= 1.0
+    store = ResultsStore(tmp_path / "s.sqlite")
+    for run_id, rows in results.groupby("run_id"):
+        first = rows.iloc[0]
+        store.record_run(run_id, dict(sequence=first["sequence"], holes=first["holes"],
+                                      holes_params=json.loads(first["holes_params"]), seed=0, method=first["method"],
+                                      method_params=json.loads(first["method_params"]), code_version="abcdef0123456789",
+                                      created_at="2026-02-01T00:00:00+00:00"),
+                         rows[["frame", "metric", "scope", "peak", "value"]].to_dict("records"), ["regression"])
+    out = tmp_path / "d.html"
+    assert cli_main(["dashboard", "--no-history", "--no-pages", "--out", str(out), "--store", str(tmp_path / "s.sqlite")]) == 0
+    page = out.read_text()
+    assert re.search(r'data-card="regressions">.*?<div class="v">1</div>', page)
+    comparison = page.split('<section id="comparison">')[1].split("</section>")[0]
+    assert "results/regression-baseline.csv" in comparison
+    assert comparison.split("<details>")[0].count('data-status="REGRESSED"') == 1
+    assert cli_main(["dashboard", "--no-history", "--no-pages", "--out", str(out), "--store", str(tmp_path / "s.sqlite"),
+                     "--baseline", "previous"]) == 0
+    assert '<section id="comparison">' not in out.read_text()
