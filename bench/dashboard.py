@@ -847,6 +847,8 @@ class Page:
     n_failed: int
     n_bench: int
     n_sessions: int
+    #: the folder of the method and run pages, relative to the page ('' when they are not written)
+    pages_dir: str = ""
 
 
 def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: pd.DataFrame | None,
@@ -905,12 +907,16 @@ def cards_section(page: Page) -> str:
     if history.versions:
         latest = history.table[(history.table["code_version"] == history.versions[-1])
                                & (history.table["metric"] == "gpsnr_d1") & (history.table["scope"] == "holes")]
+        scope = "holes"
         if latest.empty:
             latest = history.table[(history.table["code_version"] == history.versions[-1])
                                    & (history.table["metric"] == "gpsnr_d1")]
+            scope = "/".join(sorted(set(latest["scope"])))
         if len(latest):
             by_method = latest.groupby("label")["mean"].mean().sort_values(ascending=False)
-            cards.append(_card("best GPSNR D1", by_method.index[0], f"{by_method.iloc[0]:.2f} dB mean over sequences"))
+            where = "in the holes (scope holes)" if scope == "holes" else f"scope {scope}"
+            cards.append(_card("best GPSNR D1", by_method.index[0],
+                               f"{by_method.iloc[0]:.2f} dB {where}, mean over sequences"))
     cards.append(_card("benchmarks", page.n_bench, f"{page.n_sessions} session(s)" if page.n_bench else "no JSON given"))
     return f"<div class=\"cards\">{''.join(cards)}</div>"
 
@@ -1047,8 +1053,18 @@ def _run_seconds(runs: pd.DataFrame | None) -> tuple[dict, dict]:
     return sums["wall_time_s"], sums["cpu_time_s"]
 
 
-def _hours(seconds: float | None) -> str:
-    return "-" if seconds is None else f"{seconds / 3600:.3g}"
+def readable_seconds(seconds: float | None) -> str:
+    """A duration for people: '-' when unknown, '850 ms', '12.3 s', '4.5 min', '2.25 h'."""
+    if seconds is None or (isinstance(seconds, float) and math.isnan(seconds)):
+        return "-"
+    seconds = float(seconds)
+    if seconds < 1:
+        return f"{seconds * 1000:.3g} ms"
+    if seconds < 60:
+        return f"{seconds:.3g} s"
+    if seconds < 3600:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds / 3600:.3g} h"
 
 
 def runs_section(page: Page) -> str:
@@ -1060,8 +1076,8 @@ def runs_section(page: Page) -> str:
     wall, cpu = _run_seconds(runs)
     version_rows = "".join(
         f'<tr><td>{_e(short_version(v))}</td><td>{_e(v)}</td><td>{_e(history.version_dates[v])}</td>'
-        f'<td class="num">{int(counts.get(v, 0))}</td><td class="num">{_e(_hours(wall.get(v)))}</td>'
-        f'<td class="num">{_e(_hours(cpu.get(v)))}</td></tr>' for v in reversed(history.versions))
+        f'<td class="num">{int(counts.get(v, 0))}</td><td class="num">{_e(readable_seconds(wall.get(v)))}</td>'
+        f'<td class="num">{_e(readable_seconds(cpu.get(v)))}</td></tr>' for v in reversed(history.versions))
     failed_html = ""
     if runs is not None and page.n_failed:
         failed = runs[runs["status"] == "failed"].drop_duplicates("run_id")
@@ -1072,13 +1088,21 @@ def runs_section(page: Page) -> str:
                            f'<td>{_e(str(r.error)[:300])}</td></tr>' for r in failed.itertuples(index=False))
                        + "</tbody></table>")
     return (f'<section id="runs"><h2>Code versions</h2><table><thead><tr><th>short</th><th>code version'
-            f'</th><th>first run (UTC)</th><th>runs</th><th>wall (h)</th><th>CPU (h)</th></tr></thead>'
+            f'</th><th>first run (UTC)</th><th>runs</th><th>wall time</th><th>CPU time</th></tr></thead>'
             f'<tbody>{version_rows}</tbody>'
             f'</table>{failed_html}</section>')
 
 
+def pages_section(page: Page) -> str:
+    """Links to the method and run pages (`bench.dashboard_pages.pages_section`); '' without them."""
+    from dpcbench.bench import dashboard_pages
+
+    return dashboard_pages.pages_section(page)
+
+
 #: the sections of the page, in order (each returns '' when it has nothing to show)
-SECTIONS = (comparison_section, quality_section, paper_section, latest_section, speed_section, runs_section)
+SECTIONS = (comparison_section, quality_section, paper_section, latest_section, speed_section, pages_section,
+            runs_section)
 
 
 def stylesheet() -> str:
@@ -1090,9 +1114,12 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
                      benchmarks: pd.DataFrame | None = None,
                      baseline: tuple[pd.DataFrame, dict] | None = None,
                      tolerances: dict[str, float] | None = None, title: str = "dpcbench regression dashboard",
-                     sources: list[str] | None = None, machines: dict[str, str] | None = None) -> str:
-    """The dashboard page as one HTML string (see the module docstring for its sections)."""
-    page = prepare_page(results, runs, benchmarks, baseline, tolerances, machines)
+                     sources: list[str] | None = None, machines: dict[str, str] | None = None,
+                     pages_dir: str = "", prepared: Page | None = None) -> str:
+    """The dashboard page as one HTML string (see the module docstring for its sections); with
+    ``pages_dir`` (relative to the page) it links the method and run pages written there."""
+    page = prepared or prepare_page(results, runs, benchmarks, baseline, tolerances, machines)
+    page.pages_dir = pages_dir
     sections = [html_text for html_text in (section(page) for section in SECTIONS) if html_text]
     if not sections:
         sections.append('<section><h2>No results yet</h2><p>Run <code>dpcbench run bench/presets/regression.toml'
@@ -1110,11 +1137,24 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
     )
 
 
-def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, *, pages: bool = False, **kwargs) -> list[Path]:
-    """Render and write the page atomically; returns the paths written, the page first."""
+def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
+                    benchmarks: pd.DataFrame | None = None, baseline: tuple[pd.DataFrame, dict] | None = None,
+                    tolerances: dict[str, float] | None = None, machines: dict[str, str] | None = None,
+                    pages: bool = False, thumbnails: bool = True, **kwargs) -> list[Path]:
+    """Render and write the page atomically; with ``pages``, a page per method configuration and
+    per run (`bench.dashboard_pages`) into the folder '<out stem>_pages' beside it. Returns the
+    paths written, the main page first."""
     from dpcbench.bench.atomic import atomic_write_text
 
-    return [atomic_write_text(out, render_dashboard(results, **kwargs))]
+    out = Path(out)
+    prepared = prepare_page(results, runs, benchmarks, baseline, tolerances, machines)
+    pages_dir = f"{out.stem}_pages" if pages and prepared.history.versions else ""
+    written = [atomic_write_text(out, render_dashboard(results, prepared=prepared, pages_dir=pages_dir, **kwargs))]
+    if pages_dir:
+        from dpcbench.bench import dashboard_pages
+
+        written += dashboard_pages.write_pages(out.parent / pages_dir, prepared, out.name, thumbnails)
+    return written
 
 
 def shares_rows(summary: pd.DataFrame, results: pd.DataFrame) -> bool:

@@ -427,3 +427,64 @@ def test_regressions_card_compares_with_the_committed_baseline(tmp_path, capsys)
     assert cli_main(["dashboard", "--no-history", "--no-pages", "--out", str(out), "--store", str(tmp_path / "s.sqlite"),
                      "--baseline", "previous"]) == 0
     assert '<section id="comparison">' not in out.read_text()
+
+
+def test_method_and_run_pages_beside_the_page(tmp_path, capsys):
+    """`dashboard --out d.html` writes d_pages/: a page per method configuration (its rows at both
+    code versions) and per run (its per-frame values as stored, a thumbnail of the fill and links
+    to its run folder and log where they exist), each linked from the page and back to it."""
+    import base64
+    import io
+    import sqlite3
+
+    import matplotlib.image
+
+    from dpcbench.bench import dashboard_pages
+    from dpcbench.bench.plyio import PointCloud, write_ply
+
+    store = make_store(tmp_path / "s.sqlite")
+    # one run with its folder (frame 0: 150 points kept, 50 added by the method) and its log
+    runs_dir = tmp_path / "runs"
+    folder = runs_dir / "inpaint-key"
+    points = np.random.default_rng(1).uniform(-1, 1, size=(200, 3))
+    write_ply(folder / "damaged" / "frame_0000.ply", PointCloud(points[:150]))
+    write_ply(folder / "inpainted" / "frame_0000.ply", PointCloud(points))
+    (folder / "manifest.json").write_text("{}")
+    run_id = "2222-temporal-graph"
+    (runs_dir / "logs").mkdir()
+    (runs_dir / "logs" / f"{run_id}.log").write_text("worker log")
+    with sqlite3.connect(tmp_path / "s.sqlite") as conn:
+        conn.execute("UPDATE runs SET output_dir = ? WHERE run_id = ?", (str(folder), run_id))
+    out = tmp_path / "d.html"
+    assert cli_main(["dashboard", "--no-history", "--out", str(out), "--store", str(tmp_path / "s.sqlite")]) == 0
+    assert "10 method and run pages beside it" in capsys.readouterr().out  # 3 methods, 6 runs done, 1 failed
+    pages = tmp_path / "d_pages"
+    main = out.read_text()
+    links = set(re.findall(r'href="(d_pages/[^"]+)"', main))
+    assert {p.name for p in pages.iterdir()} == {link.split("/")[1] for link in links} and len(links) == 10
+    for page in pages.iterdir():
+        text = page.read_text()
+        assert 'href="../d.html"' in text and dashboard.external_references(text) == [] and "<script" not in text
+    method = (pages / dashboard_pages.method_file("fu-nonlocal")).read_text()
+    assert re.findall(r'data-version="([^"]+)"', method) == [VERSIONS[1][0], VERSIONS[0][0]]
+    assert method.count('href="run-') == 2  # its run at each version
+    # the run page: per-frame values as stored, links, thumbnail with the 50 added points in red
+    run = (pages / dashboard_pages.run_file(run_id)).read_text()
+    stored = store.results_frame()
+    stored = stored[(stored["run_id"] == run_id) & (stored["metric"] == "gpsnr_d1") & (stored["scope"] == "holes")]
+    table = run.split("class='per-frame'")[1]
+    head = re.findall(r"<th>(.*?)</th>", table.split("</thead>")[0])
+    column = [i for i, h in enumerate(head) if h.startswith("GPSNR D1") and ">holes<" in h][0]
+    for frame, value in zip(stored["frame"], stored["value"]):
+        cells = re.findall(r"<td[^>]*>([^<]*)</td>", table.split(f'data-frame="{frame}">')[1].split("</tr>")[0])
+        assert float(cells[column]) == pytest.approx(value, abs=1e-4)
+    assert f'href="{folder.resolve().as_uri()}"' in run and (runs_dir / "logs" / f"{run_id}.log").resolve().as_uri() in run
+    png = base64.b64decode(re.search(r'src="data:image/png;base64,([^"]+)"', run).group(1))
+    image = matplotlib.image.imread(io.BytesIO(png), format="png")[..., :3]
+    red = (image[..., 0] > 0.8) & (image[..., 1] < 0.2)
+    left, right = red[:, : image.shape[1] // 2], red[:, image.shape[1] // 2:]
+    assert right.sum() > 0 and left.sum() == 0  # the fill is red in the output, the input has none
+    other = (pages / dashboard_pages.run_file("1111-none")).read_text()
+    assert "No thumbnail" in other and "none on this machine" in other
+    failed = (pages / dashboard_pages.run_file("broken")).read_text()
+    assert "pymeshlab said no" in failed
