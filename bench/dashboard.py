@@ -1,35 +1,41 @@
-"""The regression dashboard: one self-contained HTML page (`dpcbench dashboard`).
+"""The regression dashboard: one self-contained HTML page (`dpcbench dashboard`), plus a page per
+method configuration and per run beside it (`bench.dashboard_pages`).
 
-Input: the results store's tidy table (one or several stores, concatenated), optionally its runs
-table, a baseline summary, and pytest-benchmark runs (`bench.benchsuite`). Output: an HTML file
-with inline CSS, interactive charts (plotly.js inlined once at the end of the page, each chart's
-figure as an inline JSON block) and the benchmark history as an inline matplotlib SVG. Nothing is
-fetched from outside the file, so it opens from disk, from a CI artifact, or by mail, offline.
+Input: the results store's tidy table (one or several stores, concatenated, plus the summaries of a
+history folder such as results/history/, one per commit: `read_history`, `summary_as_results`),
+optionally its runs table, a baseline summary, and pytest-benchmark runs (`bench.benchsuite`).
+Output: an HTML file with inline CSS and interactive charts (plotly.js inlined once at the end of
+the page, each chart's figure as an inline JSON block). Nothing is fetched from outside the file,
+so it opens from disk, from a CI artifact, or by mail, offline.
 
 Sections:
   cards        commits tracked, runs done/failed, regressions in the latest comparison, benchmarks
-  comparison   the newest code version against the previous one (or against a baseline summary):
-               every row beyond tolerance first (REGRESSED rows in red), the full table folded
+  comparison   the newest code version against a baseline summary (the CLI's default: the committed
+               results/regression-baseline.csv where it covers the store) or else the previous
+               version: every row beyond tolerance first (REGRESSED rows in red), the full table folded
   quality      a filter bar (sequence, holes, metric, scope) and one chart per (sequence, holes,
                metric, scope): x = code versions in time order, one line per method configuration
                (`bench.palette` colours), the paper's value dashed where the sequence is one of the
                paper's; hover gives value, std, n, commit, date and machine; drag zooms
   paper        temporal-graph's gains over the paper's other columns beside the paper's own
   latest       the newest code version's means per method (best per column in bold)
-  speed        wall and CPU time per frame over code versions (one chart per sequence and holes, a
-               change of machine marked), and the pytest-benchmark history (median seconds per
-               session, log scale) with the newest figures
+  speed        wall and CPU time per frame over code versions (one chart per sequence and holes),
+               and the pytest-benchmark history (median seconds per session, one chart per group,
+               log scale) with the newest figures; a change of machine is marked on each
+  pages        links to a page per method configuration and per run (`bench.dashboard_pages`)
   runs         code versions with their dates, run counts and the runs' summed wall and CPU time
                (the runs table; "-" where no run recorded CPU time), and failed runs with their messages
 
 A code version is the store's ``code_version`` (git commit); versions are ordered by the time of
-their first run. Summaries come from `bench.compare.summarize`, one per code version.
+their first run (a history summary's time is its commit's date). Summaries come from
+`bench.compare.summarize`, one per code version. The machine of a version (`machine_name`) comes
+from its runs' env or its summary's meta.
 
 Code: `prepare_page` computes what the sections share (the history, colours, latest comparison)
 into a `Page`; each section is one function of it (`cards_section`, `comparison_section`,
-`quality_section`, `paper_section`, `latest_section`, `speed_section`, `runs_section`; `SECTIONS`
+`quality_section`, `paper_section`, `latest_section`, `speed_section`, `pages_section`, `runs_section`; `SECTIONS`
 lists them in page order); `render_dashboard` joins them. Charts are `Chart`s (plotly figures as
-plain JSON data, built by `quality_charts` / `time_charts`); the page's script (`DASHBOARD_JS`)
+plain JSON data, built by `quality_charts` / `time_charts` / `benchmark_charts`); the page's script (`DASHBOARD_JS`)
 draws those the filters let through, each once. The style sheet is the package data file
 bench/static/dashboard.css, inlined (`stylesheet`). The paper's values come from `bench.paper_facts`.
 """
@@ -38,7 +44,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import html
-import io
 import math
 import os
 import re
@@ -62,9 +67,6 @@ METRIC_NAMES = {
 SHOWN_UNITS = ("dB", "s", "MB")
 #: the methods of the paper's columns first, so that their colours never change when other methods come and go
 METHOD_ORDER = ["temporal-graph", "fu-nonlocal", "lozes-pde", "meshlab", "temporal-copy", "none"]
-#: colours of the benchmark lines (not methods: those are `bench.palette`'s)
-PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-           "#bcbd22", "#17becf"]
 
 
 def metric_label(metric: str) -> str:
@@ -308,89 +310,60 @@ def method_colours(labels) -> dict[str, str]:
 
 
 # ---------------------------------------------------------------------------------------------
-# charts (matplotlib -> inline SVG)
-def _svg(fig) -> str:
-    """The figure as an inline <svg> element scaled to its container."""
-    import matplotlib.pyplot as plt
-
-    buffer = io.StringIO()
-    fig.savefig(buffer, format="svg", bbox_inches="tight")
-    plt.close(fig)
-    text = buffer.getvalue()
-    text = text[text.index("<svg"):]  # drop the XML declaration and DOCTYPE: invalid inside HTML
-    # natural size as max-width: charts shrink with the window but never blow up past their design size
-    return re.sub(r'<svg([^>]*?) width="([0-9.]+)pt" height="[^"]*"', r'<svg\1 class="chart" style="max-width:\2pt"',
-                  text, count=1)
-
-
-def _matplotlib():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({
-        "svg.fonttype": "none",  # text stays text: searchable and crisp in the page
-        "svg.hashsalt": "dpcbench",  # deterministic element ids
-        "font.size": 9, "axes.spines.top": False, "axes.spines.right": False,
-        "axes.grid": True, "grid.color": "#e5e7eb", "grid.linewidth": 0.6,
-        "axes.edgecolor": "#9ca3af", "axes.titlesize": 10, "axes.titleweight": "bold",
-    })
-    return plt
-
-
-def _seconds_axis(axis) -> None:
-    """Plain numbers (0.01, 0.5, 20) on a log axis of seconds instead of powers of ten."""
-    from matplotlib.ticker import FuncFormatter, NullFormatter
-
-    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-    axis.set_minor_formatter(NullFormatter())
-
-
-def benchmark_chart(benchmarks: pd.DataFrame) -> str | None:
-    """Median seconds per pytest-benchmark session: one panel per group, one line per benchmark;
-    with a single session, horizontal bars of the figures instead."""
-    plt = _matplotlib()
+# the benchmark suite's chart
+def benchmark_charts(benchmarks: pd.DataFrame) -> list[Chart]:
+    """Median seconds per pytest-benchmark session (x: sessions in time order, 'commit date'), one
+    chart per group (a benchmark without a group joins the others of its test function, so no chart
+    gathers dozens of lines), one line per benchmark, log scale; a session on another machine than
+    the one before it is marked as on the time charts."""
     if benchmarks is None or benchmarks.empty:
-        return None
+        return []
     sessions = benchmarks.drop_duplicates(["datetime", "commit"]).sort_values("datetime")
-    session_labels = [f"{short_version(c)}\n{str(d)[5:16]}" for c, d in zip(sessions["commit"], sessions["datetime"])]
-    x_of = {(d, c): i for i, (d, c) in enumerate(zip(sessions["datetime"], sessions["commit"]))}
-    # a benchmark without a group joins the others of its test function (test_bench_size[...]), so
-    # that no panel gathers dozens of lines and an unreadable legend
+    ticks, used = {}, set()
+    for d, c in zip(sessions["datetime"], sessions["commit"]):
+        label = f"{short_version(c)} {str(d)[5:16].replace('T', ' ')}"
+        while label in used:
+            label += "'"
+        used.add(label)
+        ticks[(d, c)] = label
+    machine_of = {(d, c): str(m) for d, c, m in zip(sessions["datetime"], sessions["commit"], sessions["machine"])}
+    changed, previous = {}, None
+    for key in ticks:
+        if machine_of.get(key) and previous and machine_of[key] != previous:
+            changed[key] = f"machine changed: {previous} → {machine_of[key]}"
+        previous = machine_of.get(key) or previous
     function = benchmarks["fullname"].str.split("::").str[-1].str.split("[").str[0]
     group = benchmarks["group"].fillna("").where(benchmarks["group"].fillna("") != "", function)
-    groups = list(benchmarks.assign(group=group).groupby("group", sort=True))
-    if len(sessions) == 1:
-        latest = benchmarks.sort_values("median")
-        fig, ax = plt.subplots(figsize=(9, 0.28 * len(latest) + 1.0))
-        ax.barh(range(len(latest)), latest["median"], color="#1f77b4", alpha=0.85)
-        ax.set_yticks(range(len(latest)))
-        ax.set_yticklabels(latest["fullname"].str.split("::").str[-1], fontsize=7.5)
-        ax.set_xscale("log")
-        _seconds_axis(ax.xaxis)
-        ax.set_xlabel("median seconds (log scale)")
-        ax.set_title(f"benchmark session {session_labels[0].replace(chr(10), ' ')}", loc="left")
-        fig.tight_layout()
-        return _svg(fig)
-    ncols = min(2, len(groups))
-    nrows = math.ceil(len(groups) / ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(7.0 * ncols, 3.0 * nrows), squeeze=False)
-    for ax, (group, rows) in zip(axes.flat, groups):
-        for i, (name, line) in enumerate(rows.groupby("fullname", sort=True)):
-            xs = [x_of[(d, c)] for d, c in zip(line["datetime"], line["commit"])]
-            ax.plot(xs, line["median"], marker="o", markersize=3.5, linewidth=1.3, color=PALETTE[i % len(PALETTE)],
-                    label=name.split("::")[-1])
-        ax.set_yscale("log")
-        _seconds_axis(ax.yaxis)
-        ax.set_xticks(range(len(sessions)))
-        ax.set_xticklabels(session_labels, fontsize=6.5)
-        ax.set_title(f"{group}: median s", loc="left")
-        ax.legend(fontsize=6.5, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes
-    for ax in list(axes.flat)[len(groups):]:
-        ax.set_visible(False)
-    fig.tight_layout()
-    return _svg(fig)
+    charts = []
+    for name, rows in benchmarks.assign(group=group).groupby("group", sort=True):
+        traces = []
+        for i, (fullname, line) in enumerate(rows.groupby("fullname", sort=True)):
+            line = line.sort_values("datetime")
+            keys = list(zip(line["datetime"], line["commit"]))
+            text = [f"<b>{html.escape(fullname.split('::')[-1])}</b><br>median {r.median:.4g} s, min {r.min:.4g} s, "
+                    f"{int(r.rounds)} rounds<br>commit {html.escape(str(r.commit))}<br>{html.escape(str(r.datetime)[:19])}"
+                    f"<br>machine: {html.escape(str(r.machine))}"
+                    + (f"<br><b>{html.escape(changed[k])}</b>" if k in changed else "")
+                    for r, k in zip(line.itertuples(index=False), keys)]
+            colour = palette.EXTRA_COLOURS[i % len(palette.EXTRA_COLOURS)]  # colour-blind safe
+            traces.append({"type": "scatter", "mode": "lines+markers", "name": fullname.split("::")[-1],
+                           "x": [ticks[k] for k in keys], "y": [float(v) for v in line["median"]], "text": text,
+                           "hovertemplate": "%{text}<extra></extra>", "line": {"color": colour, "width": 1.6},
+                           "marker": {"color": colour, "size": 6}})
+        layout = _layout(f"{name}: median seconds", "median seconds (s)", {k: v for k, v in zip(ticks, ticks.values())},
+                         bool((rows["median"] > 0).all()))
+        layout["xaxis"]["title"]["text"] = "benchmark session (oldest → newest)"
+        layout["showlegend"] = True
+        layout["legend"] = {"font": {"size": 9.5}, "orientation": "h", "y": -0.45}
+        layout["height"] = 340
+        layout["margin"]["b"] = 110
+        layout["shapes"] = [{"type": "line", "xref": "x", "yref": "paper", "x0": ticks[k], "x1": ticks[k], "y0": 0,
+                             "y1": 1, "line": {"color": "#b45309", "width": 1.5, "dash": "dash"}} for k in changed]
+        layout["annotations"] = [{"xref": "x", "yref": "paper", "x": ticks[k], "y": 1.0, "yanchor": "bottom",
+                                  "text": "machine changed", "showarrow": False,
+                                  "font": {"size": 10, "color": "#b45309"}} for k in changed]
+        charts.append(Chart(f"bench-{len(charts)}", name, {"data": traces, "layout": layout}, {}))
+    return charts
 
 
 # ---------------------------------------------------------------------------------------------
@@ -443,12 +416,27 @@ def version_ticks(history: History) -> dict[str, str]:
     return ticks
 
 
-def _spread(std, n) -> str:
-    """'± 0.12 std, n = 3' (the std over frames and seeds, and how many values it is over)."""
-    n_text = f"n = {int(n)}" if n is not None and not (isinstance(n, float) and math.isnan(n)) else "n = ?"
+def t_interval(mean: float, std: float, n: int, level: float = 0.95) -> tuple[float, float] | None:
+    """Student-t interval of the mean from a summary's population std over n values:
+    mean ± t_{(1+level)/2, n-1} · s / sqrt(n), s = std · sqrt(n / (n - 1)); None for n < 2 or no std."""
+    from scipy.stats import t
+
+    if n is None or n < 2 or std is None or math.isnan(std) or math.isnan(mean):
+        return None
+    half = float(t.ppf((1 + level) / 2, n - 1)) * std * math.sqrt(n / (n - 1)) / math.sqrt(n)
+    return mean - half, mean + half
+
+
+def _spread(std, n, mean=float("nan")) -> str:
+    """'± 0.12 std, 95 % CI [a, b], n = 3' (the std over frames and seeds, the t-interval of the
+    mean, and how many values they are over)."""
+    known_n = n is not None and not (isinstance(n, float) and math.isnan(n))
+    n_text = f"n = {int(n)}" if known_n else "n = ?"
     if std is None or (isinstance(std, float) and math.isnan(std)):
         return n_text
-    return f"± {_fmt(std)} std, {n_text}"
+    interval = t_interval(float(mean), float(std), int(n)) if known_n else None
+    ci = f", 95 % CI [{_fmt(interval[0])}, {_fmt(interval[1])}]" if interval else ""
+    return f"± {_fmt(std)} std{ci}, {n_text}"
 
 
 def _point_text(history: History, label: str, row, note: str = "") -> str:
@@ -456,7 +444,7 @@ def _point_text(history: History, label: str, row, note: str = "") -> str:
     version = row.code_version
     machine = history.version_machines.get(version, "")
     carried = "" if bool(row.measured) else "<br><i>carried over: not rerun at this version</i>"
-    return (f"<b>{html.escape(label)}</b><br>{_fmt(row.mean)} ({_spread(row.std, row.n_frames)})<br>"
+    return (f"<b>{html.escape(label)}</b><br>{_fmt(row.mean)} ({_spread(row.std, row.n_frames, row.mean)})<br>"
             f"commit {html.escape(str(version))}<br>{html.escape(history.version_dates.get(version, ''))}"
             + (f"<br>machine: {html.escape(machine)}" if machine else "") + carried + note)
 
@@ -1018,7 +1006,7 @@ def speed_section(page: Page) -> str:
     if page.n_bench:
         from dpcbench.bench import benchsuite
 
-        bench_chart = benchmark_chart(benchmarks)
+        bench_charts = benchmark_charts(benchmarks)
         latest_bench = benchsuite.latest_per_benchmark(benchmarks)
         rows = "".join(
             f'<tr><td>{_e(r.group or "")}</td><td>{_e(r.fullname)}</td><td class="num">{r.median:.4g}</td>'
@@ -1028,7 +1016,7 @@ def speed_section(page: Page) -> str:
         speed.append(f'<h3>Benchmark suite (pytest-benchmark)</h3>'
                      f'<p class="note">{page.n_sessions} session(s); machines are shared and noisy: read trends, '
                      f'not single points.</p><div class="figure" data-chart="benchmarks" '
-                     f'data-sessions="{page.n_sessions}">{bench_chart}</div>'
+                     f'data-sessions="{page.n_sessions}">{charts_html(bench_charts, "benchmarks")}</div>'
                      f'<details><summary>newest figure of each of the {page.n_bench} benchmarks</summary>'
                      f'<table class="benchmarks"><thead><tr><th>group</th><th>benchmark</th><th>median s</th>'
                      f'<th>min s</th><th>rounds</th><th>commit</th><th>date</th></tr></thead><tbody>{rows}</tbody>'

@@ -262,12 +262,13 @@ def test_dashboard_in_headless_chromium(tmp_path, capsys):
     """
     r, dom = browse(out, checks, tmp_path / "profile")
     assert r.get("check_error") is None and r["errors"] == [] and r["resources"] == []
-    assert r["boxes"] == 6 + 1  # quality: 3 metrics x 2 scopes; time per frame: 1 (no CPU time in these runs)
-    assert r["first"] == ["gpsnr_d1/frame", "gpsnr_d1/holes"] and r["drawn_first"] == 2 + 1
+    # quality: 3 metrics x 2 scopes; time per frame: 1 (no CPU time in these runs); benchmarks: 1 group
+    assert r["boxes"] == 6 + 1 + 1
+    assert r["first"] == ["gpsnr_d1/frame", "gpsnr_d1/holes"] and r["drawn_first"] == 2 + 1 + 1
     assert r["points"] == [[2, 2, 2], [2, 2, 2]]  # each method: a point per commit
-    # the time chart has no metric or scope: it stays (2 = nshd/holes + time)
-    assert r["nshd_holes"] == ["nshd/holes"] and r["count_text"] == "2 of 7 charts shown"
-    assert r["all"] == 6 and r["drawn_all"] == 7
+    # the time and benchmark charts have no metric or scope: they stay (3 = nshd/holes + time + benchmarks)
+    assert r["nshd_holes"] == ["nshd/holes"] and r["count_text"] == "3 of 8 charts shown"
+    assert r["all"] == 6 and r["drawn_all"] == 8
     assert r["wide"] == []
     assert "machine changed" in dom  # the speed chart's label, drawn by plotly
     assert len(re.findall(r'<tr class="regressed" data-status="REGRESSED"', dom)) >= 4
@@ -542,3 +543,27 @@ def test_method_and_run_pages_beside_the_page(tmp_path, capsys):
     assert "No thumbnail" in other and "none on this machine" in other
     failed = (pages / dashboard_pages.run_file("broken")).read_text()
     assert "pymeshlab said no" in failed
+
+
+def test_readable_times_intervals_and_benchmark_machine_change(tmp_path):
+    from scipy import stats
+
+    assert [dashboard.readable_seconds(v) for v in (None, float("nan"), 0.00917, 12.34, 33.0 * 60, 5.4 * 3600)] == [
+        "-", "-", "9.17 ms", "12.3 s", "33 min", "5.4 h"]
+    values = np.array([3.0, 4.5, 4.0, 7.5])
+    low, high = dashboard.t_interval(values.mean(), values.std(), len(values))  # population std, as summaries keep
+    assert (low, high) == pytest.approx(stats.t.interval(0.95, len(values) - 1, loc=values.mean(),
+                                                         scale=stats.sem(values)))
+    assert dashboard.t_interval(1.0, 0.5, 1) is None
+    # the second benchmark session ran on another machine: marked on the chart and in its hover
+    folder = write_benchmark_sessions(tmp_path / "b")
+    second = sorted(folder.glob("0002_*.json"))[0]
+    doc = json.loads(second.read_text())
+    doc["machine_info"]["node"] = "other"
+    second.write_text(json.dumps(doc))
+    charts = dashboard.benchmark_charts(benchsuite.load_benchmark_runs(folder))
+    assert len(charts) == 1 and len(charts[0].figure["data"]) == 2
+    layout = charts[0].figure["layout"]
+    assert len(layout["shapes"]) == 1 and layout["shapes"][0]["x0"] == layout["xaxis"]["categoryarray"][1]
+    assert all("machine changed: ci Test CPU" in t["text"][1] and "machine changed" not in t["text"][0]
+               for t in charts[0].figure["data"])
