@@ -121,6 +121,15 @@ class History:
     version_machines: dict[str, str] = field(default_factory=dict)
 
 
+#: run ids of the rows `summary_as_results` makes ("<prefix>:<cell>", prefix summary, summary0, history3, ...)
+SUMMARY_RUN = re.compile(r"^(summary|history)\d*:")
+
+
+def from_summary(run_ids: pd.Series) -> pd.Series:
+    """True where a results row comes from a summary file (`summary_as_results`), not from a run."""
+    return run_ids.astype(str).str.match(SUMMARY_RUN)
+
+
 def summary_values(mean: float, std: float, n: int) -> list[float]:
     """``n`` values whose mean is ``mean`` and population std is ``std`` (the statistics a summary
     keeps of a cell's frames), so that `compare.summarize` of them gives the summary's row back:
@@ -878,7 +887,7 @@ def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: p
 def cards_section(page: Page) -> str:
     """The summary cards: code versions, runs (failed ones), regressions, best GPSNR D1, benchmarks."""
     history, results = page.history, page.results
-    n_done = int(results["run_id"].nunique()) if len(results) else 0
+    n_done = int(results.loc[~from_summary(results["run_id"]), "run_id"].nunique()) if len(results) else 0
     cards = [
         _card("code versions", len(history.versions),
               f"{short_version(history.versions[0])} → {short_version(history.versions[-1])}" if history.versions else "none"),
@@ -1060,12 +1069,16 @@ def runs_section(page: Page) -> str:
     history, results, runs = page.history, page.results, page.runs
     if not history.versions:
         return ""
-    counts = results.groupby("code_version")["run_id"].nunique()
+    summarized = from_summary(results["run_id"])
+    counts = results[~summarized].groupby("code_version")["run_id"].nunique()
+    summaries = set(results.loc[summarized, "code_version"])
     wall, cpu = _run_seconds(runs)
     version_rows = "".join(
         f'<tr><td>{_e(short_version(v))}</td><td>{_e(v)}</td><td>{_e(history.version_dates[v])}</td>'
+        f'<td>{_e(" + ".join(k for k, has in (("store", v in counts.index), ("summary", v in summaries)) if has))}</td>'
         f'<td class="num">{int(counts.get(v, 0))}</td><td class="num">{_e(readable_seconds(wall.get(v)))}</td>'
-        f'<td class="num">{_e(readable_seconds(cpu.get(v)))}</td></tr>' for v in reversed(history.versions))
+        f'<td class="num">{_e(readable_seconds(cpu.get(v)))}</td>'
+        f'<td>{_e(history.version_machines.get(v, "-"))}</td></tr>' for v in reversed(history.versions))
     failed_html = ""
     if runs is not None and page.n_failed:
         failed = runs[runs["status"] == "failed"].drop_duplicates("run_id")
@@ -1076,7 +1089,8 @@ def runs_section(page: Page) -> str:
                            f'<td>{_e(str(r.error)[:300])}</td></tr>' for r in failed.itertuples(index=False))
                        + "</tbody></table>")
     return (f'<section id="runs"><h2>Code versions</h2><table><thead><tr><th>short</th><th>code version'
-            f'</th><th>first run (UTC)</th><th>runs</th><th>wall time</th><th>CPU time</th></tr></thead>'
+            f'</th><th>first run (UTC)</th><th>from</th><th>runs</th><th>wall time</th><th>CPU time</th>'
+            f'<th>machine</th></tr></thead>'
             f'<tbody>{version_rows}</tbody>'
             f'</table>{failed_html}</section>')
 

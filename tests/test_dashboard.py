@@ -434,7 +434,8 @@ def test_history_folder_over_two_commits_marks_the_machine_change(tmp_path, caps
     out = tmp_path / "d.html"
     assert cli_main(["dashboard", "--out", str(out), "--history", str(folder), "--summary", str(folder / files[0]),
                      "--no-pages"]) == 0
-    assert "2 code version(s)" in capsys.readouterr().out
+    assert "2 code version(s), 0 runs, 3 summaries" in capsys.readouterr().out
+    assert re.search(r'data-card="runs"><div class="k">runs</div><div class="v">0</div>', out.read_text())
     figures = page_figures(out.read_text())
     quality = [f for k, f in figures.items() if k.startswith("quality")]
     assert len(quality) == 3 * 2  # gpsnr_d1, gpsnr_d2, nshd x frame, holes

@@ -186,6 +186,9 @@ def run(args) -> int:
     record_written(written)
     n_versions = results["code_version"].nunique() if len(results) else 0
     pages = f", {len(written) - 1} method and run pages beside it" if len(written) > 1 else ""
-    print(f"dashboard written to {written[0]} ({n_versions} code version(s), {results['run_id'].nunique()} runs"
+    n_summaries = len(args.summary or []) + len(history)
+    n_runs = store_results["run_id"].nunique() if len(store_results) else 0
+    print(f"dashboard written to {written[0]} ({n_versions} code version(s), {n_runs} runs"
+          f"{f', {n_summaries} summaries' if n_summaries else ''}"
           f"{', ' + str(benchmarks['fullname'].nunique()) + ' benchmarks' if benchmarks is not None else ''}{pages})")
     return 0
