@@ -78,6 +78,25 @@ def metric_label(metric: str) -> str:
     return f"{name} ({entry.unit})" if entry is not None and entry.unit in SHOWN_UNITS else name
 
 
+#: short column titles of the latest-results table (so that it fits 1400 px), keyed in `metric_key`
+SHORT_NAMES = {"gpsnr_d1": "D1", "gpsnr_d2": "D2", "hausdorff": "Haus.", "chamfer": "Cham.", "fscore": "F",
+               "temporal_consistency": "TC", "time_s": "s/frame", "cpu_time_s": "CPU s/frame", "peak_mem_mb": "MB"}
+
+
+def short_metric_label(metric: str) -> str:
+    """A short column title as HTML: an <abbr> with the full `metric_label` as its tooltip."""
+    short = SHORT_NAMES.get(metric)
+    if short is None:
+        return html.escape(metric_label(metric))
+    unit = " (dB)" if metric in ("gpsnr_d1", "gpsnr_d2") else ""
+    return f'<abbr title="{html.escape(metric_label(metric))}">{html.escape(short + unit)}</abbr>'
+
+
+def metric_key(metrics) -> str:
+    """The key of the short column titles used for ``metrics`` ('D1: GPSNR D1 (dB) · ...')."""
+    return " · ".join(f"{SHORT_NAMES[m]}: {metric_label(m)}" for m in dict.fromkeys(metrics) if m in SHORT_NAMES)
+
+
 def paper_reference() -> pd.DataFrame:
     """The paper's values as rows (sequence, method, metric, value, source); metric gpsnr_d1 / nshd.
 
@@ -796,8 +815,8 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
             cell = cell.dropna(subset=["mean"])
             if len(cell) and metric not in compare.TIME_METRICS:
                 best[column] = cell["mean"].max() if compare.higher_is_better(metric) else cell["mean"].min()
-        head = "".join(f"<th>{_e(metric_label(m))}<br><span class='note'>{_e(s)}"
-                       f"{_e(' · peak ' + p if p not in ('', 'intrinsic') else '')}</span></th>"
+        head = "".join(f"<th>{short_metric_label(m)}<br><span class='note'>{_e(s)}"
+                       f"{_e(' @' + p if p not in ('', 'intrinsic') else '')}</span></th>"
                        for m, s, p in columns)
         body = []
         for label in sorted(set(sub["label"]), key=list(colours).index):
@@ -990,8 +1009,11 @@ def latest_section(page: Page) -> str:
         done = runs[runs["status"] == "done"]
         newest = done[done["code_version"].astype(str) == history.versions[-1]]
         normals_note = d2_normals_note(newest if len(newest) else done)  # the runs of the newest version
+    peaks = sorted(p for p in set(history.table["peak"]) if p not in ("", "intrinsic"))
+    peaks_note = "".join(f'"@{p}": PSNR with peak {p} (else the intrinsic peak). ' for p in peaks)
     return (f'<section id="latest"><h2>Latest results: {_e(short_version(history.versions[-1]))}</h2>'
-            f'<p class="note">Mean ± std over frames; best per column in bold. {_e(normals_note)}</p>'
+            f'<p class="note">Mean ± std over frames; best per column in bold. {_e(peaks_note)}Columns: '
+            f'{_e(metric_key(page.quality_metrics + list(compare.TIME_METRICS)))}. {_e(normals_note)}</p>'
             f'{latest_table(history, page.colours, page.quality_metrics)}</section>')
 
 
