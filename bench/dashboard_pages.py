@@ -165,10 +165,11 @@ def run_links(run) -> list[tuple[str, str]]:
     return out
 
 
-def thumbnail_png(folder: Path, frame: int = 0, height: int = 180) -> bytes | None:
+def thumbnail_png(folder: Path, frame: int = 0, height: int = 180, max_points: int = 200_000) -> bytes | None:
     """A small PNG of one frame of a run folder: the damaged input beside the method's output (grey,
     lighter = nearer, `render.rasterize`, no normals needed), the output's points that are not in the
-    input (the fill) in red; None when the folder lacks that frame."""
+    input (the fill) in red; None when the folder lacks that frame. Frames over ``max_points`` are
+    drawn from a random subset of that many points (seed 0), so a thumbnail stays well under a second."""
     from scipy.spatial import cKDTree
 
     from dpcbench.bench import render
@@ -180,6 +181,10 @@ def thumbnail_png(folder: Path, frame: int = 0, height: int = 180) -> bytes | No
         return None
     damaged = read_ply(damaged_path, colors=False).points
     filled = read_ply(filled_path, colors=False).points
+    # a thumbnail needs no more points than it has pixels: large frames are subsampled (fixed seed)
+    rng = np.random.default_rng(0)
+    damaged, filled = (c if len(c) <= max_points else c[np.sort(rng.choice(len(c), max_points, replace=False))]
+                       for c in (damaged, filled))
     rotation = render.view_rotation("front")
     both = render.rotate(np.vstack([damaged, filled]), rotation)
     lo, hi = both[:, :2].min(0), both[:, :2].max(0)

@@ -543,6 +543,9 @@ def test_method_and_run_pages_beside_the_page(tmp_path, capsys):
     red = (image[..., 0] > 0.8) & (image[..., 1] < 0.2)
     left, right = red[:, : image.shape[1] // 2], red[:, image.shape[1] // 2:]
     assert right.sum() > 0 and left.sum() == 0  # the fill is red in the output, the input has none
+    # a large frame is drawn from a subset of its points: same size of picture
+    small = matplotlib.image.imread(io.BytesIO(dashboard_pages.thumbnail_png(folder, max_points=120)), format="png")
+    assert small.shape == image.shape[:2] + small.shape[2:]
     other = (pages / dashboard_pages.run_file("1111-none")).read_text()
     assert "No thumbnail" in other and "none on this machine" in other
     failed = (pages / dashboard_pages.run_file("broken")).read_text()

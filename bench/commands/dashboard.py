@@ -50,6 +50,8 @@ def register(subparsers) -> None:
                              "the code version before it (default: results/regression-baseline.csv where it "
                              "shares rows with the store, else 'previous')")
     parser.add_argument("--no-pages", action="store_true", help="only the main page: no per-method and per-run pages")
+    parser.add_argument("--no-thumbnails", action="store_true",
+                        help="run pages without the thumbnail of frame 0 (which reads the run folder's frames)")
     parser.add_argument("--tolerances", default=None, help="TOML file with a [tolerances] table")
     parser.add_argument("--title", default="dpcbench regression dashboard")
     parser.add_argument("--overwrite", action="store_true",
@@ -182,7 +184,7 @@ def run(args) -> int:
         sources.append(f"{len(history)} summaries in {history_dir}")
     written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
                                         tolerances=tolerances, title=args.title, sources=sources, machines=machines,
-                                        pages=not args.no_pages)
+                                        pages=not args.no_pages, thumbnails=not args.no_thumbnails)
     record_written(written)
     n_versions = results["code_version"].nunique() if len(results) else 0
     pages = f", {len(written) - 1} method and run pages beside it" if len(written) > 1 else ""
