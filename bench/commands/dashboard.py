@@ -162,11 +162,13 @@ def run(args) -> int:
     extra, machines = [], {}
     for i, path in enumerate(args.summary or []):
         table, meta = compare.read_summary(path)
-        extra.append(dashboard.summary_as_results(table, meta, run_prefix=f"summary{i}"))
-    for i, (table, meta, _) in enumerate(history):
-        if args.experiment and meta.get("experiment") not in (None, "", args.experiment):
+        history.append((table, meta, f"summary{i}"))
+    for i, (table, meta, source) in enumerate(history):
+        given = str(source).startswith("summary")  # --summary files join whatever their experiment
+        if not given and args.experiment and meta.get("experiment") not in (None, "", args.experiment):
             continue
-        part = dashboard.summary_as_results(table, meta, run_prefix=f"history{i}")
+        prefix = str(source) if given else f"history{i}"
+        part = dashboard.summary_as_results(table, meta, run_prefix=prefix)
         extra.append(part)
         machine = dashboard.machine_name(meta)
         if machine and len(part):
@@ -180,15 +182,16 @@ def run(args) -> int:
     tolerance_file = args.tolerances or (TOLERANCES_FILE if TOLERANCES_FILE.is_file() else None)
     tolerances = compare.load_tolerances(tolerance_file)
     sources = [str(p) for p in (args.store or ["default results store"])] + [str(p) for p in bench_paths]
-    if history:
-        sources.append(f"{len(history)} summaries in {history_dir}")
+    n_folder = sum(not str(source).startswith("summary") for _, _, source in history)
+    if n_folder:
+        sources.append(f"{n_folder} summaries in {history_dir}")
     written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
                                         tolerances=tolerances, title=args.title, sources=sources, machines=machines,
                                         pages=not args.no_pages, thumbnails=not args.no_thumbnails)
     record_written(written)
     n_versions = results["code_version"].nunique() if len(results) else 0
     pages = f", {len(written) - 1} method and run pages beside it" if len(written) > 1 else ""
-    n_summaries = len(args.summary or []) + len(history)
+    n_summaries = len(history)
     n_runs = store_results["run_id"].nunique() if len(store_results) else 0
     print(f"dashboard written to {written[0]} ({n_versions} code version(s), {n_runs} runs"
           f"{f', {n_summaries} summaries' if n_summaries else ''}"
