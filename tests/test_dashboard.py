@@ -422,8 +422,15 @@ def test_history_folder_over_two_commits_marks_the_machine_change(tmp_path, caps
     assert "summary of code 22222222" in capsys.readouterr().out
     files = sorted(p.name for p in folder.iterdir())
     assert files == ["20260101T100000_1111111111aaaaaaaaaa.csv", "20260102T100000_2222222222bbbbbbbbbb.csv"]
-    # saving the same commit again replaces its file
+    # saving the same commit again replaces its file; one dpcbench did not write only with --overwrite
     assert cli_main(["dashboard", "--save-history", str(folder), "--store", str(tmp_path / "1.sqlite")]) == 0
+    assert len(list(folder.iterdir())) == 2
+    newest = folder / files[1]
+    newest.write_text(newest.read_text() + "\n")  # edited by hand (or checked out by git): not dpcbench's now
+    assert cli_main(["dashboard", "--save-history", str(folder), "--store", str(tmp_path / "1.sqlite")]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert cli_main(["dashboard", "--save-history", str(folder), "--store", str(tmp_path / "1.sqlite"),
+                     "--overwrite"]) == 0
     assert len(list(folder.iterdir())) == 2
     table, meta = compare.read_summary(folder / files[0])
     assert meta["code_version"] == VERSIONS[0][0] and meta["env.node"] == "ci-a" and meta["experiment"] == "regression"

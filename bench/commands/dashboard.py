@@ -81,9 +81,10 @@ def load_stores(paths, experiment):
     return pd.concat(results, ignore_index=True), pd.concat(runs, ignore_index=True)
 
 
-def save_history(folder: Path, store_paths, experiment: str | None) -> Path:
+def save_history(folder: Path, store_paths, experiment: str | None, guard) -> Path:
     """The store's summary as `folder`/<date>_<commit>.csv (`dashboard.history_file_name`); an older
-    file of the same commit there is replaced."""
+    file of the same commit there is replaced (one dpcbench did not write, e.g. a committed one, only
+    with --overwrite: ``guard``, the command's `Outputs`)."""
     from dpcbench.bench import compare, dashboard
     from dpcbench.bench.commands.compare import DEFAULT_EXPERIMENT, _run_environment
     from dpcbench.bench.outputs import record_written
@@ -102,12 +103,14 @@ def save_history(folder: Path, store_paths, experiment: str | None) -> Path:
         results = results[results["experiment"] == experiment]
     summary, meta = dashboard.history_summary(results, runs, _run_environment(runs, set(results["run_id"])),
                                               source=str(where), experiment=experiment or "all")
-    folder.mkdir(parents=True, exist_ok=True)
     name = dashboard.history_file_name(meta)
     commit = name.split("_", 1)[-1]
-    for old in folder.glob(f"*_{commit}"):
-        if old.name != name:
-            old.unlink()  # one file per commit
+    same_commit = sorted(p for p in folder.glob(f"*_{commit}") if p.name != name) if folder.is_dir() else []
+    for path in [folder / name, *same_commit]:
+        guard.file(path, "--save-history", suffixes=(".csv",))
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in same_commit:
+        old.unlink()  # one file per commit
     written = compare.write_summary(summary, folder / name, meta)
     record_written([written])
     print(f"summary of code {dashboard.short_version(meta['code_version'])} ({len(summary)} rows) written to {written}")
@@ -150,7 +153,7 @@ def run(args) -> int:
     guard = Outputs(args.overwrite, inputs=(args.store or []) + (args.summary or []) + (args.benchmarks or []))
     out = guard.file(args.out, "--out", suffixes=(".html", ".htm")) if args.out else None
     if args.save_history:
-        save_history(Path(args.save_history), args.store, args.experiment)
+        save_history(Path(args.save_history), args.store, args.experiment, guard)
         if out is None:
             return 0
     history = dashboard.read_history(history_dir) if history_dir is not None else []  # bad input fails first
@@ -174,6 +177,9 @@ def run(args) -> int:
         if machine and len(part):
             machines[part["code_version"].iloc[0]] = machine
     results = pd.concat([results, *extra], ignore_index=True) if extra else results
+    pages_dir = out.parent / f"{out.stem}_pages"  # the name `dashboard.write_dashboard` gives it
+    if not args.no_pages and pages_dir.is_dir():
+        guard.folder(pages_dir, "--out", names=[p.name for p in pages_dir.glob("*.html")])
     benchmarks = None
     bench_paths = args.benchmarks or ([".benchmarks"] if Path(".benchmarks").is_dir() else [])
     if bench_paths:
