@@ -233,7 +233,7 @@ def test_cpu_time_is_recorded_per_run_and_per_frame_with_children_and_failures(e
     assert float(burns_row.split("|")[3]) >= burn
     page = render_dashboard(results, runs=env["store"].runs_frame())
     assert 'data-chart="cpu-time"' in page and "CPU time per frame (s)" in page
-    assert "<th>wall (h)</th><th>CPU (h)</th>" in page
+    assert "<th>wall time</th><th>CPU time</th>" in page
 
 
 def test_cost_command_on_a_real_sweep(env, capsys):
