@@ -100,6 +100,9 @@ def run(args) -> int:
         from dpcbench.holes.regions import regions_from_json, union_mask
 
         regions = regions_from_json(args.region, frame_count=len(reference), label=f"--region {args.region}")
+        from dpcbench.bench.sequences import check_regions_frames
+
+        check_regions_frames(args.region, reference, f"--region {args.region}")
         empty = [i for i, (frame, regs) in enumerate(zip(reference.frames, regions))
                  if regs and not union_mask(regs, frame.points, args.region_margin).any()]
         holeless = [i for i, regs in enumerate(regions) if not regs]
