@@ -260,7 +260,8 @@ def _precision(stored: list, points: np.ndarray) -> str | None:
 
 
 def check_cloud(cloud: PointCloud, label: str) -> None:
-    """Refuse empty clouds and non-finite coordinates with a message naming ``label``."""
+    """Refuse empty clouds, non-finite coordinates and coordinates beyond ``holes.regions.COORD_LIMIT``
+    with a message naming ``label``."""
     if cloud.points.ndim != 2 or cloud.points.shape[1] != 3:
         raise UserError(f"{label}: coordinates must be an (N, 3) array, got shape {cloud.points.shape}")
     if len(cloud.points) == 0:
@@ -272,6 +273,13 @@ def check_cloud(cloud: PointCloud, label: str) -> None:
             f"{label}: {int(bad.sum())} point(s) have NaN or infinite coordinates (first at index {first}); "
             "clean the frame (drop those points) before using it"
         )
+    from dpcbench.holes.regions import COORD_LIMIT
+
+    top = float(np.abs(cloud.points).max())
+    if top > COORD_LIMIT:
+        raise UserError(f"{label}: coordinates reach {top:.3g}, beyond +-{COORD_LIMIT:g}, where squared distances "
+                        "overflow and scores would be wrong; translate the frames (subtract their centre) or rescale "
+                        "them")
 
 
 def write_ply(path: str | os.PathLike, cloud: PointCloud | np.ndarray, *, ascii: bool = False) -> Path:

@@ -92,9 +92,14 @@ def run(args) -> int:
         bit_depth = reference.bit_depth
     elif peak.strip().lower() != "intrinsic":
         try:
-            resolve_peak(peak, None, None)  # only parses the text: its ValueError is a refusal of --peak
+            value = resolve_peak(peak, None, None)  # parses the text: its ValueError is a refusal of --peak
         except ValueError as err:
             raise UserError(f"--peak {peak}: {err}") from None
+        from dpcbench.holes.regions import COORD_LIMIT
+
+        if not (math.isfinite(value) and value <= COORD_LIMIT):
+            raise UserError(f"--peak {peak}: must be a finite distance up to {COORD_LIMIT:g} (a larger peak puts every "
+                            "PSNR above the cap, as if the clouds were identical)")
     regions = None
     if args.region:
         from dpcbench.holes.regions import regions_from_json, union_mask
