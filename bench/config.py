@@ -194,7 +194,8 @@ def _is_scalar(v) -> bool:
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A finite int or float (not a bool; inf and NaN are no config value's meaning)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _expand_params(params: dict, where: str) -> list[dict]:
@@ -242,7 +243,10 @@ def _check_param_types(cls, params: dict, where: str) -> None:
 def _validate_instance(cls, params: dict, where: str) -> None:
     """One grid point through the class's own validation (`validate_params`), so that a bad value
     is refused before any run starts, not when its run fails."""
+    from dpcbench.metrics.params import check_param_types
+
     try:
+        check_param_types(cls, params, "parameters")  # whole numbers where the signature says int
         cls(**params).validate_params()
     except UserError as err:
         shown = ", ".join(f"{k}={v!r}" for k, v in params.items())
@@ -505,8 +509,9 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         if "seeds" in hole and "seed" in hole:
             raise ConfigError(f"{where}: give `seeds` or `seed`, not both")
         seeds = hole.get("seeds", [hole.get("seed", 0)])
-        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-            raise ConfigError(f"{where}.seeds: expected a non-empty list of integers, got {seeds!r}")
+        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool)
+                                                               and 0 <= s < 2**32 for s in seeds):
+            raise ConfigError(f"{where}.seeds: expected a non-empty list of integers in 0..2**32-1, got {seeds!r}")
         cls = generator_class(gen)
         if not cls.removes_points:  # the data's own (real) holes: no seed plays a part, one run
             seeds = [0]

@@ -74,6 +74,8 @@ def run(args) -> int:
     if args.holes not in GENERATORS:
         raise UserError(f"--holes: unknown hole generator {args.holes!r}; known: {', '.join(sorted(GENERATORS))} "
                         "(see `dpcbench list`)")
+    if not 0 <= args.seed < 2**32:
+        raise UserError(f"--seed {args.seed}: give a whole number in 0..{2**32 - 1}")
     cls = generator_class(args.holes)
     generator = cls(**_known_params(cls, parse_params(args.param), f"--holes {args.holes}"))
     generator.validate_params()
