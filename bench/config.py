@@ -484,7 +484,10 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
                                   f"[start, stop, step] with step > 0 (every step-th frame), got {frames!r}")
         path = None
         if seq.get("path"):  # relative paths are relative to the config file's folder
-            path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())
+            try:
+                path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())
+            except (RuntimeError, OSError) as err:  # a symbolic link loop (RuntimeError in Python < 3.13)
+                raise ConfigError(f"{where}.path: {seq['path']!r} cannot be resolved ({err}); fix the link") from None
         optional = seq.get("optional", False)
         if not isinstance(optional, bool):
             raise ConfigError(f"{where}.optional: expected true or false, got {optional!r}")

@@ -148,6 +148,15 @@ def _within(path: Path, root: Path) -> bool:
     return path == root or root in path.parents
 
 
+def _resolvable(path: Path, option: str, shown) -> Path:
+    """``path.resolve()``; UserError for a symbolic link loop (or a path too deep to resolve)."""
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError) as err:  # Python < 3.13 raises RuntimeError for a link loop
+        raise UserError(f"{option} {shown}: cannot be resolved ({err}); remove the link loop or choose another "
+                        "path") from None
+
+
 def _existing_ancestor(path: Path) -> Path:
     probe = path
     while not probe.exists() and probe != probe.parent:
@@ -189,6 +198,7 @@ class Outputs:
             return
         text = str(source)
         path = Path(text).expanduser()
+        _resolvable(path, "input", text)
         if path.is_dir():
             self.input_dirs.add(path.resolve())
         elif path.is_file():
@@ -234,6 +244,7 @@ class Outputs:
         """Check an output file path (nothing is created). Returns the path."""
         shown = path
         path = Path(path).expanduser()
+        _resolvable(path, option, shown)
         if suffixes and path.suffix.lower() not in suffixes:
             raise UserError(f"{option} {shown}: the output is a {'/'.join(suffixes)} file; give a path ending in "
                             f"{suffixes[0]}")
@@ -262,6 +273,7 @@ class Outputs:
         """
         shown = path
         path = Path(path).expanduser()
+        _resolvable(path, option, shown)
         if path.exists() and not path.is_dir():
             raise UserError(f"{option} {shown}: exists and is a file, not a folder; choose a folder path")
         base = _existing_ancestor(path)
