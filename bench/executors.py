@@ -49,8 +49,10 @@ _ADDRESS = re.compile(r"^(?:(tcp|tls|ucx|ws|wss)://)?(\[[0-9a-fA-F:.]+\]|[A-Za-z
 
 def check_scheduler_address(address: str) -> str:
     """``address`` when it has the form of a Dask scheduler address (``[tcp|tls|ucx|ws|wss://]host[:port]``,
-    port 1..65535); UserError otherwise. (The driver unpickles the results of whatever cluster the
+    port 1..65535, or ``inproc://host/pid/n``); UserError otherwise. (The driver unpickles the results of whatever cluster the
     address reaches: give only a cluster you trust.)"""
+    if isinstance(address, str) and re.fullmatch(r"inproc://[A-Za-z0-9_.:-]+(/\d+)+", address.strip()):
+        return address.strip()  # a scheduler in this process (tests, notebooks)
     match = _ADDRESS.match(address.strip()) if isinstance(address, str) else None
     port = match.group(3) if match else None
     if match is None or (port is not None and not 1 <= int(port) <= 65535):
