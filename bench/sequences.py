@@ -170,7 +170,8 @@ def check_regions_frames(holes_json: str | os.PathLike, seq: Sequence, label: st
     for made_for in (damaged, record.get("input_files")):
         if not names or not isinstance(made_for, list) or not made_for or not all(isinstance(m, str) for m in made_for):
             continue
-        if set(names) & set(made_for) and names != made_for:
+        same_source = made_for is record.get("input_files") and _same_path(record.get("source"), seq.meta.get("source"))
+        if (same_source or set(names) & set(made_for)) and names != made_for:
             raise UserError(f"{label}: made for the frames {_names(made_for)}, but the sequence has {_names(names)}; "
                             "use the holes.json made for these frames (the same --frames, in the same order)")
     indices = seq.meta.get("frame_indices")
@@ -180,6 +181,13 @@ def check_regions_frames(holes_json: str | os.PathLike, seq: Sequence, label: st
             and [int(i) for i in indices] != made):
         raise UserError(f"{label}: made for frames {made} of {seq.meta.get('generator')}, but these are frames "
                         f"{list(indices)}; use the holes.json made for these frames (the same --frames)")
+
+
+def _same_path(a, b) -> bool:
+    try:
+        return a is not None and b is not None and Path(str(a)).resolve() == Path(str(b)).resolve()
+    except (OSError, RuntimeError):
+        return False
 
 
 def _names(names: list[str]) -> str:
