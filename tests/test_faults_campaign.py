@@ -14,9 +14,12 @@ from pathlib import Path
 import numpy as np
 import plyfile
 import pytest
-from test_errors import assert_refused, run_cli, sphere, tree_hashes, work  # noqa: F401  (fixture)
+import test_errors
+from test_errors import assert_refused, run_cli, sphere, tree_hashes
 
 from dpcbench.bench.errors import UserError
+
+work = test_errors.work  # the workspace fixture: seq/ (3 frames of 800 points), holes.json
 
 
 def _damage(out, capsys, *extra, seed=0):
@@ -290,8 +293,9 @@ name = "{method}"
     ({"method": "temporal-graph", "method_params": "params = { k_neighbors = inf }"}, "k_neighbors"),
 ])
 def test_values_that_used_to_pass_the_dry_run_are_refused(tmp_path, change, needle):
-    from dpcbench.bench.config import ConfigError, parse_config
     import tomllib
+
+    from dpcbench.bench.config import ConfigError, parse_config
 
     fields = {"experiment": "", "seeds": "[0]", "method": "none", "method_params": "", "metrics": "", **change}
     with pytest.raises(ConfigError, match=needle):
