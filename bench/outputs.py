@@ -148,6 +148,15 @@ def _within(path: Path, root: Path) -> bool:
     return path == root or root in path.parents
 
 
+def user_path(text) -> Path:
+    """``Path(text)`` with a leading ``~`` or ``~user`` expanded; a ``~name`` that names no user (Python
+    raises RuntimeError) is taken literally, as the shell does."""
+    try:
+        return Path(text).expanduser()
+    except RuntimeError:
+        return Path(text)
+
+
 def _resolvable(path: Path, option: str, shown) -> Path:
     """``path.resolve()``; UserError for a symbolic link loop (or a path too deep to resolve)."""
     try:
@@ -197,7 +206,7 @@ class Outputs:
         if source is None:
             return
         text = str(source)
-        path = Path(text).expanduser()
+        path = user_path(text)
         _resolvable(path, "input", text)
         if path.is_dir():
             self.input_dirs.add(path.resolve())
@@ -243,7 +252,7 @@ class Outputs:
     def file(self, path, option: str = "--out", suffixes: tuple[str, ...] = ()) -> Path:
         """Check an output file path (nothing is created). Returns the path."""
         shown = path
-        path = Path(path).expanduser()
+        path = user_path(path)
         _resolvable(path, option, shown)
         if suffixes and path.suffix.lower() not in suffixes:
             raise UserError(f"{option} {shown}: the output is a {'/'.join(suffixes)} file; give a path ending in "
@@ -272,7 +281,7 @@ class Outputs:
         sequence: the folder receives PLY frames, so other ``.ply`` files in it are refused.
         """
         shown = path
-        path = Path(path).expanduser()
+        path = user_path(path)
         _resolvable(path, option, shown)
         if path.exists() and not path.is_dir():
             raise UserError(f"{option} {shown}: exists and is a file, not a folder; choose a folder path")
@@ -312,7 +321,7 @@ class Outputs:
         was, when a file would replace one dpcbench did not write or ground truth (checked again under the
         lock, just before the swap). An exception inside the block leaves ``out`` as it was. The files
         written are added to the ledger."""
-        out = Path(os.path.realpath(Path(out).expanduser()))
+        out = Path(os.path.realpath(user_path(out)))
         written: list[Path] = []
 
         def last_checks(rel):

@@ -159,9 +159,9 @@ class ResultsStore:
 
     def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0,
                  verify: bool = False):
-        self.path = Path(path).expanduser() if path is not None else default_store_path()
-        from dpcbench.bench.outputs import _resolvable
+        from dpcbench.bench.outputs import _resolvable, user_path
 
+        self.path = user_path(path) if path is not None else default_store_path()
         _resolvable(self.path, "--store", self.path)  # a symbolic link loop
         self.readonly = readonly
         self.timeout_s = timeout_s

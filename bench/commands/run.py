@@ -52,6 +52,7 @@ def resolve_config_path(text: str) -> Path:
 
 def main(args) -> int:
     from dpcbench.bench.config import load_config
+    from dpcbench.bench.outputs import user_path
     from dpcbench.bench.runner import run_experiment
     from dpcbench.bench.store import ResultsStore, default_store_path
 
@@ -63,7 +64,7 @@ def main(args) -> int:
     cfg = load_config(resolve_config_path(args.config), overrides)
     specs = cfg.expand()
     if args.dry_run:  # reads the store if there is one; creates nothing
-        path = Path(args.store).expanduser() if args.store else default_store_path()
+        path = user_path(args.store) if args.store else default_store_path()
         ResultsStore.check_path(path)
         store = ResultsStore(path, readonly=True, verify=True) if path.is_file() else None
         statuses = store.statuses([s.run_id for s in specs]) if store is not None else {}
@@ -90,9 +91,9 @@ def main(args) -> int:
 
 def _check_runs_dir(text: str) -> None:
     """UserError unless --runs-dir is (or can be created as) a folder this process can write in."""
-    from dpcbench.bench.outputs import _check_writable_folder, _existing_ancestor, _resolvable
+    from dpcbench.bench.outputs import _check_writable_folder, _existing_ancestor, _resolvable, user_path
 
-    path = Path(text).expanduser()
+    path = user_path(text)
     _resolvable(path, "--runs-dir", text)
     if path.exists() and not path.is_dir():
         raise UserError(f"--runs-dir {text}: is a file, not a folder; give a folder for the run folders")
