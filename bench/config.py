@@ -246,7 +246,8 @@ def _validate_instance(cls, params: dict, where: str) -> None:
     from dpcbench.metrics.params import check_param_types
 
     try:
-        check_param_types(cls, params, "parameters")  # whole numbers where the signature says int
+        # whole numbers where the signature says int
+        check_param_types(cls, params, f"{getattr(cls, '_kind', 'class')} {getattr(cls, 'name', '') or cls.__name__}")
         cls(**params).validate_params()
     except UserError as err:
         shown = ", ".join(f"{k}={v!r}" for k, v in params.items())
