@@ -301,6 +301,9 @@ class Outputs:
             if item in {t.resolve() for t in targets} or (sequence and item.parent == target):
                 raise UserError(f"{option} {shown}: holds the input file {item.name}; the input is never overwritten "
                                 "(and new frames beside it would join its sequence): choose another output folder")
+        if sequence and path.is_dir() and not self.overwrite and is_ground_truth(path):
+            raise UserError(f"{option} {shown}: is a damage output (the ground truth of a benchmark); new frames there "
+                            "would join its sequence: choose another output folder or pass --overwrite")
         if sequence and path.is_dir():
             planned = {t.name for t in targets}
             stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned)

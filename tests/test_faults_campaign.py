@@ -162,12 +162,18 @@ def test_double_coordinates_stay_double_through_damage(work, capsys):
 def test_ground_truth_is_never_replaced_without_overwrite(work, capsys):
     assert _damage("d", capsys)[0] == 0
     truth = tree_hashes(work / "d")
+    (work / "d2").mkdir()
+    code, _, err = run_cli(["damage", "seq", "--holes", "region", "--out", "d2"], capsys)
+    (work / "d2" / "seq_0001.ply").rename(work / "d2" / "other.ply")  # frames renamed: the generic rules pass
+    truth2 = tree_hashes(work / "d2")
     for argv in (["detect-holes", "seq", "--out", "d/holes.json"],
                  ["compare", "--store", "missing.sqlite", "--save-current", "d/holes.json"],
-                 ["inpaint", "seq", "--method", "none", "--regions", "holes.json", "--out", "d"]):
+                 ["inpaint", "seq", "--method", "none", "--regions", "holes.json", "--out", "d"],
+                 ["damage", "seq", "--holes", "region", "--out", "d2", "--frames", "1"]):
         code, _, err = run_cli(argv, capsys)
         assert code == 2, (argv, err)
-        assert tree_hashes(work / "d") == truth, argv
+        assert "damage output" in err or "holes.json" in err, (argv, err)
+        assert tree_hashes(work / "d") == truth and tree_hashes(work / "d2") == truth2, argv
     code, _, err = run_cli(["detect-holes", "seq", "--out", "d/holes.json"], capsys)
     assert_refused(code, err, "detect-holes", "damage output")
     code, _, err = run_cli(["detect-holes", "seq", "--out", "d/holes.json", "--overwrite"], capsys)
