@@ -116,17 +116,28 @@ def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors
     from dpcbench.bench.atomic import atomic_folder
     from dpcbench.bench.plyio import PointCloud, write_ply
 
+    # double coordinates when the input needs them (float32 cannot hold the damaged frames exactly:
+    # georeferenced or float64 data); float32, as always, for data that float32 holds
+    precision = None if all(_float32_exact(frame) for frame in damaged) else "float64"
     with atomic_folder(run_dir) as tmp:
         for i, (frame, result) in enumerate(zip(damaged, inpainted)):
             colors = None if damaged_colors is None else damaged_colors[i]
-            write_ply(tmp / "damaged" / f"frame_{i:04d}.ply", PointCloud(frame, colors))
-            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result))
+            write_ply(tmp / "damaged" / f"frame_{i:04d}.ply", PointCloud(frame, colors, precision=precision))
+            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result, precision=precision))
         (tmp / "holes.json").write_text(json.dumps(holes, indent=1, default=_json_default))
         if detected is not None:
             (tmp / "detected.json").write_text(json.dumps(detected, indent=1, default=_json_default))
         # the checksum of every file written, so that a folder changed afterwards is never trusted
         manifest = {**manifest, "sha256": folder_checksums(tmp)}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1, default=str))
+
+
+def _float32_exact(points: np.ndarray) -> bool:
+    """Whether every coordinate of ``points`` survives a float32 round trip unchanged."""
+    points = np.asarray(points)
+    if points.dtype == np.float32 or points.dtype.kind in "iu" and points.dtype.itemsize <= 2:
+        return True
+    return bool(np.array_equal(points.astype(np.float32).astype(points.dtype), points))
 
 
 def folder_checksums(folder: Path) -> dict[str, str]:

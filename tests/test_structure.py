@@ -154,7 +154,13 @@ def test_run_folder_round_trip(tmp_path):
     assert is_complete_run_folder(run)
     back = read_run_folder(run)
     for a, b in zip(back["inpainted"] + back["damaged"], inpainted + damaged):
-        np.testing.assert_array_equal(a, b.astype(np.float32))  # float32 PLY, as the scores read them
+        np.testing.assert_array_equal(a, b)  # float64 frames that float32 cannot hold: written as double
+    assert b"property double x" in (run / "damaged" / "frame_0000.ply").read_bytes()[:300]
+    exact = [np.round(d * 1000) for d in damaged]  # voxel-like data, which float32 holds exactly
+    write_run_folder(tmp_path / "f32", damaged=exact, damaged_colors=None, inpainted=inpainted,
+                     holes=regions_to_json(regions), detected=None, manifest={})
+    assert b"property float x" in (tmp_path / "f32" / "inpainted" / "frame_0000.ply").read_bytes()[:300]
+    np.testing.assert_array_equal(read_run_folder(tmp_path / "f32")["inpainted"][0], inpainted[0].astype(np.float32))
     sha = back["manifest"].pop("sha256")
     assert back["manifest"] == {"frames": 2, "extra": "1.5"} and back["detected"] is None
     assert len(back["regions"][0]) == 1 and back["regions"][1] == []
