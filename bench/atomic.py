@@ -232,6 +232,27 @@ def _stages_of(out: Path) -> list[Path]:
     return [p for p in out.parent.glob(f".{glob_escape(out.name)}{STAGE_TAG}*") if p.is_dir()]
 
 
+def remove_stale_stages(parent: str | os.PathLike) -> int:
+    """Remove the `staged_output` staging folders in ``parent`` whose writer process is gone (the pid in
+    their name, ``.<out>.dpcbench-stage-<pid>-<random>``, runs no more); returns how many. Folders of
+    live writers and the ``-old-`` leftovers of a swap (removed under their output's lock) are kept."""
+    removed = 0
+    for stage in Path(parent).glob(f".*{STAGE_TAG}*"):
+        pid = stage.name.rsplit(STAGE_TAG, 1)[-1].split("-")[0]
+        if not stage.is_dir() or not pid.isdigit():
+            continue
+        try:
+            os.kill(int(pid), 0)
+            continue  # alive (or another user's process)
+        except ProcessLookupError:
+            pass
+        except PermissionError:
+            continue
+        shutil.rmtree(stage, ignore_errors=True)
+        removed += 1
+    return removed
+
+
 def glob_escape(name: str) -> str:
     import glob
 
@@ -317,6 +338,7 @@ def staged_output(out: str | os.PathLike, option: str = "--out", *, before_publi
     with output_lock(out, option):
         for stale in _stages_of(out):  # under the lock: left by a killed writer
             shutil.rmtree(stale, ignore_errors=True)
+        remove_stale_stages(out.parent)
         cwd = Path(os.getcwd()).resolve() if os.path.exists(".") else None
         swap = os.access(out.parent, os.W_OK) and not (out.exists() and cwd is not None
                                                          and _is_within(cwd, out.resolve()))

@@ -9,6 +9,8 @@ import json
 import os
 import sqlite3
 import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -102,6 +104,15 @@ def test_a_second_writer_of_one_output_is_refused_and_stale_stages_are_removed(t
                 pass
         (stage / "x.txt").write_text("one")
     assert (out / "x.txt").read_text() == "one"
+    # a killed writer's stage of another output in the same folder is removed too; a live one is kept
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    other_dead = tmp_path / f".p{STAGE_TAG}{int(dead.stdout)}-cafe0000"
+    other_live = tmp_path / f".q{STAGE_TAG}{os.getpid()}-cafe0001"
+    other_dead.mkdir()
+    other_live.mkdir()
+    with Outputs().staged(out) as stage:
+        (stage / "x.txt").write_text("two")
+    assert not other_dead.exists() and other_live.exists()
 
 
 def test_concurrent_damage_into_one_out_never_replaces_ground_truth(work, capsys):
