@@ -39,7 +39,7 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from dpcbench.bench.atomic import check_within, staged_output
+from dpcbench.bench.atomic import check_within, is_temporary, staged_output
 from dpcbench.bench.errors import UserError
 
 #: output paths (files and folders, resolved) claimed by the running command
@@ -306,7 +306,8 @@ class Outputs:
                             "would join its sequence: choose another output folder or pass --overwrite")
         if sequence and path.is_dir():
             planned = {t.name for t in targets}
-            stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned)
+            stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned
+                           and not is_temporary(p.name))  # a killed writer's leftovers are no frames
             if stale:
                 raise UserError(f"{option} {shown}: already holds {len(stale)} other .ply frame(s) "
                                 f"({', '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}) that would mix with "

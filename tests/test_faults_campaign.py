@@ -129,6 +129,11 @@ def test_readers_skip_hidden_and_temporary_frames(work, capsys):
     (work / "seq" / ".s_0005.x1y2.tmp.ply").write_bytes((work / "seq" / "s_0000.ply").read_bytes())
     (work / "seq" / "s_0006.ply.tmp.ply").write_bytes(b"ply\nhalf")
     assert [p.name for p in list_frame_files(work / "seq")] == ["s_0000.ply", "s_0001.ply", "s_0002.ply"]
+    (work / "out").mkdir()
+    (work / "out" / ".seq_0007.k9.tmp.ply").write_bytes(b"ply\nhalf")  # a killed writer's leftover in --out
+    code, err = _damage("out", capsys)
+    assert code == 0, err
+    assert [p.name for p in list_frame_files(work / "out")] == [f"seq_{f:04d}.ply" for f in range(3)]
 
 
 @pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
