@@ -305,3 +305,36 @@ def test_a_killed_inpaint_never_leaves_a_mixed_output(tmp_path):
             assert frames == record["files"]
             assert [len(read_ply(out / n).points) for n in frames] == record["points"]
             assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+# -- labels ----------------------------------------------------------------------------------------
+LABEL_FRAGMENTS = ["../", "/", "..", "|", "\\n", "<b>", "$x^2$", "%", "\\\\input{a}", "=HYPERLINK(1)", "#", "é", "'", "`"]
+
+
+def test_hostile_labels_never_lead_a_write_outside_the_store_and_report(tmp_path, capsys, monkeypatch):
+    """Labels (experiment name, sequence and hole labels) from a seeded generator go through `run` and
+    `report`; every file written lies under the store's folder or the report's --out. (How they are
+    escaped inside the tables is the tables' own concern.)"""
+    rng = np.random.default_rng(700)
+
+    def label() -> str:
+        return "".join(LABEL_FRAGMENTS[i] for i in rng.choice(len(LABEL_FRAGMENTS), size=4))
+
+    monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
+    work_dir = tmp_path / "w"
+    work_dir.mkdir()
+    monkeypatch.chdir(work_dir)
+    (work_dir / "l.toml").write_text(
+        f'[experiment]\nname = "{label()}"\n[[sequences]]\nname = "human"\nlabel = "{label()}"\nframes = 2\n'
+        f'params = {{ size = "tiny" }}\n[[holes]]\ngenerator = "region"\nlabel = "{label()}"\n[[methods]]\n'
+        'name = "none"\n')
+    before = {p for p in tmp_path.rglob("*")}
+    code, _, err = run_cli(["run", "l.toml", "--store", "s/s.sqlite", "--executor", "serial"], capsys)
+    assert code == 0, err
+    code, _, err = run_cli(["report", "s/s.sqlite", "--out", "rep"], capsys)
+    assert code == 0, err
+    new = {p for p in tmp_path.rglob("*")} - before
+    allowed = (work_dir / "s", work_dir / "rep", tmp_path / "cache")
+    assert all(any(p == a or a in p.parents for a in allowed) for p in new), sorted(map(str, new))
+    assert (work_dir / "rep" / "REPORT.md").is_file()
