@@ -49,7 +49,9 @@ def _annotation_kinds(annotation: object) -> set[str] | None:
 
 def _is_whole(value: object) -> bool:
     """An int, or a float with an integer value (finite: not inf, not NaN)."""
-    return _is_number(value) and (isinstance(value, int) or (math.isfinite(value) and float(value).is_integer()))
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return isinstance(value, int) or (math.isfinite(value) and value.is_integer())
 
 
 def _kind_ok(value: object, kinds: set[str]) -> bool:
