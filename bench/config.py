@@ -205,7 +205,8 @@ def _is_scalar(v) -> bool:
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A finite int or float (not a bool; inf and NaN are no config value's meaning)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _expand_params(params: dict, where: str) -> list[dict]:
@@ -253,7 +254,11 @@ def _check_param_types(cls, params: dict, where: str) -> None:
 def _validate_instance(cls, params: dict, where: str) -> None:
     """One grid point through the class's own validation (`validate_params`), so that a bad value
     is refused before any run starts, not when its run fails."""
+    from dpcbench.metrics.params import check_param_types
+
     try:
+        # whole numbers where the signature says int
+        check_param_types(cls, params, f"{getattr(cls, '_kind', 'class')} {getattr(cls, 'name', '') or cls.__name__}")
         cls(**params).validate_params()
     except UserError as err:
         shown = ", ".join(f"{k}={v!r}" for k, v in params.items())
@@ -507,7 +512,10 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
                                   f"[start, stop, step] with step > 0 (every step-th frame), got {frames!r}")
         path = None
         if seq.get("path"):  # relative paths are relative to the config file's folder
-            path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())
+            try:
+                path = str((Path(base_dir or ".") / Path(seq["path"]).expanduser()).resolve())
+            except (RuntimeError, OSError) as err:  # a symbolic link loop (RuntimeError in Python < 3.13)
+                raise ConfigError(f"{where}.path: {seq['path']!r} cannot be resolved ({err}); fix the link") from None
         optional = seq.get("optional", False)
         if not isinstance(optional, bool):
             raise ConfigError(f"{where}.optional: expected true or false, got {optional!r}")
@@ -532,8 +540,9 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         if "seeds" in hole and "seed" in hole:
             raise ConfigError(f"{where}: give `seeds` or `seed`, not both")
         seeds = hole.get("seeds", [hole.get("seed", 0)])
-        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-            raise ConfigError(f"{where}.seeds: expected a non-empty list of integers, got {seeds!r}")
+        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool)
+                                                               and 0 <= s < 2**32 for s in seeds):
+            raise ConfigError(f"{where}.seeds: expected a non-empty list of integers in 0..2**32-1, got {seeds!r}")
         try:
             cls = generator_class(gen)
         except ImportError as err:  # an optional dependency or a plug-in's module missing here

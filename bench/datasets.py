@@ -129,12 +129,26 @@ def parse_frames(text: str | None):
             part = part.strip()
             if "-" in part:
                 a, b = part.split("-", 1)
+                if int(b) - int(a) > MAX_FRAMES:
+                    raise UserError(f"--frames {text!r}: more than {MAX_FRAMES} frames; ask for fewer")
                 indices.extend(range(int(a), int(b) + 1))
             elif part:
                 indices.append(int(part))
-        return indices
+    except UserError:
+        raise
     except ValueError:
         raise UserError(f"--frames {text!r}: give a count (10), a list (0,5,9) or a range (0-9)") from None
+    if any(b <= a for a, b in zip(indices, indices[1:])):
+        # a sequence is in time order: a reordered or repeated frame would pair regions, masks and
+        # temporal neighbours with the wrong frames
+        raise UserError(f"--frames {text!r}: give the frames in increasing order, each once (e.g. 0,5,9)")
+    return indices
+
+
+#: the most frames one sequence selection may name (an embedded stand-in generates every one)
+MAX_FRAMES = 10_000
+#: the most frames of an embedded stand-in one command generates (each takes seconds to minutes)
+MAX_STANDIN_FRAMES = 1_000
 
 
 def resolve_source(name_or_path: str | os.PathLike, data_dir=None, *, name_only: bool = False,
@@ -188,6 +202,11 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
     the paper's sequences.
     """
     source = resolve_source(name_or_path, data_dir, name_only=name_only)
+    if source.kind == "embedded" and frames is not None:
+        top = int(frames) if isinstance(frames, int) else max([int(i) + 1 for i in frames], default=0)
+        if top > MAX_STANDIN_FRAMES:
+            raise UserError(f"{name_or_path}: {top} frames asked of an embedded stand-in; it generates at most "
+                            f"{MAX_STANDIN_FRAMES} (each frame is computed): ask for fewer frames")
     if params and source.kind in ("paper", "points"):
         raise UserError(f"{name_or_path}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
                         f"sequences ({', '.join(EMBEDDED)}) and to mesh sequences ({', '.join(MESHES)}, or a folder "

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
+import re
 import socket
 import uuid
 from collections.abc import Iterator
@@ -38,6 +39,35 @@ EXECUTORS = ("serial", "pool", "dask")
 
 #: name prefix of the marker files the Dask driver writes into the run folder (one per sweep)
 SHARED_MARKER_PREFIX = ".dpcbench-shared-"
+
+
+#: how long the driver waits for a first worker of an existing cluster (seconds; env override)
+WORKER_WAIT_ENV = "DPCBENCH_DASK_WORKER_WAIT_S"
+DEFAULT_WORKER_WAIT_S = 60.0
+_ADDRESS = re.compile(r"^(?:(tcp|tls|ucx|ws|wss)://)?(\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+)(?::(\d{1,5}))?/?$")
+
+
+def check_scheduler_address(address: str) -> str:
+    """``address`` when it has the form of a Dask scheduler address (``[tcp|tls|ucx|ws|wss://]host[:port]``,
+    port 1..65535, or ``inproc://host/pid/n``); UserError otherwise. (The driver unpickles the results of whatever cluster the
+    address reaches: give only a cluster you trust.)"""
+    if isinstance(address, str) and re.fullmatch(r"inproc://[A-Za-z0-9_.:-]+(/\d+)+", address.strip()):
+        return address.strip()  # a scheduler in this process (tests, notebooks)
+    match = _ADDRESS.match(address.strip()) if isinstance(address, str) else None
+    port = match.group(3) if match else None
+    if match is None or (port is not None and not 1 <= int(port) <= 65535):
+        raise UserError(f"--scheduler {address!r}: not a Dask scheduler address; give e.g. tcp://host:8786 "
+                        "(protocol tcp, tls, ucx, ws or wss; port 1..65535)")
+    return address.strip()
+
+
+def worker_wait_s() -> float:
+    """Seconds to wait for a first worker (``$DPCBENCH_DASK_WORKER_WAIT_S``, default 60)."""
+    try:
+        value = float(os.environ.get(WORKER_WAIT_ENV, DEFAULT_WORKER_WAIT_S))
+    except ValueError:
+        value = DEFAULT_WORKER_WAIT_S
+    return value if value > 0 and value == value else DEFAULT_WORKER_WAIT_S
 
 
 class SharedStorageError(RuntimeError):
@@ -147,7 +177,7 @@ class DaskExecutor:
         if self.scheduler:
             try:
                 client = Client(self.scheduler, timeout="20s")
-            except OSError as err:
+            except (OSError, ValueError, TypeError) as err:  # unreachable, or an address distributed cannot parse
                 raise UserError(f"cannot reach the Dask scheduler at {self.scheduler} ({err}); "
                                  "check the address (e.g. tcp://host:8786) and that the scheduler runs") from err
         else:
@@ -157,6 +187,8 @@ class DaskExecutor:
         token = uuid.uuid4().hex
         marker = Path(runs_dir) / f"{SHARED_MARKER_PREFIX}{token}"
         try:
+            if self.scheduler:
+                self._wait_for_a_worker(client)
             marker.write_text(token)
             self._check_workers(client, str(runs_dir), token)
             futures = {}
@@ -176,6 +208,15 @@ class DaskExecutor:
             if cluster is not None:
                 cluster.close()
 
+    def _wait_for_a_worker(self, client) -> None:
+        """UserError when the cluster has no worker within `worker_wait_s` (the sweep would wait forever)."""
+        wait = worker_wait_s()
+        try:
+            client.wait_for_workers(1, timeout=wait)
+        except (TimeoutError, OSError) as err:
+            raise UserError(f"the Dask scheduler at {self.scheduler} has no worker (waited {wait:g} s); start workers "
+                            f"(`dask worker {self.scheduler}`) or raise ${WORKER_WAIT_ENV}; nothing was run") from err
+
     @staticmethod
     def _check_workers(client, runs_dir: str, token: str) -> None:
         """Run `check_shared_runs_dir` on every connected worker; any failure stops the sweep."""
@@ -186,6 +227,8 @@ class DaskExecutor:
 
 
 def make_executor(name: str, jobs: int | None = None, scheduler: str | None = None):
+    if scheduler is not None:
+        scheduler = check_scheduler_address(scheduler)
     if scheduler and name != "dask":
         name = "dask"  # --scheduler only makes sense for Dask
     if name == "serial":

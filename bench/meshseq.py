@@ -147,6 +147,33 @@ def declared_vertex_count(path: Path) -> int | None:
     return None
 
 
+def check_obj_faces(path: Path) -> None:
+    """Refuse (UserError) an OBJ file whose face (``f``, also ``l``) indices are not vertex indices:
+    positive ones must lie in 1..V (V = the file's ``v`` lines), negative (relative) ones within the
+    vertices defined before the face, none may be 0 or non-numeric. Checked before pymeshlab reads the
+    file: its reader does not check, and an index past the vertex list crashes the process or reads
+    memory that is not the mesh."""
+    total = declared_vertex_count(path) or 0
+    seen = 0
+    with open(path, "rb") as fh:
+        for number, line in enumerate(fh, 1):
+            if line.startswith((b"v ", b"v\t")):
+                seen += 1
+                continue
+            if not line.startswith((b"f ", b"f\t", b"l ", b"l\t")):
+                continue
+            for token in line.split(b"#")[0].split()[1:]:
+                head = token.split(b"/")[0]
+                try:
+                    index = int(head)
+                except ValueError:
+                    index = 0
+                if index == 0 or index > total or -index > seen:
+                    raise UserError(f"{path}: line {number}: face index {head.decode(errors='replace')!r} is not one "
+                                    f"of the file's {total} vertices (1..{total}, or -1..-{seen} counted back); "
+                                    "repair the mesh")
+
+
 def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """(vertices (V, 3) float64, triangles (T, 3) int64) of one mesh file (OBJ, OFF, PLY), through pymeshlab:
     it keeps the file's vertex order (open3d's OBJ reader reorders vertices and drops unreferenced ones,
@@ -158,6 +185,8 @@ def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such file")
+    if path.suffix.lower() == ".obj":
+        check_obj_faces(path)
     meshes = pymeshlab.MeshSet()
     try:
         meshes.load_new_mesh(str(path))

@@ -11,7 +11,15 @@ Rules, for every command:
 - a command never writes into the input sequence: not into its folder, not over one of its files,
   and never a non-PLY file over a ``.ply``;
 - a sequence written into a folder that already holds other ``.ply`` frames would mix with them
-  (a reader takes every ``.ply`` of a folder), so it is refused.
+  (a reader takes every ``.ply`` of a folder), so it is refused;
+- ground truth is never replaced without ``--overwrite``: in a damage output (a folder holding a
+  ``masks.npz`` or a ``holes.json`` written by ``dpcbench damage``), no file is replaced by any
+  command without it, even one dpcbench wrote (`is_ground_truth`);
+- nothing is written through a symbolic link leading out of the output folder
+  (`bench.atomic.check_within`);
+- a folder output (a sequence, a report) is written into a hidden staging folder and swapped in
+  whole (`Outputs.staged`, `bench.atomic.staged_output`): it appears whole or not at all, one
+  writer at a time.
 
 The output ledger is ``written-outputs.jsonl`` in the dpcbench cache folder (`bench.standins.cache.cache_dir`):
 one JSON line per file written, ``{"path", "size", "mtime_ns"}``. Losing it is harmless: the next
@@ -24,13 +32,14 @@ the CLI as one line, and any other OSError as the bug it is.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
-import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+from dpcbench.bench.atomic import check_within, is_temporary, staged_output
 from dpcbench.bench.errors import UserError
 
 #: output paths (files and folders, resolved) claimed by the running command
@@ -91,19 +100,70 @@ def record_written(paths) -> None:
         pass
 
 
+def is_ground_truth(folder: str | os.PathLike) -> bool:
+    """True for a damage output: ``folder`` holds a ``masks.npz``, or a ``holes.json`` whose record names a
+    ``generator`` (written by ``dpcbench damage``; one from ``detect-holes`` names a ``detector``)."""
+    folder = Path(folder)
+    if (folder / "masks.npz").exists():
+        return True
+    record = folder / "holes.json"
+    if not record.is_file():
+        return False
+    try:
+        with open(record, "rb") as fh:
+            head = fh.read(1 << 16)
+        return b'"generator"' in head
+    except OSError:
+        return False
+
+
+#: staging folder (resolved) -> the output it becomes, while a command writes it (`Outputs.staged`)
+STAGES: dict[Path, Path] = {}
+#: errors of a full or failing device: about the output being written even when they carry no file name
+_DEVICE_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+
+
 def claimed_target(err: OSError) -> Path | None:
-    """The claimed output an OSError is about (its filename lies in or is one), else None."""
-    for name in (err.filename, getattr(err, "filename2", None)):
-        if not name:
-            continue
+    """The claimed output an OSError is about (its filename lies in or is one, or in the staging folder
+    of one), else None. A full disk (ENOSPC, EDQUOT, EFBIG, EROFS) with no file name (numpy's and zlib's
+    writes) is about the last output claimed."""
+    names = [n for n in (err.filename, getattr(err, "filename2", None)) if n]
+    for name in names:
         try:
             path = Path(os.fsdecode(name)).resolve()
         except (OSError, ValueError):
             continue
+        for stage, out in STAGES.items():
+            if path == stage or stage in path.parents:
+                return out
         for claimed in CLAIMED:
             if path == claimed or claimed in path.parents:
                 return claimed
+    if not names and err.errno in _DEVICE_ERRORS and CLAIMED:
+        return CLAIMED[-1]
     return None
+
+
+def _within(path: Path, root: Path) -> bool:
+    return path == root or root in path.parents
+
+
+def user_path(text) -> Path:
+    """``Path(text)`` with a leading ``~`` or ``~user`` expanded; a ``~name`` that names no user (Python
+    raises RuntimeError) is taken literally, as the shell does."""
+    try:
+        return Path(text).expanduser()
+    except RuntimeError:
+        return Path(text)
+
+
+def _resolvable(path: Path, option: str, shown) -> Path:
+    """``path.resolve()``; UserError for a symbolic link loop (or a path too deep to resolve)."""
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError) as err:  # Python < 3.13 raises RuntimeError for a link loop
+        raise UserError(f"{option} {shown}: cannot be resolved ({err}); remove the link loop or choose another "
+                        "path") from None
 
 
 def _existing_ancestor(path: Path) -> Path:
@@ -146,7 +206,8 @@ class Outputs:
         if source is None:
             return
         text = str(source)
-        path = Path(text).expanduser()
+        path = user_path(text)
+        _resolvable(path, "input", text)
         if path.is_dir():
             self.input_dirs.add(path.resolve())
         elif path.is_file():
@@ -174,6 +235,12 @@ class Outputs:
     def _refuse_foreign(self, paths: list[Path], option: str, shown) -> None:
         if self.overwrite:
             return
+        truth = [p for p in paths if os.path.lexists(p) and is_ground_truth(p.parent)]
+        if truth:
+            names = ", ".join(p.name for p in truth[:3]) + (f" and {len(truth) - 3} more" if len(truth) > 3 else "")
+            raise UserError(f"{option} {shown}: {truth[0].parent} is a damage output (the ground truth of a "
+                            f"benchmark); writing here would replace {names}; choose another {option} or pass "
+                            "--overwrite to replace them")
         foreign = [p for p in paths if p.exists() and not self._ours(p)]
         if foreign:
             names = ", ".join(p.name for p in foreign[:3])
@@ -185,7 +252,8 @@ class Outputs:
     def file(self, path, option: str = "--out", suffixes: tuple[str, ...] = ()) -> Path:
         """Check an output file path (nothing is created). Returns the path."""
         shown = path
-        path = Path(path).expanduser()
+        path = user_path(path)
+        _resolvable(path, option, shown)
         if suffixes and path.suffix.lower() not in suffixes:
             raise UserError(f"{option} {shown}: the output is a {'/'.join(suffixes)} file; give a path ending in "
                             f"{suffixes[0]}")
@@ -199,6 +267,9 @@ class Outputs:
         if hit is not None:
             raise UserError(f"{option} {shown}: lies in the input {hit}; the input is never overwritten: "
                             "choose an output outside it")
+        if path.is_symlink() and not _within(target, path.parent.resolve()):
+            raise UserError(f"{option} {shown}: is a symbolic link to {target}, outside its folder; dpcbench never "
+                            "writes through such a link: remove it or choose another path")
         self._refuse_foreign([path], option, shown)
         _check_writable_folder(path.parent, option, shown)
         CLAIMED.append(target)
@@ -210,7 +281,8 @@ class Outputs:
         sequence: the folder receives PLY frames, so other ``.ply`` files in it are refused.
         """
         shown = path
-        path = Path(path).expanduser()
+        path = user_path(path)
+        _resolvable(path, option, shown)
         if path.exists() and not path.is_dir():
             raise UserError(f"{option} {shown}: exists and is a file, not a folder; choose a folder path")
         base = _existing_ancestor(path)
@@ -222,13 +294,20 @@ class Outputs:
             raise UserError(f"{option} {shown}: is (or lies in) the input {hit}; the input is never overwritten: "
                             "choose another output folder")
         targets = [path / n for n in names]
+        if path.is_dir():
+            for t in targets:
+                check_within(t, path, option)
         for item in self.input_files:
             if item in {t.resolve() for t in targets} or (sequence and item.parent == target):
                 raise UserError(f"{option} {shown}: holds the input file {item.name}; the input is never overwritten "
                                 "(and new frames beside it would join its sequence): choose another output folder")
+        if sequence and path.is_dir() and not self.overwrite and is_ground_truth(path):
+            raise UserError(f"{option} {shown}: is a damage output (the ground truth of a benchmark); new frames there "
+                            "would join its sequence: choose another output folder or pass --overwrite")
         if sequence and path.is_dir():
             planned = {t.name for t in targets}
-            stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned)
+            stale = sorted(p.name for p in path.iterdir() if p.suffix.lower() == ".ply" and p.name not in planned
+                           and not is_temporary(p.name))  # a killed writer's leftovers are no frames
             if stale:
                 raise UserError(f"{option} {shown}: already holds {len(stale)} other .ply frame(s) "
                                 f"({', '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}) that would mix with "
@@ -238,38 +317,29 @@ class Outputs:
         CLAIMED.append(target)
         return path
 
-    def commit(self, staged: Path, out: Path, option: str = "--out") -> list[Path]:
-        """Move every file of the staging folder ``staged`` to the same place under ``out`` (after
-        checking that none replaces a file dpcbench did not write); removes ``staged``."""
-        files = [p for p in sorted(staged.rglob("*")) if p.is_file()]
-        targets = [out / p.relative_to(staged) for p in files]
-        try:
+    @contextmanager
+    def staged(self, out, option: str = "--out"):
+        """``with guard.staged(out) as folder:`` write everything into ``folder`` (a hidden staging folder
+        beside ``out``); on leaving the block it becomes ``out`` in one rename (`bench.atomic.staged_output`:
+        older entries it does not replace are kept; one writer at a time). Refused, with ``out`` left as it
+        was, when a file would replace one dpcbench did not write or ground truth (checked again under the
+        lock, just before the swap). An exception inside the block leaves ``out`` as it was. The files
+        written are added to the ledger."""
+        out = Path(os.path.realpath(user_path(out)))
+        written: list[Path] = []
+
+        def last_checks(rel):
+            targets = [out / r for r in rel]
             self._refuse_foreign(targets, option, out)
             for target in targets:
                 base = _existing_ancestor(target.parent)
                 if not base.is_dir():
                     raise UserError(f"{option} {out}: {base} is a file where the output needs a folder; move it "
                                     "or choose another output folder")
-            for src, dst in zip(files, targets):
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(src, dst)
-        finally:
-            shutil.rmtree(staged, ignore_errors=True)
-        record_written(targets)
-        return targets
+            written.extend(targets)
 
-    @contextmanager
-    def staged(self, out: Path, option: str = "--out"):
-        """``with guard.staged(out) as folder:`` write everything into ``folder`` (hidden, inside
-        ``out``); on leaving the block the files are moved into ``out`` by `commit` (refused, with
-        nothing moved, when one would replace a file dpcbench did not write). An exception inside
-        the block leaves ``out`` as it was."""
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        folder = Path(tempfile.mkdtemp(prefix=".dpcbench-staging-", dir=out))
-        try:
+        with staged_output(out, option, before_publish=last_checks) as folder:
+            STAGES[folder.resolve()] = out
             yield folder
-        except BaseException:
-            shutil.rmtree(folder, ignore_errors=True)
-            raise
-        self.commit(folder, out, option)
+        STAGES.pop(folder.resolve(), None)
+        record_written(written)

@@ -2,7 +2,10 @@
 
 Parsing is done by `plyfile` (binary little/big endian and ASCII, any numeric property type).
 Frames are written as binary little-endian PLY in the layout MPEG's tools (pc_error, TMC2) read:
-``float x y z``, then optional ``uchar red green blue``, then optional ``float nx ny nz``.
+``float x y z``, then optional ``uchar red green blue``, then optional ``float nx ny nz``; a frame
+read from ``double`` coordinates (or integers float32 cannot hold exactly: beyond 2^24) keeps
+``double x y z`` (`PointCloud.precision` = "float64"), so georeferenced data is not snapped to
+float32's grid.
 """
 
 from __future__ import annotations
@@ -25,11 +28,15 @@ class PointCloud:
     points:  (N, 3) float64 coordinates (int16 or float32 from ``read_ply(..., compact=True)``).
     colors:  (N, 3) uint8 RGB, or None.
     normals: (N, 3) float64, or None.
+    precision: "float64" when the coordinates were read from a type float32 cannot hold exactly
+               (``double``, or integers beyond 2^24), so they are written back as ``double``;
+               None: written as ``float`` (float32), as MPEG's tools expect.
     """
 
     points: np.ndarray
     colors: np.ndarray | None = None
     normals: np.ndarray | None = None
+    precision: str | None = None
 
     def __len__(self) -> int:
         return len(self.points)
@@ -40,6 +47,7 @@ class PointCloud:
             self.points[mask_or_index],
             None if self.colors is None else self.colors[mask_or_index],
             None if self.normals is None else self.normals[mask_or_index],
+            self.precision,
         )
 
 
@@ -193,6 +201,7 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         if not {"x", "y", "z"} <= names:
             raise UserError(f"{path}: the vertex element has no x, y, z properties (has {sorted(names)})")
         xyz = ("x", "y", "z")
+        stored = [vertex[n].dtype for n in xyz]
         rows = _BinaryRows.of(path, data, vertex) if compact else None
         if rows is not None:  # read in blocks from the file: no whole-file memory map (see _BinaryRows)
             small = rows.small_integers(xyz)
@@ -233,14 +242,26 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         ) from None
     _check_declared_size(data, path)
     del data, vertex  # the parsed file (~4x the points' size): free before the caller's next allocation
-    cloud = PointCloud(points, colors, normals)
+    cloud = PointCloud(points, colors, normals, _precision(stored, points))
     if check:
         check_cloud(cloud, str(path))
     return cloud
 
 
+def _precision(stored: list, points: np.ndarray) -> str | None:
+    """"float64" when the stored coordinate types hold values float32 cannot: double, or integers
+    beyond 2^24 (``points``: the coordinates read)."""
+    if any(dtype.kind == "f" and dtype.itemsize > 4 for dtype in stored):
+        return "float64"
+    if any(dtype.kind in "iu" and dtype.itemsize >= 4 for dtype in stored) and points.size:
+        if float(np.abs(points).max()) > 2**24:
+            return "float64"
+    return None
+
+
 def check_cloud(cloud: PointCloud, label: str) -> None:
-    """Refuse empty clouds and non-finite coordinates with a message naming ``label``."""
+    """Refuse empty clouds, non-finite coordinates and coordinates beyond ``holes.regions.COORD_LIMIT``
+    with a message naming ``label``."""
     if cloud.points.ndim != 2 or cloud.points.shape[1] != 3:
         raise UserError(f"{label}: coordinates must be an (N, 3) array, got shape {cloud.points.shape}")
     if len(cloud.points) == 0:
@@ -252,19 +273,28 @@ def check_cloud(cloud: PointCloud, label: str) -> None:
             f"{label}: {int(bad.sum())} point(s) have NaN or infinite coordinates (first at index {first}); "
             "clean the frame (drop those points) before using it"
         )
+    from dpcbench.holes.regions import COORD_LIMIT
+
+    top = float(np.abs(cloud.points).max())
+    if top > COORD_LIMIT:
+        raise UserError(f"{label}: coordinates reach {top:.3g}, beyond +-{COORD_LIMIT:g}, where squared distances "
+                        "overflow and scores would be wrong; translate the frames (subtract their centre) or rescale "
+                        "them")
 
 
 def write_ply(path: str | os.PathLike, cloud: PointCloud | np.ndarray, *, ascii: bool = False) -> Path:
     """Write one frame as binary little-endian PLY (or ASCII with ``ascii=True``).
 
-    Written atomically: to a temporary file in the same folder, then renamed, so a reader never sees
-    a half-written frame.
+    Coordinates are ``float`` (float32), or ``double`` when ``cloud.precision`` is "float64" (read
+    from double input). Written atomically: to a temporary file in the same folder, then renamed, so
+    a reader never sees a half-written frame.
     """
     if isinstance(cloud, np.ndarray):
         cloud = PointCloud(np.asarray(cloud, dtype=np.float64))
     path = Path(path)
     n = len(cloud.points)
-    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    coord = "<f8" if cloud.precision == "float64" else "<f4"
+    fields = [("x", coord), ("y", coord), ("z", coord)]
     if cloud.colors is not None:
         fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
     if cloud.normals is not None:

@@ -116,22 +116,75 @@ def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors
     from dpcbench.bench.atomic import atomic_folder
     from dpcbench.bench.plyio import PointCloud, write_ply
 
+    # double coordinates when the input needs them (float32 cannot hold the damaged frames exactly:
+    # georeferenced or float64 data); float32, as always, for data that float32 holds
+    precision = None if all(_float32_exact(frame) for frame in damaged) else "float64"
     with atomic_folder(run_dir) as tmp:
         for i, (frame, result) in enumerate(zip(damaged, inpainted)):
             colors = None if damaged_colors is None else damaged_colors[i]
-            write_ply(tmp / "damaged" / f"frame_{i:04d}.ply", PointCloud(frame, colors))
-            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result))
+            write_ply(tmp / "damaged" / f"frame_{i:04d}.ply", PointCloud(frame, colors, precision=precision))
+            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result, precision=precision))
         (tmp / "holes.json").write_text(json.dumps(holes, indent=1, default=_json_default))
         if detected is not None:
             (tmp / "detected.json").write_text(json.dumps(detected, indent=1, default=_json_default))
+        # the checksum of every file written, so that a folder changed afterwards is never trusted
+        manifest = {**manifest, "sha256": folder_checksums(tmp)}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1, default=str))
 
 
+def _float32_exact(points: np.ndarray) -> bool:
+    """Whether every coordinate of ``points`` survives a float32 round trip unchanged."""
+    points = np.asarray(points)
+    if points.dtype == np.float32 or points.dtype.kind in "iu" and points.dtype.itemsize <= 2:
+        return True
+    return bool(np.array_equal(points.astype(np.float32).astype(points.dtype), points))
+
+
+def folder_checksums(folder: Path) -> dict[str, str]:
+    """{relative path: sha256 hex} of every file under ``folder`` but ``manifest.json``."""
+    import hashlib
+
+    out = {}
+    for path in sorted(p for p in Path(folder).rglob("*") if p.is_file() and p.name != "manifest.json"):
+        digest = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                digest.update(block)
+        out[path.relative_to(folder).as_posix()] = digest.hexdigest()
+    return out
+
+
+def verify_run_folder(run_dir: Path, manifest: dict) -> None:
+    """Refuse (UserError) a run folder whose files differ from the checksums its manifest recorded
+    (a file changed, missing or added since the run wrote it) or whose manifest names another
+    folder (``inpaint_key``). A manifest without checksums (an older dpcbench) is not checked here."""
+    from dpcbench.bench.errors import UserError
+
+    key = manifest.get("inpaint_key")
+    if key is not None and key != Path(run_dir).name:
+        raise UserError(f"{run_dir}: its manifest belongs to run folder {key}, not to this one; the folder was copied "
+                        "or renamed: remove it (or rerun with --force)")
+    recorded = manifest.get("sha256")
+    if recorded is None:
+        return
+    found = folder_checksums(run_dir)
+    changed = sorted(name for name in set(recorded) | set(found) if recorded.get(name) != found.get(name))
+    if changed:
+        shown = ", ".join(changed[:3]) + (f" and {len(changed) - 3} more" if len(changed) > 3 else "")
+        raise UserError(f"{run_dir}: {len(changed)} file(s) differ from what the run wrote ({shown}: changed, missing "
+                        "or added); its results cannot be trusted: remove the folder (or rerun with --force)")
+
+
 def read_run_folder(run_dir: Path) -> dict:
-    """The damaged and inpainted frames ((N,3) arrays), regions and manifest of a run folder."""
+    """The damaged and inpainted frames ((N,3) arrays), regions and manifest of a run folder, after
+    `verify_run_folder`."""
     from dpcbench.bench.plyio import read_ply
     from dpcbench.bench.sequences import natural_key
     from dpcbench.holes.regions import regions_from_json
+
+    run_dir = Path(run_dir)
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    verify_run_folder(run_dir, manifest)
 
     def frames(sub):
         files = sorted((run_dir / sub).glob("*.ply"), key=lambda p: natural_key(p.name))
@@ -141,7 +194,7 @@ def read_run_folder(run_dir: Path) -> dict:
     return {"damaged": frames("damaged"), "inpainted": frames("inpainted"),
             "regions": regions_from_json(run_dir / "holes.json"),
             "detected": regions_from_json(detected) if detected.is_file() else None,
-            "manifest": json.loads((run_dir / "manifest.json").read_text())}
+            "manifest": manifest}
 
 
 def is_complete_run_folder(run_dir: Path) -> bool:

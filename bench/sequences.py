@@ -54,15 +54,18 @@ class Sequence:
 
 
 def list_frame_files(source: str | os.PathLike) -> list[Path]:
-    """The PLY files of a sequence, in natural order. ``source`` is a folder, a glob or one file."""
+    """The PLY files of a sequence, in natural order. ``source`` is a folder, a glob or one file.
+    Hidden and temporary files (``.*``, ``*.tmp.*``: a killed writer's leftovers) are skipped."""
+    from dpcbench.bench.atomic import is_temporary
+
     text = str(source)
     path = Path(text)
-    if any(ch in text for ch in "*?["):
-        files = [Path(p) for p in glob.glob(text) if p.lower().endswith(".ply")]
+    if any(ch in text for ch in "*?[") and not path.exists():
+        files = [Path(p) for p in glob.glob(text) if p.lower().endswith(".ply") and not is_temporary(Path(p).name)]
         if not files:
             raise UserError(f"{text}: the pattern matches no .ply file")
     elif path.is_dir():
-        files = [p for p in path.iterdir() if p.suffix.lower() == ".ply" and p.is_file()]
+        files = [p for p in path.iterdir() if p.suffix.lower() == ".ply" and p.is_file() and not is_temporary(p.name)]
         if not files:
             raise UserError(f"{path}: the folder holds no .ply file; point to the folder of PLY frames")
     elif path.is_file():
@@ -133,3 +136,59 @@ def sequence_file_names(stem: str, count: int) -> list[str]:
     """The file names `save_sequence` gives ``count`` frames: ``<stem>_0000.ply ...``."""
     width = max(4, len(str(count - 1)))
     return [f"{stem}_{i:0{width}d}.ply" for i in range(count)]
+
+
+def frames_record(seq: Sequence) -> dict:
+    """The holes.json keys that say which frames of the input a damage was made for: ``input_frames``
+    (indices into the source, when known) and ``input_files`` (the PLY file names, when read from
+    files); `check_regions_frames` compares them with the sequence a holes.json is later used on."""
+    record: dict = {}
+    indices = seq.meta.get("frame_indices")
+    if indices is not None:
+        record["input_frames"] = [int(i) for i in indices]
+    if seq.files:
+        record["input_files"] = [Path(f).name for f in seq.files]
+    return record
+
+
+def check_regions_frames(holes_json: str | os.PathLike, seq: Sequence, label: str) -> None:
+    """Refuse (UserError) a holes.json used on frames other than (or in another order than) those it was
+    made for: the frame files of ``seq`` are matched with the record's per-frame ``file`` (the damaged
+    frames) and ``input_files`` (the frames damaged), the embedded frame indices with ``input_frames``.
+    Records without these keys (older ones, or hand-written) are not checked."""
+    import json
+
+    try:
+        record = json.loads(Path(holes_json).read_text())
+    except (OSError, ValueError):
+        return
+    if not isinstance(record, dict):
+        return
+    names = [Path(f).name for f in seq.files]
+    entries = record.get("frames") if isinstance(record.get("frames"), list) else []
+    damaged = [e.get("file") for e in entries if isinstance(e, dict)]
+    for made_for in (damaged, record.get("input_files")):
+        if not names or not isinstance(made_for, list) or not made_for or not all(isinstance(m, str) for m in made_for):
+            continue
+        same_source = made_for is record.get("input_files") and _same_path(record.get("source"), seq.meta.get("source"))
+        if (same_source or set(names) & set(made_for)) and names != made_for:
+            raise UserError(f"{label}: made for the frames {_names(made_for)}, but the sequence has {_names(names)}; "
+                            "use the holes.json made for these frames (the same --frames, in the same order)")
+    indices = seq.meta.get("frame_indices")
+    made = record.get("input_frames")
+    if (not seq.files and indices is not None and isinstance(made, list) and seq.meta.get("generator")
+            and str(record.get("source", "")).lower() == str(seq.meta.get("generator")).lower()
+            and [int(i) for i in indices] != made):
+        raise UserError(f"{label}: made for frames {made} of {seq.meta.get('generator')}, but these are frames "
+                        f"{list(indices)}; use the holes.json made for these frames (the same --frames)")
+
+
+def _same_path(a, b) -> bool:
+    try:
+        return a is not None and b is not None and Path(str(a)).resolve() == Path(str(b)).resolve()
+    except (OSError, RuntimeError):
+        return False
+
+
+def _names(names: list[str]) -> str:
+    return ", ".join(names[:4]) + (f" ... ({len(names)} in all)" if len(names) > 4 else "")

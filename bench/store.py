@@ -117,6 +117,30 @@ def _json(value) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
 
 
+def _uri(path: Path, **query: str) -> str:
+    """The SQLite URI of ``path`` (absolute, every character but ``/`` percent-escaped, so that ``#``,
+    ``?`` and ``%`` in a file name name that file) with the ``query`` parameters."""
+    from urllib.parse import quote
+
+    text = quote(os.path.abspath(path), safe="/")
+    return f"file:{text}?" + "&".join(f"{k}={v}" for k, v in query.items())
+
+
+def _connect_readonly(path: Path, timeout_s: float) -> sqlite3.Connection:
+    """A read-only connection. A WAL store in a folder this process cannot write cannot get its
+    shared-memory file; with no journal left beside it (``-wal`` missing or empty), nothing can be
+    unmerged and no one can be writing, so it is opened ``immutable``."""
+    try:
+        conn = sqlite3.connect(_uri(path, mode="ro"), uri=True, timeout=timeout_s)
+        conn.execute("SELECT 1 FROM sqlite_master LIMIT 1").fetchall()
+        return conn
+    except sqlite3.OperationalError:
+        wal = Path(f"{path}-wal")
+        if os.access(path.parent, os.W_OK) or (wal.exists() and wal.stat().st_size > 0):
+            raise
+    return sqlite3.connect(_uri(path, mode="ro", immutable="1"), uri=True, timeout=timeout_s)
+
+
 def _corrupt_message(path: Path, err: Exception) -> str:
     return (
         f"{path}: the results store is damaged or not a dpcbench store ({type(err).__name__}: {err}); nothing was "
@@ -135,7 +159,10 @@ class ResultsStore:
 
     def __init__(self, path: str | os.PathLike | None = None, *, readonly: bool = False, timeout_s: float = 60.0,
                  verify: bool = False):
-        self.path = Path(path).expanduser() if path is not None else default_store_path()
+        from dpcbench.bench.outputs import _resolvable, user_path
+
+        self.path = user_path(path) if path is not None else default_store_path()
+        _resolvable(self.path, "--store", self.path)  # a symbolic link loop
         self.readonly = readonly
         self.timeout_s = timeout_s
         #: the schema version of the file as opened (1 only for an old store opened read-only)
@@ -162,17 +189,23 @@ class ResultsStore:
             raise UserError(f"--store {path}: {base} is a file, not a folder; give a store path outside it")
         if path.exists() and not path.is_file():
             raise UserError(f"--store {path}: is not a regular file; give the path of a results store")
+        if path.is_file() and not os.access(path, os.R_OK | os.W_OK):
+            raise UserError(f"--store {path}: the file cannot be written (read-only); make it writable "
+                            f"(chmod u+w {path}) or pass another --store")
         _check_writable_folder(path.parent, "--store", path)
 
     def verify(self) -> ResultsStore:
         """``PRAGMA quick_check``: refuse (UserError) a damaged store before anything is read from or
         written to it, with the way out. Returns the store."""
         try:
-            conn = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=self.timeout_s)
+            conn = _connect_readonly(self.path, self.timeout_s)
             try:
                 rows = [str(r[0]) for r in conn.execute("PRAGMA quick_check").fetchall()]
             finally:
                 conn.close()
+        except sqlite3.OperationalError as err:  # cannot be opened (permissions, a journal it cannot reach)
+            raise UserError(f"{self.path}: cannot open the results store ({err}); check that it and its folder "
+                            "can be read (and its -wal/-shm files, if any), or copy it to a folder you can write") from None
         except sqlite3.DatabaseError as err:  # not even the header reads
             raise UserError(_corrupt_message(self.path, err)) from None
         rows = [line for row in rows for line in row.splitlines() if line and not line.startswith("***")] or rows
@@ -187,7 +220,7 @@ class ResultsStore:
     # -- connection ------------------------------------------------------------------------
     def _connect(self) -> sqlite3.Connection:
         if self.readonly:
-            conn = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=self.timeout_s)
+            conn = _connect_readonly(self.path, self.timeout_s)
         else:
             conn = sqlite3.connect(str(self.path), timeout=self.timeout_s)
         conn.execute(f"PRAGMA busy_timeout = {int(self.timeout_s * 1000)}")
@@ -230,6 +263,8 @@ class ResultsStore:
                     f"{self.path}: this SQLite file is not a dpcbench results store (tables: {sorted(tables)}); "
                     "pass the store's path, or a new path to start one"
                 )
+            if "experiment_runs" not in tables:
+                raise UserError(_corrupt_message(self.path, ValueError("the experiment_runs table is missing")))
             row = conn.execute("SELECT MAX(version) FROM schema_version").fetchone()
             if row[0] not in READABLE_SCHEMA_VERSIONS:
                 raise UserError(

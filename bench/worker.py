@@ -253,12 +253,15 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     created = _now()
     run_dir = Path(runs_dir) / spec.inpaint_key
     truth = load_run_sequence(spec.sequence)
-    if force or not is_complete_run_folder(run_dir):
-        produce_frames(spec, truth, run_dir)
+    if force or not is_complete_run_folder(run_dir) or not _has_checksums(run_dir):
+        produce_frames(spec, truth, run_dir)  # a folder without checksums (an older dpcbench) is made anew
         reused = False
     else:
         reused = True
-    folder = read_run_folder(run_dir)
+    folder = read_run_folder(run_dir)  # checksums and inpaint_key verified
+    if folder["manifest"].get("inpaint_key") != spec.inpaint_key:
+        raise ValueError(f"{run_dir}: its manifest is of run folder {folder['manifest'].get('inpaint_key')}, not "
+                         f"{spec.inpaint_key}; remove the folder or rerun with --force")
     if len(folder["inpainted"]) != len(truth.frames):
         raise ValueError(f"{run_dir}: holds {len(folder['inpainted'])} frames, the sequence has {len(truth.frames)}; "
                          "rerun with --force")
@@ -287,6 +290,14 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
         "created_at": created, "finished_at": _now(), "output_dir": str(run_dir),
     }
     return {"run_id": spec.run_id, "status": "done", "record": record, "results": results}
+
+
+def _has_checksums(run_dir: Path) -> bool:
+    """Whether the run folder's manifest records the checksums of its files (`provenance.folder_checksums`)."""
+    try:
+        return "sha256" in json.loads((run_dir / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return False
 
 
 def _now() -> str:

@@ -41,6 +41,12 @@ from dpcbench.metrics.errors import UserError
 if TYPE_CHECKING:  # imported where used: every CLI command loads this module, few need scipy
     from scipy.spatial import cKDTree
 
+#: the largest |coordinate| a region (and a frame, `bench.plyio.check_cloud`) may have: beyond it squared
+#: distances leave float32's range and integer keys int64's, so scores would be silently wrong
+COORD_LIMIT = 1e15
+#: how far R^T R of a box rotation may be from the identity (entry-wise)
+ROTATION_TOLERANCE = 1e-6
+
 HOLES_FORMAT = "dpcbench-holes"
 HOLES_VERSION = 1
 
@@ -55,23 +61,36 @@ class HoleRegion:
     extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
+        """The one check of region values, wherever a region comes from (a holes.json, a generator,
+        a detector): finite centre within `COORD_LIMIT`; ball: finite radius in (0, COORD_LIMIT];
+        box: finite half extents in (0, COORD_LIMIT] and an orthonormal rotation (R^T R = I within
+        `ROTATION_TOLERANCE`; its columns are the box axes). UserError otherwise."""
         object.__setattr__(self, "center", np.asarray(self.center, dtype=np.float64).reshape(3))
+        if not np.isfinite(self.center).all():
+            raise UserError("hole region centre must be finite")
+        if np.abs(self.center).max() > COORD_LIMIT:
+            raise UserError(f"hole region centre {self.center.tolist()} lies beyond +-{COORD_LIMIT:g}, the coordinate "
+                            "range dpcbench scores correctly; translate the frames and regions closer to the origin")
         if self.shape == "ball":
-            if not self.radius > 0:
-                raise UserError(f"ball hole region needs a positive radius, got {self.radius}")
+            if not (self.radius > 0 and np.isfinite(self.radius)):
+                raise UserError(f"ball hole region needs a positive, finite radius, got {self.radius}")
+            if self.radius > COORD_LIMIT:
+                raise UserError(f"ball hole region radius {self.radius:g} exceeds {COORD_LIMIT:g}")
         elif self.shape == "box":
             if self.half_extents is None:
                 raise UserError("box hole region needs half_extents")
             he = np.asarray(self.half_extents, dtype=np.float64).reshape(3)
-            if not (he > 0).all():
-                raise UserError(f"box hole region needs positive half_extents, got {he}")
+            if not (np.isfinite(he).all() and (he > 0).all() and (he <= COORD_LIMIT).all()):
+                raise UserError(f"box hole region needs positive, finite half_extents (at most {COORD_LIMIT:g}), "
+                                f"got {he.tolist()}")
             rot = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
+            if not np.isfinite(rot).all() or not np.allclose(rot.T @ rot, np.eye(3), rtol=0, atol=ROTATION_TOLERANCE):
+                raise UserError(f"box hole region rotation {np.round(rot, 6).tolist()} is not orthonormal (its columns "
+                                "must be unit, mutually perpendicular box axes)")
             object.__setattr__(self, "half_extents", he)
             object.__setattr__(self, "rotation", rot)
         else:
             raise UserError(f"unknown hole region shape {self.shape!r}; use 'ball' or 'box'")
-        if not np.isfinite(self.center).all():
-            raise UserError("hole region centre must be finite")
 
     @classmethod
     def ball(cls, center: ArrayLike, radius: float, **extra: Any) -> HoleRegion:

@@ -10,6 +10,7 @@ config checks, so it lives in ``metrics``, the lowest layer (metrics < holes < m
 from __future__ import annotations
 
 import inspect
+import math
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar, cast
 
@@ -29,8 +30,11 @@ def _annotation_kinds(annotation: object) -> set[str] | None:
         return None
     text = annotation if isinstance(annotation, str) else getattr(annotation, "__name__", str(annotation))
     kinds = set()
-    for part in str(text).replace(" ", "").split("|"):
-        if part in ("int", "float"):
+    parts = str(text).replace(" ", "").split("|")
+    for part in parts:
+        if part == "int" and "float" not in parts:
+            kinds.add("int")  # a whole number: 2.5 or inf would be truncated or overflow where it is used
+        elif part in ("int", "float"):
             kinds.add("number")
         elif part == "bool":
             kinds.add("bool")
@@ -43,14 +47,21 @@ def _annotation_kinds(annotation: object) -> set[str] | None:
     return kinds or None
 
 
+def _is_whole(value: object) -> bool:
+    """An int, or a float with an integer value (finite: not inf, not NaN)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return isinstance(value, int) or (math.isfinite(value) and value.is_integer())
+
+
 def _kind_ok(value: object, kinds: set[str]) -> bool:
-    return (("number" in kinds and _is_number(value)) or ("bool" in kinds and isinstance(value, bool))
+    return (("number" in kinds and _is_number(value)) or ("int" in kinds and _is_whole(value)) or ("bool" in kinds and isinstance(value, bool))
             or ("str" in kinds and isinstance(value, str)) or ("none" in kinds and value is None))
 
 
 def _describe(kinds: set[str]) -> str:
-    words = {"number": "a number", "bool": "true or false", "str": "text", "none": "none"}
-    return " or ".join(words[k] for k in ("number", "bool", "str", "none") if k in kinds)
+    words = {"number": "a number", "int": "a whole number", "bool": "true or false", "str": "text", "none": "none"}
+    return " or ".join(words[k] for k in ("number", "int", "bool", "str", "none") if k in kinds)
 
 
 def signature_params(func: Callable[..., Any]) -> dict[str, inspect.Parameter]:

@@ -58,6 +58,21 @@ def subprocess_cases(ws: Path, bad: dict) -> list[tuple[list[str], str | None]]:
     (ws / "typo.toml").write_text(cfg.format(name="humna", cube="20"))
     (ws / "mine.json").write_text("{}")
     a_file, seq, out = bad["a_file"], str(ws / "seq"), str(ws / "out")
+    # issue 51: a link planted in --out, a damage output (ground truth), hostile values and files
+    (ws / "linked").mkdir(exist_ok=True)
+    if not (ws / "linked" / "masks.npz").is_symlink():
+        (ws / "linked" / "masks.npz").symlink_to(ws / "seq" / "s_0001.ply")
+    (ws / "truth").mkdir(exist_ok=True)
+    (ws / "truth" / "holes.json").write_text(json.dumps({"format": "dpcbench-holes", "version": 1,
+                                                         "generator": "region", "frames": []}))
+    inf_radius = json.loads((ws / "holes.json").read_text())
+    inf_radius["frames"][0]["regions"][0]["radius"] = float("inf")
+    (ws / "inf.json").write_text(json.dumps(inf_radius))
+    (ws / "objs").mkdir(exist_ok=True)
+    (ws / "objs" / "m_0000.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n")
+    (ws / "seeds.toml").write_text(cfg.format(name="human", cube="20").replace('generator = "region"',
+                                                                               'generator = "region"\nseeds = [-1]'))
+    truth, linked = str(ws / "truth"), str(ws / "linked")
     c = [
         (["detect-holes", seq, "--out", seq + "/s_0001.ply"], None),
         (["detect-holes", seq, "--out", seq + "/s_0001.ply", "--overwrite"], None),
@@ -104,6 +119,20 @@ def subprocess_cases(ws: Path, bad: dict) -> list[tuple[list[str], str | None]]:
         (["generate", "human", "--param", "size=huge", "--out", out], out),
         (["generate", "human", "--out", a_file], None),
         (["reproduce-paper", "--quick", "--frames", "1", "--out", out], out),
+        (["damage", seq, "--holes", "region", "--out", linked, "--overwrite"], linked),
+        (["detect-holes", seq, "--out", truth + "/holes.json"], None),
+        (["generate", "human", "--param", "size=tiny", "--frames", "1", "--out", truth], None),
+        (["compare", "--save-current", truth + "/holes.json"], None),
+        (["inpaint", seq, "--method", "temporal-copy", "--regions", str(ws / "inf.json"), "--out", out], out),
+        (["inpaint", seq, "--frames", "2,1,0", "--method", "none", "--regions", str(ws / "holes.json"), "--out", out],
+         out),
+        (["damage", "human", "--frames", "99999999", "--holes", "region", "--out", out], out),
+        (["damage", seq, "--holes", "region", "--seed", "-1", "--out", out], out),
+        (["score", seq, seq, "--peak", "1e200"], None),
+        (["inpaint", seq, "--method", "meshlab", "--param", "poisson_depth=2.5", "--out", out], out),
+        (["run", str(ws / "seeds.toml"), "--dry-run"], None),
+        (["run", "paper-quick", "--scheduler", "tcp://host:99999"], None),
+        (["generate", str(ws / "objs"), "--out", out], out),
     ]
     return c
 

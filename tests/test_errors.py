@@ -223,7 +223,7 @@ def test_param_of_the_wrong_type_is_named(work, capsys):
                             "--regions", "holes.json", "--out", "o"], capsys)
     assert_refused(code, err, "inpaint", "cube_size", "'abc'")
     code, _, err = run_cli(["info", "human", "--param", "bit_depth=abc"], capsys)
-    assert_refused(code, err, "info", "bit_depth must be a number, got 'abc'")
+    assert_refused(code, err, "info", "bit_depth must be a whole number, got 'abc'")
     assert "invalid literal" not in err
     assert not Path("d").exists() and not Path("o").exists()
 

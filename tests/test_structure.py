@@ -154,6 +154,34 @@ def test_run_folder_round_trip(tmp_path):
     assert is_complete_run_folder(run)
     back = read_run_folder(run)
     for a, b in zip(back["inpainted"] + back["damaged"], inpainted + damaged):
-        np.testing.assert_array_equal(a, b.astype(np.float32))  # float32 PLY, as the scores read them
+        np.testing.assert_array_equal(a, b)  # float64 frames that float32 cannot hold: written as double
+    assert b"property double x" in (run / "damaged" / "frame_0000.ply").read_bytes()[:300]
+    exact = [np.round(d * 1000) for d in damaged]  # voxel-like data, which float32 holds exactly
+    write_run_folder(tmp_path / "f32", damaged=exact, damaged_colors=None, inpainted=inpainted,
+                     holes=regions_to_json(regions), detected=None, manifest={})
+    assert b"property float x" in (tmp_path / "f32" / "inpainted" / "frame_0000.ply").read_bytes()[:300]
+    np.testing.assert_array_equal(read_run_folder(tmp_path / "f32")["inpainted"][0], inpainted[0].astype(np.float32))
+    sha = back["manifest"].pop("sha256")
     assert back["manifest"] == {"frames": 2, "extra": "1.5"} and back["detected"] is None
     assert len(back["regions"][0]) == 1 and back["regions"][1] == []
+    import hashlib
+
+    frame = run / "inpainted" / "frame_0000.ply"
+    assert sha["inpainted/frame_0000.ply"] == hashlib.sha256(frame.read_bytes()).hexdigest()
+    assert set(sha) == {"holes.json"} | {f"{s}/frame_{i:04d}.ply" for s in ("damaged", "inpainted") for i in (0, 1)}
+    # a frame replaced (here by the damaged one), deleted, or the folder renamed: never trusted
+    from dpcbench.bench.errors import UserError
+
+    frame.write_bytes((run / "damaged" / "frame_0000.ply").read_bytes())
+    with pytest.raises(UserError, match="inpainted/frame_0000.ply"):
+        read_run_folder(run)
+    write_run_folder(run, damaged=damaged, damaged_colors=None, inpainted=inpainted,
+                     holes=regions_to_json(regions), detected=None, manifest={"inpaint_key": "key"})
+    (run / "damaged" / "frame_0001.ply").unlink()
+    with pytest.raises(UserError, match="missing"):
+        read_run_folder(run)
+    write_run_folder(run, damaged=damaged, damaged_colors=None, inpainted=inpainted,
+                     holes=regions_to_json(regions), detected=None, manifest={"inpaint_key": "key"})
+    run.rename(tmp_path / "other")
+    with pytest.raises(UserError, match="belongs to run folder key"):
+        read_run_folder(tmp_path / "other")

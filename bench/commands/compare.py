@@ -141,7 +141,7 @@ def run(args) -> int:
     print()
     print(result.format(only_changes=args.changes_only))
     if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        result.table.to_csv(args.out, index=False)
-        record_written([args.out])
+        from dpcbench.bench.atomic import atomic_write_text
+
+        record_written([atomic_write_text(args.out, result.table.to_csv(index=False))])
     return 1 if result.failed else 0

@@ -65,15 +65,17 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from dpcbench.bench.atomic import atomic_write_text
-    from dpcbench.bench.outputs import Outputs, record_written
-    from dpcbench.bench.sequences import Sequence, save_sequence, sequence_file_names
+    from dpcbench.bench.atomic import atomic_path, atomic_write_text
+    from dpcbench.bench.outputs import Outputs
+    from dpcbench.bench.sequences import Sequence, frames_record, save_sequence, sequence_file_names
     from dpcbench.holes.regions import regions_to_json
     from dpcbench.holes.registry import GENERATORS, generator_class
 
     if args.holes not in GENERATORS:
         raise UserError(f"--holes: unknown hole generator {args.holes!r}; known: {', '.join(sorted(GENERATORS))} "
                         "(see `dpcbench list`)")
+    if not 0 <= args.seed < 2**32:
+        raise UserError(f"--seed {args.seed}: give a whole number in 0..{2**32 - 1}")
     try:
         cls = generator_class(args.holes)
     except ImportError as err:  # an optional dependency or a plug-in's module missing or broken here
@@ -86,33 +88,36 @@ def run(args) -> int:
         raise UserError(f"--out {args.out} already holds a holes.json (the ground truth of an earlier damage); "
                         "choose another --out or pass --overwrite")
     names = sequence_file_names(seq.name, len(seq)) + ["masks.npz", "holes.json"]
-    out = Outputs(args.overwrite, inputs=[args.input]).folder(args.out, "--out", names, sequence=True)
+    guard = Outputs(args.overwrite, inputs=[args.input])
+    out = guard.folder(args.out, "--out", names, sequence=True)
     colors = seq.colors if seq.frames[0].colors is not None else None
     result = generator.damage(seq.points, args.seed, colors=colors)
     damaged = Sequence(seq.name, [frame.subset(~mask) for frame, mask in zip(seq.frames, result.removed)],
                        seq.bit_depth, meta=dict(seq.meta))
-    files = save_sequence(damaged, out)
-    np.savez_compressed(out / "masks.npz", **{f"frame_{i:04d}": m for i, m in enumerate(result.removed)})
-    fractions = result.removed_fraction
-    record = regions_to_json(
-        result.regions,
-        generator=args.holes,
-        generator_version=type(generator).version,
-        params=generator.get_params(),
-        seed=args.seed,
-        source=str(args.input),
-        removed_fraction=fractions,
-        per_frame=[
-            {"points": int(len(m)), "removed": int(m.sum()), "removed_fraction": frac, "file": p.name}
-            for m, frac, p in zip(result.removed, fractions, files)
-        ],
-    )
-    from dpcbench.bench.errors import RECORDED
+    with guard.staged(out) as stage:  # frames, masks and record appear together, or not at all
+        files = save_sequence(damaged, stage)
+        with atomic_path(stage / "masks.npz") as tmp:
+            np.savez_compressed(tmp, **{f"frame_{i:04d}": m for i, m in enumerate(result.removed)})
+        fractions = result.removed_fraction
+        record = regions_to_json(
+            result.regions,
+            generator=args.holes,
+            generator_version=type(generator).version,
+            params=generator.get_params(),
+            seed=args.seed,
+            source=str(args.input),
+            removed_fraction=fractions,
+            **frames_record(seq),
+            per_frame=[
+                {"points": int(len(m)), "removed": int(m.sum()), "removed_fraction": frac, "file": p.name}
+                for m, frac, p in zip(result.removed, fractions, files)
+            ],
+        )
+        from dpcbench.bench.errors import RECORDED
 
-    if RECORDED:
-        record["warnings"] = list(RECORDED)  # the notes printed while it was made (e.g. which input was taken)
-    atomic_write_text(out / "holes.json", json.dumps(record, indent=1, default=_jsonable))
-    record_written(files + [out / "masks.npz", out / "holes.json"])
+        if RECORDED:
+            record["warnings"] = list(RECORDED)  # the notes printed while it was made (e.g. which input was taken)
+        atomic_write_text(stage / "holes.json", json.dumps(record, indent=1, default=_jsonable))
     print(f"{len(files)} frames -> {out}: removed {np.mean(fractions):.2%} of the points on average "
           f"(min {min(fractions):.2%}, max {max(fractions):.2%}), "
           f"{sum(len(r) for r in result.regions)} hole regions")

@@ -31,7 +31,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from dpcbench.bench.datasets import EMBEDDED, MESHES, PAPER, load_dataset
     from dpcbench.bench.meshseq import list_mesh_files
-    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.outputs import Outputs
     from dpcbench.bench.params import parse_params
     from dpcbench.bench.sequences import save_sequence, sequence_file_names
 
@@ -54,8 +54,8 @@ def run(args) -> int:
         seq = load_dataset(args.name if name not in MESHES else name, frames=args.frames, data_dir=args.data_dir,
                            cache=not args.no_cache, **params)
     out = Path(args.out)
-    paths = save_sequence(seq, out, prefix=seq.name)
-    record_written(paths)
+    with guard.staged(out) as stage:  # every frame appears at once, or none
+        paths = save_sequence(seq, stage, prefix=seq.name)
     counts = [len(f) for f in seq.frames]
     depth = f", {seq.bit_depth}-bit integer coordinates" if seq.bit_depth else ""
     normals = ", with normals" if seq.frames[0].normals is not None else ""

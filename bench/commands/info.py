@@ -47,6 +47,7 @@ def describe(seq) -> dict:
         "median_spacing_frame0": median_spacing(seq.frames[0].points),
         "colors": seq.frames[0].colors is not None,
         "normals": seq.frames[0].normals is not None,
+        "precision": "float64" if any(f.precision == "float64" for f in seq.frames) else "float32",
         "files": [str(p) for p in seq.files[:3]] + (["..."] if len(seq.files) > 3 else []),
         "meta": {k: v for k, v in seq.meta.items() if k not in ("description",)},
         "true_motion": getattr(seq, "motion", None) is not None,
@@ -78,6 +79,8 @@ def run(args) -> int:
     else:
         print("voxelized:   no (non-integer or negative coordinates)")
     print(f"resolution:  median nearest-neighbour spacing {info['median_spacing_frame0']:.4g} (frame 0)")
+    if info["precision"] == "float64":
+        print("precision:   double (float64) coordinates, kept as double in what dpcbench writes")
     print(f"attributes:  colours {'yes' if info['colors'] else 'no'}, normals {'yes' if info['normals'] else 'no'}")
     if info["files"]:
         print(f"files:       {', '.join(info['files'])}")

@@ -62,10 +62,9 @@ def make_method(name: str, params: dict):
 
 
 def run(args) -> int:
-    from dpcbench.bench.atomic import atomic_write_text
-    from dpcbench.bench.outputs import Outputs, record_written
+    from dpcbench.bench.outputs import Outputs
     from dpcbench.bench.plyio import PointCloud
-    from dpcbench.bench.sequences import Sequence, save_sequence, sequence_file_names
+    from dpcbench.bench.sequences import Sequence, check_regions_frames, save_sequence, sequence_file_names
     from dpcbench.holes.regions import regions_from_json
     from dpcbench.methods.base import check_sequence
 
@@ -74,12 +73,14 @@ def run(args) -> int:
     regions = None
     if args.regions:
         regions = regions_from_json(args.regions, frame_count=len(seq), label=f"--regions {args.regions}")
+        check_regions_frames(args.regions, seq, f"--regions {args.regions}")
     elif getattr(method, "needs_regions", False) or not getattr(method, "detects_holes", True):
         raise UserError(f"--method {args.method} needs the hole regions: pass --regions HOLES_JSON (from "
                         "`dpcbench damage` or `dpcbench detect-holes`)")
     check_sequence(seq.points, regions, method=args.method)
     names = sequence_file_names(seq.name, len(seq)) + ["inpaint.json"]
-    out = Outputs(args.overwrite, inputs=[args.input, args.regions]).folder(args.out, "--out", names, sequence=True)
+    guard = Outputs(args.overwrite, inputs=[args.input, args.regions])
+    out = guard.folder(args.out, "--out", names, sequence=True)
     started = time.perf_counter()
     results = method.inpaint(seq.points, regions)
     seconds = time.perf_counter() - started
@@ -91,8 +92,19 @@ def run(args) -> int:
 
             _, nearest = cKDTree(frame.points).query(points, workers=-1)
             colors = frame.colors[nearest]
-        frames.append(PointCloud(np.asarray(points, dtype=np.float64), colors))
-    files = save_sequence(Sequence(seq.name, frames, seq.bit_depth, meta=dict(seq.meta)), out)
+        frames.append(PointCloud(np.asarray(points, dtype=np.float64), colors, precision=frame.precision))
+    with guard.staged(out) as stage:  # the frames and inpaint.json appear together, or not at all
+        files = save_sequence(Sequence(seq.name, frames, seq.bit_depth, meta=dict(seq.meta)), stage)
+        _write_record(args, method, regions, seconds, files, results, seq, stage)
+    added = sum(len(p) for p in results) - sum(len(f.points) for f in seq.frames)
+    print(f"{args.method}: {len(files)} frames -> {out} ({added:+d} points, {seconds:.1f} s)")
+    return 0
+
+
+def _write_record(args, method, regions, seconds, files, results, seq, stage) -> None:
+    """inpaint.json (module doc) into the staging folder."""
+    from dpcbench.bench.atomic import atomic_write_text
+
     record = {
         "method": args.method,
         "method_version": type(method).version,
@@ -108,8 +120,4 @@ def run(args) -> int:
     }
     if RECORDED:
         record["warnings"] = list(RECORDED)
-    atomic_write_text(out / "inpaint.json", json.dumps(record, indent=1, default=str))
-    record_written(files + [out / "inpaint.json"])
-    added = sum(record["points"]) - sum(record["input_points"])
-    print(f"{args.method}: {len(files)} frames -> {out} ({added:+d} points, {seconds:.1f} s)")
-    return 0
+    atomic_write_text(stage / "inpaint.json", json.dumps(record, indent=1, default=str))

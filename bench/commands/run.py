@@ -52,6 +52,7 @@ def resolve_config_path(text: str) -> Path:
 
 def main(args) -> int:
     from dpcbench.bench.config import load_config
+    from dpcbench.bench.outputs import user_path
     from dpcbench.bench.runner import run_experiment
     from dpcbench.bench.store import ResultsStore, default_store_path
 
@@ -63,7 +64,7 @@ def main(args) -> int:
     cfg = load_config(resolve_config_path(args.config), overrides)
     specs = cfg.expand()
     if args.dry_run:  # reads the store if there is one; creates nothing
-        path = Path(args.store).expanduser() if args.store else default_store_path()
+        path = user_path(args.store) if args.store else default_store_path()
         ResultsStore.check_path(path)
         store = ResultsStore(path, readonly=True, verify=True) if path.is_file() else None
         statuses = store.statuses([s.run_id for s in specs]) if store is not None else {}
@@ -73,6 +74,8 @@ def main(args) -> int:
         print(f"{len(specs)} runs in experiment {cfg.name!r}: {todo} to do, {len(specs) - todo} stored; store {path}"
               f"{'' if store is not None else ' (not created yet)'}")
         return 0
+    if args.runs_dir is not None:
+        _check_runs_dir(args.runs_dir)
     store = ResultsStore(args.store, verify=True)
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
     summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
@@ -84,3 +87,22 @@ def main(args) -> int:
         error = summary.errors.get(run_id) or ""
         print(f"  failed {run_id}: {error.splitlines()[0] if error else ''}")
     return 1 if summary.failed else 0
+
+
+def _check_runs_dir(text: str) -> None:
+    """UserError unless --runs-dir is (or can be created as) a folder this process can write in."""
+    from dpcbench.bench.outputs import _check_writable_folder, _existing_ancestor, _resolvable, user_path
+
+    path = user_path(text)
+    _resolvable(path, "--runs-dir", text)
+    if path.exists() and not path.is_dir():
+        raise UserError(f"--runs-dir {text}: is a file, not a folder; give a folder for the run folders")
+    base = _existing_ancestor(path)
+    if not base.is_dir():
+        raise UserError(f"--runs-dir {text}: {base} is a file, not a folder; give a folder for the run folders")
+    _check_writable_folder(path, "--runs-dir", text)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UserError(f"--runs-dir {text}: cannot create it ({err.strerror or err}); give a folder you can "
+                        "write to") from None

@@ -92,14 +92,22 @@ def run(args) -> int:
         bit_depth = reference.bit_depth
     elif peak.strip().lower() != "intrinsic":
         try:
-            resolve_peak(peak, None, None)  # only parses the text: its ValueError is a refusal of --peak
+            value = resolve_peak(peak, None, None)  # parses the text: its ValueError is a refusal of --peak
         except ValueError as err:
             raise UserError(f"--peak {peak}: {err}") from None
+        from dpcbench.holes.regions import COORD_LIMIT
+
+        if not (math.isfinite(value) and value <= COORD_LIMIT):
+            raise UserError(f"--peak {peak}: must be a finite distance up to {COORD_LIMIT:g} (a larger peak puts every "
+                            "PSNR above the cap, as if the clouds were identical)")
     regions = None
     if args.region:
         from dpcbench.holes.regions import regions_from_json, union_mask
 
         regions = regions_from_json(args.region, frame_count=len(reference), label=f"--region {args.region}")
+        from dpcbench.bench.sequences import check_regions_frames
+
+        check_regions_frames(args.region, reference, f"--region {args.region}")
         empty = [i for i, (frame, regs) in enumerate(zip(reference.frames, regions))
                  if regs and not union_mask(regs, frame.points, args.region_margin).any()]
         holeless = [i for i, regs in enumerate(regions) if not regs]
