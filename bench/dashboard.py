@@ -43,6 +43,7 @@ bench/static/dashboard.css, inlined (`stylesheet`). The paper's values come from
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import html
 import math
 import os
@@ -54,28 +55,12 @@ from pathlib import Path
 import pandas as pd
 
 from dpcbench.bench import compare, palette
+from dpcbench.bench.labels import METRIC_NAMES, SHOWN_UNITS, metric_label  # noqa: F401  (re-exported)
 from dpcbench.bench.paper_facts import PAPER_SEQUENCES
 
 QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
-#: display names; the unit is metrics.registry's (`metric_label`)
-METRIC_NAMES = {
-    "gpsnr_d1": "GPSNR D1", "gpsnr_d2": "GPSNR D2", "nshd": "NSHD", "hausdorff": "Hausdorff",
-    "chamfer": "Chamfer", "fscore": "F-score", "temporal_consistency": "temporal consistency",
-    "time_s": "time per frame", "cpu_time_s": "CPU time per frame", "peak_mem_mb": "peak memory",
-}
-#: units written after a metric's name (the others are ratios or the data's own length units)
-SHOWN_UNITS = ("dB", "s", "MB")
 #: the methods of the paper's columns first, so that their colours never change when other methods come and go
 METHOD_ORDER = ["temporal-graph", "fu-nonlocal", "lozes-pde", "meshlab", "temporal-copy", "none"]
-
-
-def metric_label(metric: str) -> str:
-    """A column or panel title: the display name, with the registry's unit when it is dB, s or MB."""
-    from dpcbench.metrics.registry import describe
-
-    entry = describe(metric)
-    name = METRIC_NAMES.get(metric, metric)
-    return f"{name} ({entry.unit})" if entry is not None and entry.unit in SHOWN_UNITS else name
 
 
 #: short column titles of the latest-results table (so that it fits 1400 px), keyed in `metric_key`
@@ -1117,11 +1102,63 @@ def runs_section(page: Page) -> str:
             f'</table>{failed_html}</section>')
 
 
-def pages_section(page: Page) -> str:
-    """Links to the method and run pages (`bench.dashboard_pages.pages_section`); '' without them."""
-    from dpcbench.bench import dashboard_pages
+def _slug(text: str, limit: int = 48) -> str:
+    slug = re.sub(r"[^0-9A-Za-z]+", "-", str(text)).strip("-").lower()[:limit]
+    return f"{slug}-{hashlib.sha256(str(text).encode()).hexdigest()[:8]}"
 
-    return dashboard_pages.pages_section(page)
+
+def method_file(label: str) -> str:
+    """The file name of a method configuration's page ('method-temporal-graph-1a2b3c4d.html')."""
+    return f"method-{_slug(label)}.html"
+
+
+def run_file(run_id: str) -> str:
+    """The file name of a run's page."""
+    return f"run-{_slug(run_id, 32)}.html"
+
+
+def _runs_of(runs: pd.DataFrame | None, label: str | None = None) -> pd.DataFrame:
+    """The runs (one row each), newest first; only those of method configuration ``label`` if given."""
+    if runs is None or runs.empty:
+        return pd.DataFrame(columns=[] if runs is None else runs.columns)
+    once = runs.drop_duplicates("run_id").sort_values("created_at", ascending=False)
+    if label is None:
+        return once
+    labels = [method_label(m, p or "{}") for m, p in zip(once["method"], once["method_params"])]
+    return once[[lab == label for lab in labels]]
+
+
+def runs_table(runs: pd.DataFrame, prefix: str) -> str:
+    """One row per run with a link to its page (``prefix``: the pages' folder as seen from the page
+    holding the table, '' from a page inside it)."""
+    rows = []
+    for r in runs.itertuples(index=False):
+        label = method_label(r.method, r.method_params or "{}")
+        status = "regressed" if r.status == "failed" else ""
+        holes = holes_key(r.holes, compare._canonical_json(r.holes_params or "{}"))
+        rows.append(f'<tr class="{status}"><td><a href="{_e(prefix + run_file(r.run_id))}">{_e(label)}</a></td>'
+                    f'<td>{_e(r.sequence)}</td><td>{_e(holes)}</td><td class="num">{_e(r.seed)}</td>'
+                    f'<td>{_e(short_version(r.code_version))}</td><td>{_e(str(r.created_at)[:16])}</td>'
+                    f'<td>{_e(r.status)}</td><td class="num">{_e(readable_seconds(r.wall_time_s))}</td></tr>')
+    return ("<table class='runs'><thead><tr><th>method</th><th>sequence</th><th>holes</th><th>seed</th><th>code</th>"
+            "<th>finished (UTC)</th><th>status</th><th>wall time</th></tr></thead><tbody>" + "".join(rows)
+            + "</tbody></table>")
+
+
+def pages_section(page: Page) -> str:
+    """The main page's links to the method and run pages; '' when the pages are not written."""
+    if not page.pages_dir or not page.history.versions:
+        return ""
+    prefix = page.pages_dir + "/"
+    labels = sorted(set(page.history.table["label"]), key=list(page.colours).index)
+    methods = "".join(f'<li><span class="swatch" style="background:{page.colours[lab]}"></span>'
+                      f'<a href="{_e(prefix + method_file(lab))}">{_e(lab)}</a></li>' for lab in labels)
+    runs = _runs_of(page.runs)
+    run_html = (f"<details><summary>all {len(runs)} runs of the store</summary>{runs_table(runs, prefix)}</details>"
+                if len(runs) else '<p class="note">No runs table (the history comes from summaries only).</p>')
+    return (f'<section id="pages"><h2>Methods and runs</h2><p class="note">A page per method configuration (its '
+            f'values at every code version) and per run (per-frame values, a thumbnail of the fill, links to the '
+            f'run folder and log).</p><ul class="methods">{methods}</ul>{run_html}</section>')
 
 
 #: the sections of the page, in order (each returns '' when it has nothing to show)
@@ -1159,26 +1196,6 @@ def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
         "<footer>dpcbench · self-contained page: every chart, number and script is inside this file"
         f"</footer></main>{page_scripts(any(PLOT_BOX in part for part in sections))}</body></html>\n"
     )
-
-
-def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
-                    benchmarks: pd.DataFrame | None = None, baseline: tuple[pd.DataFrame, dict] | None = None,
-                    tolerances: dict[str, float] | None = None, machines: dict[str, str] | None = None,
-                    pages: bool = False, thumbnails: bool = True, **kwargs) -> list[Path]:
-    """Render and write the page atomically; with ``pages``, a page per method configuration and
-    per run (`bench.dashboard_pages`) into the folder '<out stem>_pages' beside it. Returns the
-    paths written, the main page first."""
-    from dpcbench.bench.atomic import atomic_write_text
-
-    out = Path(out)
-    prepared = prepare_page(results, runs, benchmarks, baseline, tolerances, machines)
-    pages_dir = f"{out.stem}_pages" if pages and prepared.history.versions else ""
-    written = [atomic_write_text(out, render_dashboard(results, prepared=prepared, pages_dir=pages_dir, **kwargs))]
-    if pages_dir:
-        from dpcbench.bench import dashboard_pages
-
-        written += dashboard_pages.write_pages(out.parent / pages_dir, prepared, out.name, thumbnails)
-    return written
 
 
 def shares_rows(summary: pd.DataFrame, results: pd.DataFrame) -> bool:

@@ -19,11 +19,10 @@ so that two labels never share a file).
 from __future__ import annotations
 
 import base64
-import hashlib
 import html
 import io
 import json
-import re
+import os
 from pathlib import Path
 
 import numpy as np
@@ -31,21 +30,7 @@ import pandas as pd
 
 from dpcbench.bench import compare
 from dpcbench.bench import dashboard as dash
-
-
-def _slug(text: str, limit: int = 48) -> str:
-    slug = re.sub(r"[^0-9A-Za-z]+", "-", str(text)).strip("-").lower()[:limit]
-    return f"{slug}-{hashlib.sha256(str(text).encode()).hexdigest()[:8]}"
-
-
-def method_file(label: str) -> str:
-    """The file name of a method configuration's page ('method-temporal-graph-1a2b3c4d.html')."""
-    return f"method-{_slug(label)}.html"
-
-
-def run_file(run_id: str) -> str:
-    """The file name of a run's page."""
-    return f"run-{_slug(run_id, 32)}.html"
+from dpcbench.bench.dashboard import _runs_of, method_file, pages_section, run_file, runs_table  # noqa: F401
 
 
 def _e(value) -> str:
@@ -115,34 +100,6 @@ def method_page(page: dash.Page, label: str, back: str) -> str:
     if len(runs):
         parts.append('<section id="method-runs"><h2>Runs</h2>' + runs_table(runs, "") + "</section>")
     return _document(f"{label} · dpcbench", "".join(parts), back)
-
-
-def _runs_of(runs: pd.DataFrame | None, label: str | None = None) -> pd.DataFrame:
-    """The runs (one row each), newest first; only those of method configuration ``label`` if given."""
-    if runs is None or runs.empty:
-        return pd.DataFrame(columns=[] if runs is None else runs.columns)
-    once = runs.drop_duplicates("run_id").sort_values("created_at", ascending=False)
-    if label is None:
-        return once
-    labels = [dash.method_label(m, p or "{}") for m, p in zip(once["method"], once["method_params"])]
-    return once[[lab == label for lab in labels]]
-
-
-def runs_table(runs: pd.DataFrame, prefix: str) -> str:
-    """One row per run with a link to its page (``prefix``: the pages' folder as seen from the page
-    holding the table, '' from a page inside it)."""
-    rows = []
-    for r in runs.itertuples(index=False):
-        label = dash.method_label(r.method, r.method_params or "{}")
-        status = "regressed" if r.status == "failed" else ""
-        holes = dash.holes_key(r.holes, compare._canonical_json(r.holes_params or "{}"))
-        rows.append(f'<tr class="{status}"><td><a href="{_e(prefix + run_file(r.run_id))}">{_e(label)}</a></td>'
-                    f'<td>{_e(r.sequence)}</td><td>{_e(holes)}</td><td class="num">{_e(r.seed)}</td>'
-                    f'<td>{_e(dash.short_version(r.code_version))}</td><td>{_e(str(r.created_at)[:16])}</td>'
-                    f'<td>{_e(r.status)}</td><td class="num">{_e(dash.readable_seconds(r.wall_time_s))}</td></tr>')
-    return ("<table class='runs'><thead><tr><th>method</th><th>sequence</th><th>holes</th><th>seed</th><th>code</th>"
-            "<th>finished (UTC)</th><th>status</th><th>wall time</th></tr></thead><tbody>" + "".join(rows)
-            + "</tbody></table>")
 
 
 def run_links(run) -> list[tuple[str, str]]:
@@ -280,22 +237,6 @@ def run_page(page: dash.Page, run, back: str, thumbnails: bool = True) -> str:
     return _document(f"run: {label} on {run.sequence} · dpcbench", "".join(parts), back)
 
 
-def pages_section(page: dash.Page) -> str:
-    """The main page's links to the method and run pages; '' when the pages are not written."""
-    if not page.pages_dir or not page.history.versions:
-        return ""
-    prefix = page.pages_dir + "/"
-    labels = sorted(set(page.history.table["label"]), key=list(page.colours).index)
-    methods = "".join(f'<li><span class="swatch" style="background:{page.colours[lab]}"></span>'
-                      f'<a href="{_e(prefix + method_file(lab))}">{_e(lab)}</a></li>' for lab in labels)
-    runs = _runs_of(page.runs)
-    run_html = (f"<details><summary>all {len(runs)} runs of the store</summary>{runs_table(runs, prefix)}</details>"
-                if len(runs) else '<p class="note">No runs table (the history comes from summaries only).</p>')
-    return (f'<section id="pages"><h2>Methods and runs</h2><p class="note">A page per method configuration (its '
-            f'values at every code version) and per run (per-frame values, a thumbnail of the fill, links to the '
-            f'run folder and log).</p><ul class="methods">{methods}</ul>{run_html}</section>')
-
-
 def write_pages(folder: Path, page: dash.Page, main_name: str, thumbnails: bool = True) -> list[Path]:
     """Every method and run page into ``folder`` (atomic writes); returns their paths."""
     from dpcbench.bench.atomic import atomic_write_text
@@ -307,4 +248,22 @@ def write_pages(folder: Path, page: dash.Page, main_name: str, thumbnails: bool 
         written.append(atomic_write_text(folder / method_file(label), method_page(page, label, back)))
     for run in _runs_of(page.runs).itertuples(index=False):
         written.append(atomic_write_text(folder / run_file(run.run_id), run_page(page, run, back, thumbnails)))
+    return written
+
+
+def write_dashboard(out: str | os.PathLike, results: pd.DataFrame, *, runs: pd.DataFrame | None = None,
+                    benchmarks: pd.DataFrame | None = None, baseline: tuple[pd.DataFrame, dict] | None = None,
+                    tolerances: dict[str, float] | None = None, machines: dict[str, str] | None = None,
+                    pages: bool = False, thumbnails: bool = True, **kwargs) -> list[Path]:
+    """Render and write the page atomically; with ``pages``, a page per method configuration and
+    per run (this module) into the folder '<out stem>_pages' beside it. Returns the
+    paths written, the main page first."""
+    from dpcbench.bench.atomic import atomic_write_text
+
+    out = Path(out)
+    prepared = dash.prepare_page(results, runs, benchmarks, baseline, tolerances, machines)
+    pages_dir = f"{out.stem}_pages" if pages and prepared.history.versions else ""
+    written = [atomic_write_text(out, dash.render_dashboard(results, prepared=prepared, pages_dir=pages_dir, **kwargs))]
+    if pages_dir:
+        written += write_pages(out.parent / pages_dir, prepared, out.name, thumbnails)
     return written

@@ -101,7 +101,7 @@ def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_p
     width): the metric against frame index, one line per method (mean over seeds), coloured by method
     (`bench.palette`), the no-fill floor (method ``none``) dashed black. Lines that coincide stay visible
     (distinct markers, decreasing line widths); the legend sits below the panels, outside the data."""
-    from dpcbench.bench.dashboard import metric_label
+    from dpcbench.bench.labels import metric_label
     from dpcbench.bench.tables import method_labels
 
     sel = frame_values(df, metric, scope, peak).copy()

@@ -139,7 +139,7 @@ def choose_baseline(arg: str | None, results):
 def run(args) -> int:
     import pandas as pd
 
-    from dpcbench.bench import benchsuite, compare, dashboard
+    from dpcbench.bench import benchsuite, compare, dashboard, dashboard_pages
     from dpcbench.bench.commands.compare import TOLERANCES_FILE
     from dpcbench.bench.outputs import Outputs, record_written
     from dpcbench.bench.store import RESULT_COLUMNS
@@ -177,7 +177,7 @@ def run(args) -> int:
         if machine and len(part):
             machines[part["code_version"].iloc[0]] = machine
     results = pd.concat([results, *extra], ignore_index=True) if extra else results
-    pages_dir = out.parent / f"{out.stem}_pages"  # the name `dashboard.write_dashboard` gives it
+    pages_dir = out.parent / f"{out.stem}_pages"  # the name `dashboard_pages.write_dashboard` gives it
     if not args.no_pages and pages_dir.is_dir():
         guard.folder(pages_dir, "--out", names=[p.name for p in pages_dir.glob("*.html")])
     benchmarks = None
@@ -191,7 +191,7 @@ def run(args) -> int:
     n_folder = sum(not str(source).startswith("summary") for _, _, source in history)
     if n_folder:
         sources.append(f"{n_folder} summaries in {history_dir}")
-    written = dashboard.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
+    written = dashboard_pages.write_dashboard(out, results, runs=runs, benchmarks=benchmarks, baseline=baseline,
                                         tolerances=tolerances, title=args.title, sources=sources, machines=machines,
                                         pages=not args.no_pages, thumbnails=not args.no_thumbnails)
     record_written(written)
