@@ -125,11 +125,15 @@ VARIANTS: dict[str, dict[str, Any]] = {
                   link_cutoff=True, skip_hole_links=True, rim_centred=True, defer_unreachable=True,
                   hole_free_candidates=True, grow_source=True, new_points="pending-cells", snap="auto",
                   graph_on="estimate", feature_fraction=0.25),
-    "paper": dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="free",
+    "paper": dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="fixed",
                   link_cutoff=False, skip_hole_links=False, rim_centred=False, defer_unreachable=False,
-                  hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap=False,
+                  hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap="auto",
                   graph_on="source", feature_fraction=1.0),
 }
+#: issue 11's reading of the paper, kept so that its measurements stay reproducible: the paper
+#: configuration with known points free ("replace the target cube with the resulting cube" read
+#: as moving the known rows too) and no quantization of the output (docs/paper-reading.md).
+VARIANTS["literal"] = dict(VARIANTS["paper"], known_points="free", snap=False)
 
 
 # -- state ------------------------------------------------------------------------------------------
