@@ -1,0 +1,50 @@
+"""The ablation of the paper configuration (issue 50): `bench.paper_ablation` and its preset."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from dpcbench.bench.config import tomllib
+from dpcbench.bench.paper import PRESETS_DIR
+from dpcbench.bench.paper_ablation import ROWS, TEMPORAL_ONLY, ablation_markdown, diagnostics, method_params
+from dpcbench.methods.temporal_graph import VARIANTS
+
+
+def test_the_preset_lists_every_row_for_both_methods_against_no_fill():
+    preset = tomllib.loads((PRESETS_DIR / "paper-ablation.toml").read_text())
+    listed = [(m["name"], m.get("params", {}), m.get("label")) for m in preset["methods"]]
+    assert ("none", {}, "none") in listed
+    expected = [(method, method_params(row), f"{row} | {method}") for method in ("fu-nonlocal", "temporal-graph")
+                for row in ROWS if not (method == "fu-nonlocal" and TEMPORAL_ONLY & set(ROWS[row]))]
+    assert [x for x in listed if x[0] in ("fu-nonlocal", "temporal-graph")] == expected
+    # every switch a row sets is a switch of the variants, with a value the paper configuration does not have
+    for row, flips in ROWS.items():
+        for name, value in flips.items():
+            assert name == "variant" or name in VARIANTS["paper"], row
+            if name != "variant" and len(flips) == 1:
+                assert VARIANTS["paper"][name] != value, f"{row} repeats the paper configuration"
+
+
+def test_diagnostics_count_moved_off_grid_and_unfilled_points():
+    damaged = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    output = np.array([[0.0, 0, 0], [1, 0.5, 0], [2, 0, 0], [5, 0, 0]])
+    truth = np.array([[5.0, 0, 0], [9, 0, 0]])
+    d = diagnostics(damaged, output, truth, spacing=1.0)
+    assert d == {"moved": 1, "off_grid": 1, "unfilled": 0.5}
+    # unvoxelized input: off-grid is not counted
+    assert diagnostics(damaged + 0.1, output + 0.1, truth, 1.0)["off_grid"] == 0
+
+
+def test_the_section_gives_each_row_against_no_fill():
+    frame = pd.DataFrame([
+        {"sequence": "S", "holes": "h", "row": "none", "method": "none", "d1": 10.0},
+        {"sequence": "S", "holes": "h", "row": "paper", "method": "fu-nonlocal", "d1": 12.5, "moved": 0.0,
+         "off_grid": 0.0, "unfilled": 0.25},
+        {"sequence": "S", "holes": "h", "row": "literal", "method": "fu-nonlocal", "d1": 7.0},
+    ])
+    text = ablation_markdown(frame)
+    assert "### S, h (no fill: 10.00 dB)" in text
+    assert "| paper | fu-nonlocal | 12.50 | +2.50 | 0 | 0 | 0.250 |" in text
+    assert "| literal | fu-nonlocal | 7.00 | -3.00 |  |  |  |" in text
+    assert "No ablation runs" in ablation_markdown(frame.iloc[0:0])
