@@ -48,3 +48,16 @@ def test_the_section_gives_each_row_against_no_fill():
     assert "| paper | fu-nonlocal | 12.50 | +2.50 | 0 | 0 | 0.250 |" in text
     assert "| literal | fu-nonlocal | 7.00 | -3.00 |  |  |  |" in text
     assert "No ablation runs" in ablation_markdown(frame.iloc[0:0])
+
+
+def test_the_calibration_table_gives_the_rms_distance_to_the_papers_longdress_values():
+    from dpcbench.bench.paper_ablation import PAPER_LONGDRESS, calibration_markdown
+
+    rows = []
+    for seed, shift in ((0, 1.0), (1, -1.0)):  # mean over the seeds: Lozes 2 dB above the paper, Meshlab 2 below
+        for method, d1 in (("none", 20.0), ("lozes-pde", PAPER_LONGDRESS["lozes-pde"] + 2 + shift),
+                           ("meshlab", PAPER_LONGDRESS["meshlab"] - 2 + shift)):
+            rows.append({"count": 3, "radius_spacings": 10.0, "seed": seed, "method": method, "d1": d1,
+                         "removed": 0.01})
+    text = calibration_markdown(pd.DataFrame(rows))
+    assert "| 3 x 10 | 1.00% | 20.00 | 32.39 | 9.79 | 2.00 |" in text

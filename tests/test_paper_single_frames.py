@@ -24,8 +24,9 @@ def test_the_shared_layout_and_the_usual_layout_with_one_file_are_single_frames(
     assert find_single_frame(PAPER["longdress"], one.parent) == one
     assert find_single_frame(PAPER["soldier"], tmp_path) is None
     rows = single_frame_rows(PAPER, tmp_path, PAPER_SEQUENCES)
-    assert rows == [{"path": str(one), "label": "Longdress, one real frame"},
-                    {"path": str(usual), "label": "Loot, one real frame"}]
+    assert rows == {"longdress": {"path": str(one), "label": "Longdress, one real frame"},
+                    "loot": {"path": str(usual), "label": "Loot, one real frame"}}
+    assert list(rows) == ["longdress", "loot"]  # the paper's order
 
 
 def test_two_frames_are_a_sequence_and_other_files_are_not_frames_of_it(tmp_path):
@@ -35,4 +36,20 @@ def test_two_frames_are_a_sequence_and_other_files_are_not_frames_of_it(tmp_path
     # a folder named after the sequence holding another sequence's file is not a frame of it
     touch(tmp_path / "8i_redandblack_x" / "loot_vox10_1000.ply")
     assert find_single_frame(PAPER["redandblack"], tmp_path) is None
-    assert single_frame_rows(PAPER, tmp_path / "missing", PAPER_SEQUENCES) == []
+    assert single_frame_rows(PAPER, tmp_path / "missing", PAPER_SEQUENCES) == {}
+
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def test_the_shared_longdress_frame_is_found_and_its_entry_loads_as_one_frame():
+    import pytest
+
+    from dpcbench.bench.datasets import load_dataset
+
+    if not (SHARED / "8i_longdress_1300").is_dir():
+        pytest.skip("../shared/data/8i_longdress_1300 is not here")
+    rows = single_frame_rows(PAPER, SHARED, PAPER_SEQUENCES)
+    assert list(rows) == ["longdress"] and rows["longdress"]["label"] == "Longdress, one real frame"
+    seq = load_dataset(rows["longdress"]["path"], progress=False)
+    assert len(seq) == 1 and len(seq.points[0]) == 857_966

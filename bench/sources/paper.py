@@ -156,20 +156,22 @@ def find_single_frame(info: PaperDataset, data_dir: Path) -> Path | None:
     return None
 
 
-def single_frame_rows(datasets: dict[str, PaperDataset], data_dir, labels: dict[str, str]) -> list[dict]:
-    """The experiment's ``[[sequences]]`` entries of the paper's sequences found under ``data_dir`` as
-    one real frame each (`find_single_frame`): ``{"path": <the PLY file>, "label": "<row label>, one
-    real frame"}`` (keys an experiment's sequence table takes) in the order of ``labels`` (name -> the paper's row label).
-    A one-frame sequence has no neighbouring frames: the temporal method runs its spatial terms only,
-    so its column there is Hu on one frame (`temporal-graph` warns and gives `fu-nonlocal`'s output)."""
+def single_frame_rows(datasets: dict[str, PaperDataset], data_dir, labels: dict[str, str]) -> dict[str, dict]:
+    """name -> the experiment's ``[[sequences]]`` entry of each of the paper's sequences found under
+    ``data_dir`` as one real frame (`find_single_frame`): ``{"path": <the PLY file>, "label": "<row
+    label>, one real frame"}``, in the order of ``labels`` (name -> the paper's row label). Such a
+    sequence is not a sequence to load by name (its expected frames are not there): a caller lists
+    it by path instead. A one-frame sequence has no neighbouring frames: the temporal method runs its
+    spatial terms only, so its column there is Hu on one frame (`temporal-graph` warns and gives
+    `fu-nonlocal`'s output)."""
     root = data_dir_from(data_dir)
     if root is None:
-        return []
-    rows = []
+        return {}
+    rows = {}
     for name, label in labels.items():
         if name not in datasets:
             continue
         found = find_single_frame(datasets[name], root)
         if found is not None:
-            rows.append({"path": str(found), "label": f"{label}, one real frame"})
+            rows[name] = {"path": str(found), "label": f"{label}, one real frame"}
     return rows
