@@ -183,21 +183,19 @@ PAPER_LONGDRESS = {"meshlab": 11.7926, "lozes-pde": 30.3883}
 
 def calibrate(frame: np.ndarray, settings: list[tuple[int, float]], seeds: list[int]) -> pd.DataFrame:
     """Meshlab (``output="whole"``) and Lozes on one frame (N, 3) under region holes of ``count`` balls
-    of ``radius`` point spacings (each setting (count, radius_spacings)), over ``seeds``; one row per
-    (setting, seed, method) with whole-frame D1 (intrinsic peak) and the paper's value beside it.
-    On a voxelized 10-bit body one point spacing is one voxel and M = 20 spacings."""
-    from dpcbench.holes.geometry import cube_size
+    of radius ``radius_spacings / 20`` M (each setting (count, radius_spacings)), over ``seeds``; one
+    row per (setting, seed, method) with whole-frame D1 (intrinsic peak) and the paper's value beside
+    it. The radius is given as the region presets give it, in units of the hole generator's M
+    (`holes.geometry.cube_size`): ``radius_spacings`` point spacings where M is 20 spacings, as on the
+    paper's 10-bit bodies (on the Longdress frame M = 19.3 spacings, from its extent)."""
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
     from dpcbench.metrics import score_frame
-    from dpcbench.metrics.neighbours import point_spacing
 
-    spacing = point_spacing(frame)
-    m = cube_size(frame)
     records = []
     for count, radius in settings:
         for seed in seeds:
-            damage = get_generator("region", count=count, radius=radius * spacing / m).damage([frame], seed)
+            damage = get_generator("region", count=count, radius=radius / 20.0).damage([frame], seed)
             for method, params in (("none", {}), ("lozes-pde", {}), ("meshlab", {"output": "whole"})):
                 start = time.perf_counter()
                 out = damage.frames if method == "none" else get_method(method, **params).inpaint(
