@@ -106,6 +106,44 @@ def ablation_markdown(results: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def row_of(method: str, params: dict) -> str | None:
+    """The `ROWS` label of a run of ``method`` with ``params`` (as given or as resolved by
+    `get_params`), "none" for no fill and "lozes" for Lozes; None when the run is not an ablation row."""
+    if method == "none":
+        return "none"
+    if method == "lozes-pde":
+        return "lozes"
+    if method not in ("fu-nonlocal", "temporal-graph"):
+        return None
+    from dpcbench.methods.registry import get_method
+
+    for row in ROWS:
+        if method == "fu-nonlocal" and TEMPORAL_ONLY & set(ROWS[row]):
+            continue
+        given = method_params(row)
+        if params == given or params == get_method(method, **given).get_params():
+            return row
+    return None
+
+
+def ablation_frame(results: pd.DataFrame) -> pd.DataFrame:
+    """The input of `ablation_markdown` from a results store's tidy table (`ResultStore.results_frame`
+    of the paper-ablation experiment): whole-frame D1 at the intrinsic peak, mean over frames and
+    seeds, one row per (sequence, holes, row, method). Runs that are no ablation row are left out."""
+    import json
+
+    d1 = results[(results["metric"] == "gpsnr_d1") & (results["scope"] == "frame")
+                 & (results["peak"].astype(str) == "intrinsic")]
+    records = []
+    for (sequence, holes, method, params), block in d1.groupby(["sequence", "holes", "method", "method_params"],
+                                                               sort=False):
+        row = row_of(method, json.loads(params) if isinstance(params, str) else dict(params))
+        if row is not None:
+            records.append({"sequence": sequence, "holes": holes, "row": row, "method": method,
+                            "d1": float(block["value"].mean())})
+    return pd.DataFrame(records, columns=["sequence", "holes", "row", "method", "d1"])
+
+
 # -- direct runner (the measurement docs/paper-reading.md quotes) -----------------------------------
 
 def _cases(data_dir: Path, which: set[str]) -> list[tuple[str, object]]:

@@ -61,3 +61,27 @@ def test_the_calibration_table_gives_the_rms_distance_to_the_papers_longdress_va
                          "removed": 0.01})
     text = calibration_markdown(pd.DataFrame(rows))
     assert "| 3 x 10 | 1.00% | 20.00 | 32.39 | 9.79 | 2.00 |" in text
+
+
+def test_store_results_are_mapped_to_their_rows():
+    import json
+
+    from dpcbench.bench.paper_ablation import ablation_frame, row_of
+    from dpcbench.methods.registry import get_method
+
+    assert row_of("none", {}) == "none" and row_of("lozes-pde", {}) == "lozes"
+    assert row_of("fu-nonlocal", {"variant": "paper"}) == "paper"
+    resolved = get_method("temporal-graph", variant="paper", known_points="free").get_params()
+    assert row_of("temporal-graph", resolved) == "known_points=free"
+    assert row_of("temporal-graph", {"variant": "paper", "beta": 0.1}) is None
+    assert row_of("meshlab", {}) is None
+    tidy = pd.DataFrame([
+        {"sequence": "S", "holes": "h", "method": "none", "method_params": "{}", "metric": "gpsnr_d1",
+         "scope": "frame", "peak": "intrinsic", "value": v} for v in (10.0, 12.0)] + [
+        {"sequence": "S", "holes": "h", "method": "fu-nonlocal", "method_params": json.dumps({"variant": "paper"}),
+         "metric": m, "scope": sc, "peak": "intrinsic", "value": 20.0} for m, sc in
+        (("gpsnr_d1", "frame"), ("gpsnr_d1", "holes"), ("nshd", "frame"))])
+    frame = ablation_frame(tidy)
+    assert frame.to_dict("records") == [
+        {"sequence": "S", "holes": "h", "row": "none", "method": "none", "d1": 11.0},
+        {"sequence": "S", "holes": "h", "row": "paper", "method": "fu-nonlocal", "d1": 20.0}]
