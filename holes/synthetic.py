@@ -20,7 +20,9 @@ large    5      3 M       ball 8.1 % [6.8-10.0]        ball 13.5 % [11.5-15.6]
 
 "medium" is what the method comparisons evaluate on (1-3 % of the points in 4 holes of 1.5 M, like
 holes a cube-based method must bridge); "large" gives the bigger, more complex holes of the
-paper's Soldier figure; "small" holes fit inside one cube.
+paper's Soldier figure; "small" holes fit inside one cube. "paper" (3 holes of 0.625 M = 12.5 point
+spacings on the paper's data; 0.2 % of the Longdress frame) is the paper's protocol as calibrated on
+the Longdress frame (docs/paper-reading.md, "The calibrated protocol").
 """
 
 from __future__ import annotations
@@ -46,6 +48,10 @@ REGION_PRESETS: dict[str, tuple[int, float]] = {
     "small": (3, 0.75),
     "medium": (4, 1.5),
     "large": (5, 3.0),
+    # the paper's protocol, calibrated (docs/paper-reading.md): 3 balls of radius 12.5 point spacings a
+    # frame (M = 20 spacings on the paper's 10-bit bodies), the setting of a grid of 3 or 6 balls of
+    # 10-15 spacings under which Meshlab and Lozes land nearest the paper's Longdress values
+    "paper": (3, 12.5 / 20.0),
 }
 
 #: how many random surface points are tried as hole centres before giving up on placing a hole
@@ -137,7 +143,7 @@ class RegionHoles(HoleGenerator):
 
     Parameters
     ----------
-    preset:    "small" | "medium" | "large" (see REGION_PRESETS); sets count and radius.
+    preset:    "small" | "medium" | "large" | "paper" (see REGION_PRESETS); sets count and radius.
     count:     holes per frame (overrides the preset).
     radius:    ball radius / cube half side in units of M (overrides the preset).
     fraction:  if given, the total fraction of points to remove per frame instead of ``radius``:
@@ -158,7 +164,7 @@ class RegionHoles(HoleGenerator):
     """
 
     name = "region"
-    summary = "synthetic ball/cube holes sized in units of the method's cube M (presets small/medium/large)"
+    summary = "synthetic ball/cube holes sized in units of the method's cube M (presets small/medium/large/paper)"
     version = "1"
 
     def __init__(self, preset: str = "medium", count: int | None = None, radius: float | None = None,

@@ -6,7 +6,9 @@ Sec. 3, built on Hu, Fu, Guo [Fu18TIP] (non-local self-similarity on graphs). On
 cubes), so the two differ only by the temporal terms (tested: beta = 0 gives identical output).
 
 Variants. ``variant="tuned"`` (the default) is ours; ``variant="paper"`` is the paper configuration
-(every step as the paper writes it, every addition of ours off). The pipeline below is the tuned
+(every step as the paper writes it, every addition of ours off, each paper-silent choice resolved by
+the paper's evidence: docs/paper-reading.md); ``variant="literal"`` is the earlier reading of the
+paper (known points free, no quantization), kept so that its measurements stay reproducible. The pipeline below is the tuned
 variant; each addition of ours names in [brackets] the switch that turns it off. The
 `TemporalGraph` docstring lists every switch, the paper configuration step by step with the
 paper's lines, each "paper silent" choice, and the precedence (explicit keyword > variant).
@@ -62,7 +64,8 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    scipy's sparse LU), with per-row link counts in place of 2I: a first/last frame has one
    neighbour and so uses beta once; a one-frame sequence has none (spatial terms only, with a
    warning). known_points="fixed" keeps the known rows at c_t and solves the new rows only;
-   "free" is the paper's literal "replace the target cube with the resulting cube".
+   "free" solves the known rows too (the literal variant's reading of "replace the target cube
+   with the resulting cube").
 9. drop_contradicted [drop_contradicted]: a new point that an inter-source cube contradicts and none supports is
    dropped. Contradicted: no counterpart within ``link_radius`` although that frame has data there,
    and the point lies off that frame's surface (farther than ``off_surface`` link radii from the
@@ -125,11 +128,15 @@ VARIANTS: dict[str, dict[str, Any]] = {
                   link_cutoff=True, skip_hole_links=True, rim_centred=True, defer_unreachable=True,
                   hole_free_candidates=True, grow_source=True, new_points="pending-cells", snap="auto",
                   graph_on="estimate", feature_fraction=0.25),
-    "paper": dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="free",
+    "paper": dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="fixed",
                   link_cutoff=False, skip_hole_links=False, rim_centred=False, defer_unreachable=False,
-                  hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap=False,
+                  hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap="auto",
                   graph_on="source", feature_fraction=1.0),
 }
+#: issue 11's reading of the paper, kept so that its measurements stay reproducible: the paper
+#: configuration with known points free ("replace the target cube with the resulting cube" read
+#: as moving the known rows too) and no quantization of the output (docs/paper-reading.md).
+VARIANTS["literal"] = dict(VARIANTS["paper"], known_points="free", snap=False)
 
 
 # -- state ------------------------------------------------------------------------------------------
@@ -906,8 +913,16 @@ class TemporalGraph(_CubeGraphInpainting):
                            new points always come from c_s_hat (Eq. 5, alpha term).
       drop_contradicted    True / False: drop new points a neighbour frame contradicts (off_surface,
                            link_radius tune it); the paper keeps every row of c_r.
-      known_points         "fixed" / "free": "fixed" solves only the new rows; "free" is the paper's
-                           "replace the target cube with the resulting cube" (known rows move too).
+      known_points         "fixed" / "fixed" ("free" in literal): "fixed" solves only the new rows
+                           (the known rows stay at c_t); "free" solves every row, so the known rows
+                           move too. Paper: fixed. Eq. (5)'s first term ties the known rows to c_t
+                           ("ensures the desired cube to be close to c_t in the known region") and
+                           "replace the target cube with the resulting cube" (l.364) fits both, but
+                           only fixed fits the paper's results (fills that improve on the damaged
+                           input, Hu ~10 dB above Lozes): free moves every known point of the 64
+                           overlapping cubes around a hole again and again, ~6,000 of ~20,000 per
+                           frame on the tiny human, and puts Hu 7.4 dB *below* no fill there (fixed:
+                           +4.5 dB above; docs/paper-reading.md, decision 1).
       link_cutoff          True / False: a temporal link only within link_radius point spacings; the
                            paper links every point to its nearest neighbour (Eq. 4, weight 1).
       skip_hole_links      True / False: no temporal link for a row that maps into a hole region of
@@ -937,9 +952,13 @@ class TemporalGraph(_CubeGraphInpainting):
                            approximate the connectivities via the similarities in its
                            intra-source cube"), on c_s_hat: a known row sits at its nearest
                            source point, a new row is a source point.
-      snap                 "auto" / False: voxelized input gets its new points turned into grid
-                           voxels (`voxelize_fill`) and, with known_points="free", moved known points
-                           rounded; the paper says nothing of quantizing the output (False).
+      snap                 "auto" / "auto" (False in literal): voxelized input gets its new points
+                           turned into grid voxels (`voxelize_fill`) and, with known_points="free",
+                           moved known points rounded. Paper: auto. The method extends [Fu18TIP],
+                           which voxelizes the cloud as pre-processing, and the paper's data are
+                           10-bit voxelized: its output lies on the integer grid
+                           (docs/paper-reading.md, decision 2; off: +0.4-0.8 dB D1 lost on the tiny
+                           human, 360 points a frame off the grid).
       feature_fraction     0.25 / 1.0: normals and AGTV on a fixed sample of the points (speed);
                            the paper computes them for every point.
     Other parameters (the same in both variants): spacing None (1 voxel for voxelized input,
@@ -962,8 +981,12 @@ class TemporalGraph(_CubeGraphInpainting):
         simplified ICP (l.147); inter-source cubes by the box H = 2.5 M (l.373, %-commented) and
         the stride-1 sliding window (l.172); spatial graph on c_s_hat (l.189); K = sqrt(m)
         (l.373, %-commented), sigma = 1 (l.203), alpha = 1, beta = 0.5, gamma = 0.5 (l.341);
-        Eq. (6) solved as a sparse system; the target cube replaced by c_r (l.364).
-    Paper silent, and the choice made (the same as the tuned variant's unless said):
+        Eq. (6) solved as a sparse system; the target cube replaced by c_r (l.364): its known rows
+        held at c_t (the Omega_bar c_t term, weight 1, read as the data constraint; decision 1 of
+        docs/paper-reading.md), its new rows as solved, on voxelized input as grid voxels
+        ([Fu18TIP] voxelizes as pre-processing; decision 2).
+    Paper silent, and the choice made (the same as the tuned variant's unless said; the evidence for
+    each, with its ablation row, is in docs/paper-reading.md):
       - which cells are missing: the given hole regions, or in blind mode `holes.detection`
         (the paper's [Fu18TIP] detects holes automatically; the ICME paper does not say how);
       - min_known_points 16: a target cube needs known points to match (DC/AGTV, ICP) and to
@@ -983,7 +1006,9 @@ class TemporalGraph(_CubeGraphInpainting):
         the K-NN graph symmetrised by max(W, W^T);
       - first and last frame: one inter-source cube, beta counted once (per-row link counts in
         place of 2I); a one-frame sequence: spatial terms only, with a warning;
-      - output: new points as solved, no quantization (snap False).
+      - known points: fixed (Dirichlet rows at c_t; see known_points above);
+      - output: on voxelized input the new points are voxels of the grid (snap "auto", see above);
+        on unvoxelized input as solved.
     Precedence: an explicit keyword > the variant's value. `FuNonlocal` has the same variants (its
     paper configuration is this one without the temporal terms: beta = 0, [Fu18TIP] frame by frame).
 
@@ -993,8 +1018,8 @@ class TemporalGraph(_CubeGraphInpainting):
 
     name = "temporal-graph"
     summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
-    version = "5"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
-    # 5: ICP pairs independent of the CPU
+    version = "6"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
+    # 5: ICP pairs independent of the CPU; 6: paper variant known points fixed + snap (variant literal added)
     uses_neighbour_frames = True
     _temporal = True
 
@@ -1046,7 +1071,8 @@ class FuNonlocal(_CubeGraphInpainting):
 
     name = "fu-nonlocal"
     summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
-    version = "3"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU
+    version = "4"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
+    # 4: paper variant known points fixed + snap (variant literal added)
     uses_neighbour_frames = False
     _temporal = False
     # not parameters: the temporal terms are off by definition, so there is no temporal evidence

@@ -367,7 +367,7 @@ def test_paper_configuration_and_ours_are_separate_columns(tmp_path):
     # the Columns section names every parameter as run: the paper configuration's switches are off
     columns = text.split("## Columns", 1)[1].split("## Table 1", 1)[0]
     proposed = next(line for line in columns.splitlines() if line.startswith("| Proposed |"))
-    for switch in ("link_cutoff=False", "known_points='free'", "intra_candidates=1", "temporal_source=False",
+    for switch in ("link_cutoff=False", "known_points='fixed'", "intra_candidates=1", "temporal_source=False",
                    "variant='paper'"):
         assert switch in proposed
     ours = next(line for line in columns.splitlines() if line.startswith("| temporal-graph tuned (ours) |"))

@@ -251,10 +251,10 @@ def test_one_frame_sequence_warns_and_uses_the_spatial_terms():
     np.testing.assert_array_equal(out[0], ref[0])
 
 
-def test_paper_variant_moves_known_points():
+def test_literal_variant_moves_known_points():
     damaged, regions = switch_case()
     n = len(damaged[1])
-    paper = TemporalGraph(variant="paper", **FAST).inpaint(damaged, regions)
+    paper = TemporalGraph(variant="literal", **FAST).inpaint(damaged, regions)
     moved = np.linalg.norm(paper[1][:n] - damaged[1], axis=1)
     assert len(paper[1]) > n
     assert (moved > 1e-6).sum() >= 10  # the target cube is replaced: its known points move
@@ -266,8 +266,28 @@ def test_paper_variant_moves_known_points():
     # on the sphere, still (a step of the smoothing, not a scatter)
     radial = np.linalg.norm(paper[1][:n] - np.array([2.0, 0, 0]), axis=1)
     assert np.abs(radial - 20.0).max() < 3.0
-    fixed = TemporalGraph(variant="paper", known_points="fixed", **FAST).inpaint(damaged, regions)
+    fixed = TemporalGraph(variant="literal", known_points="fixed", **FAST).inpaint(damaged, regions)
     np.testing.assert_array_equal(fixed[1][:n], damaged[1])
+
+
+@pytest.mark.parametrize("cls", [TemporalGraph, FuNonlocal])
+def test_paper_variant_keeps_known_points_and_outputs_the_voxel_grid(cls):
+    """The paper configuration (docs/paper-reading.md, decisions 1-2): the Omega_bar c_t term holds the
+    known points at their data (they come out exactly as they went in, in the same order), and on
+    voxelized input ([Fu18TIP] voxelizes first) every output point is an integer voxel, none doubled."""
+    damaged, regions = switch_case()
+    out = cls(variant="paper", **FAST).inpaint(damaged, regions)
+    for d, o in zip(damaged, out):
+        np.testing.assert_array_equal(o[:len(d)], d)
+        np.testing.assert_array_equal(o, np.round(o))
+        assert len(np.unique(o, axis=0)) == len(o)
+    assert len(out[1]) > len(damaged[1]) + 20  # it fills
+    # unvoxelized input: no quantization (nothing to return to), known points still fixed
+    shifted = [d + 0.25 for d in damaged]
+    moved = [[HoleRegion.ball(r.center + 0.25, r.radius) for r in frame] for frame in regions]
+    out = cls(variant="paper", **FAST).inpaint(shifted, moved)
+    np.testing.assert_array_equal(out[1][:len(shifted[1])], shifted[1])
+    assert not np.array_equal(out[1], np.round(out[1]))
 
 
 def test_free_known_points_output_the_final_position_of_a_point_filled_earlier(monkeypatch):
@@ -288,7 +308,7 @@ def test_free_known_points_output_the_final_position_of_a_point_filled_earlier(m
         return fill
 
     monkeypatch.setattr(TemporalGraph, "_fill_cube", recording)
-    out = TemporalGraph(variant="paper", **FAST).inpaint(damaged, regions)
+    out = TemporalGraph(variant="literal", **FAST).inpaint(damaged, regions)
     keys = list(latest)
     finals = [latest[k].points[latest[k].index < 0] for k in keys]
     first = [np.array([first_position[(k, r)] for r in range(len(f))]).reshape(-1, 3) for k, f in zip(keys, finals)]
@@ -400,9 +420,9 @@ def test_a_gap_in_the_neighbour_does_not_contradict_a_row_on_its_surface():
 
 # -- variants: the paper configuration and the switches of ours -----------------------------------
 
-PAPER_OFF = dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="free",
+PAPER_OFF = dict(intra_candidates=1, temporal_source=False, drop_contradicted=False, known_points="fixed",
                  link_cutoff=False, skip_hole_links=False, rim_centred=False, defer_unreachable=False,
-                 hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap=False,
+                 hole_free_candidates=False, grow_source=False, new_points="pending-cells", snap="auto",
                  graph_on="source", feature_fraction=1.0)
 
 
@@ -424,13 +444,16 @@ def test_paper_configuration_has_every_addition_off():
 
 
 def test_explicit_parameters_override_the_variant_and_unknown_variants_are_refused():
-    params = TemporalGraph(variant="paper", known_points="fixed", intra_candidates=3).get_params()
-    assert params["known_points"] == "fixed" and params["intra_candidates"] == 3
+    params = TemporalGraph(variant="paper", known_points="free", intra_candidates=3).get_params()
+    assert params["known_points"] == "free" and params["intra_candidates"] == 3
     assert params["link_cutoff"] is False  # the rest stays the paper's
     # a resolved record rebuilds the same configuration
     assert TemporalGraph(**params).get_params() == params
     # the CLI / TOML path: the registry with --param variant=paper
-    assert get_method("fu-nonlocal", variant="paper").get_params()["known_points"] == "free"
+    assert get_method("fu-nonlocal", variant="paper").get_params()["known_points"] == "fixed"
+    # issue 11's reading, kept: the paper configuration with known points free and no quantization
+    literal = TemporalGraph(variant="literal").get_params()
+    assert {k: literal[k] for k in PAPER_OFF} == dict(PAPER_OFF, known_points="free", snap=False)
     damaged, hole, _ = plane_sequence()
     with pytest.raises(ValueError, match="variant must be one of"):
         TemporalGraph(variant="faithful").inpaint(damaged, hole)
@@ -476,7 +499,7 @@ SWITCH_CASES = {
     "intra_candidates": (4, switch_case),
     "temporal_source": (True, switch_case),       # the small hole: f+1 captured there
     "drop_contradicted": (True, dome_case),
-    "known_points": ("fixed", switch_case),
+    "known_points": ("free", switch_case),
     "link_cutoff": (True, switch_case),           # 2 voxels a frame: far counterparts across holes
     "skip_hole_links": (True, switch_case),       # the large hole is in f+1 too
     "rim_centred": (True, switch_case),           # a hole larger than a cube
@@ -484,7 +507,7 @@ SWITCH_CASES = {
     "hole_free_candidates": (True, switch_case),
     "grow_source": (True, switch_case),
     "new_points": ("empty-slots", switch_case),
-    "snap": ("auto", switch_case),                # voxelized input
+    "snap": (False, switch_case),                 # voxelized input
     "graph_on": ("estimate", switch_case),
     "feature_fraction": (0.25, switch_case),
 }
@@ -513,8 +536,8 @@ def test_each_switch_changes_the_output_of_the_paper_configuration(switch):
     assert len(paper[1]) > len(damaged[1])  # the case fills
     assert any(not np.array_equal(a, b) for a, b in zip(paper, changed)), f"{switch}={value!r} changed nothing"
     if switch == "snap":
-        assert not np.array_equal(paper[1], np.round(paper[1]))  # the paper: no quantization
-        assert np.array_equal(changed[1], np.round(changed[1]))  # ours: fills on the voxel grid
+        assert np.array_equal(paper[1], np.round(paper[1]))  # the paper ([Fu18TIP] voxelizes): on the grid
+        assert not np.array_equal(changed[1], np.round(changed[1]))  # snap off: fills off the grid
     if switch == "drop_contradicted":
         assert len(changed[1]) < len(paper[1])  # contradicted fill points are dropped
 
@@ -526,12 +549,17 @@ def test_each_switch_changes_the_output_of_the_paper_configuration(switch):
 # dispatch held to X86_V3 (AVX2, FMA) and OpenBLAS to its Haswell kernels, one thread. Recorded with
 # numpy 2.4.6, scipy 1.17.1 after the trimmed ICP's pair selection was made independent of the CPU.
 GOLDEN_OUTPUT_HASHES = {
-    ("switch_case", "paper"): "e891f62aa4bca81d",
+    ("switch_case", "paper"): "bf0bcf713162603d",
     ("switch_case", "tuned"): "9de15b9cb2440ec2",
-    ("switch_case", "fu-paper"): "4c417638f9628030",
-    ("big_hole_sphere_case", "paper"): "8fcc388f1588023a",
+    ("switch_case", "fu-paper"): "490edf1630d69976",
+    ("big_hole_sphere_case", "paper"): "96079b2c10ac3aba",
     ("big_hole_sphere_case", "tuned"): "a4934cb176a0c8dc",
-    ("big_hole_sphere_case", "fu-paper"): "4ebf6b3a5206f9fb",
+    ("big_hole_sphere_case", "fu-paper"): "208339ecc46868aa",
+    # issue 11's paper configuration, kept as variant="literal": its hashes are the former "paper" ones
+    ("switch_case", "literal"): "e891f62aa4bca81d",
+    ("switch_case", "fu-literal"): "4c417638f9628030",
+    ("big_hole_sphere_case", "literal"): "8fcc388f1588023a",
+    ("big_hole_sphere_case", "fu-literal"): "4ebf6b3a5206f9fb",
 }
 
 _GOLDEN_CHILD = """
@@ -541,7 +569,9 @@ sys.path.insert(0, sys.argv[1])
 import test_temporal_graph as t
 cases = {"switch_case": t.switch_case, "big_hole_sphere_case": t.big_hole_sphere_case}
 methods = {"paper": lambda: t.TemporalGraph(variant="paper", **t.FAST), "tuned": lambda: t.TemporalGraph(**t.FAST),
-           "fu-paper": lambda: t.FuNonlocal(variant="paper", **t.FAST)}
+           "fu-paper": lambda: t.FuNonlocal(variant="paper", **t.FAST),
+           "literal": lambda: t.TemporalGraph(variant="literal", **t.FAST),
+           "fu-literal": lambda: t.FuNonlocal(variant="literal", **t.FAST)}
 digests = {}
 for case_name, config in sorted(t.GOLDEN_OUTPUT_HASHES):
     out = methods[config]().inpaint(*cases[case_name]())
@@ -553,7 +583,7 @@ print(json.dumps(digests))
 
 @pytest.fixture(scope="module")
 def pinned_output_hashes():
-    """The six output hashes, computed in a child process at the pinned instruction-set level."""
+    """The output hashes, computed in a child process at the pinned instruction-set level."""
     import json
     import platform
     import subprocess

@@ -124,3 +124,54 @@ class PaperSource(SequenceSource):
                             f"{info.bit_depth}-bit release?")
         seq.meta.update({"dataset": info.name, "source": info.source, "terms": info.terms, "folder": str(folder)})
         return seq
+
+
+def find_single_frame(info: PaperDataset, data_dir: Path) -> Path | None:
+    """The one PLY frame of ``info``'s sequence under ``data_dir`` when only one is there, else None.
+
+    Two layouts are recognised (folder and file names matched case-insensitively):
+    a folder directly under ``data_dir`` (or ``data_dir`` itself) whose name contains the sequence's
+    folder name and that holds exactly one PLY file named after the sequence
+    (``8i_longdress_1300/longdress_vox10_1300.ply``); or the sequence's usual folder
+    (`find_paper_folder`, e.g. ``longdress/Ply/``) holding exactly one PLY file. A folder with two
+    or more frames is a sequence (`PaperSource`), not a single frame.
+    """
+    def plys(folder: Path) -> list[Path]:
+        return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".ply")
+
+    key = info.folder.lower()
+    if not data_dir.is_dir():
+        return None
+    usual = find_paper_folder(info, data_dir)
+    if usual is not None and usual != data_dir:
+        files = plys(usual)
+        return files[0] if len(files) == 1 else None
+    folders = [data_dir] + [p for p in sorted(data_dir.iterdir()) if p.is_dir()]
+    for folder in folders:
+        if key not in folder.name.lower():
+            continue
+        files = plys(folder)
+        if len(files) == 1 and files[0].name.lower().startswith(key):
+            return files[0]
+    return None
+
+
+def single_frame_rows(datasets: dict[str, PaperDataset], data_dir, labels: dict[str, str]) -> dict[str, dict]:
+    """name -> the experiment's ``[[sequences]]`` entry of each of the paper's sequences found under
+    ``data_dir`` as one real frame (`find_single_frame`): ``{"path": <the PLY file>, "label": "<row
+    label>, one real frame"}``, in the order of ``labels`` (name -> the paper's row label). Such a
+    sequence is not a sequence to load by name (its expected frames are not there): a caller lists
+    it by path instead. A one-frame sequence has no neighbouring frames: the temporal method runs its
+    spatial terms only, so its column there is Hu on one frame (`temporal-graph` warns and gives
+    `fu-nonlocal`'s output)."""
+    root = data_dir_from(data_dir)
+    if root is None:
+        return {}
+    rows = {}
+    for name, label in labels.items():
+        if name not in datasets:
+            continue
+        found = find_single_frame(datasets[name], root)
+        if found is not None:
+            rows[name] = {"path": str(found), "label": f"{label}, one real frame"}
+    return rows
