@@ -525,7 +525,10 @@ class Page:
 
 def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: pd.DataFrame | None,
                  baseline: tuple[pd.DataFrame, dict] | None, tolerances: dict[str, float] | None) -> Page:
-    """The history, colours, metrics and latest comparison that the sections share."""
+    """The history, colours, metrics and latest comparison that the sections share. Runs group by
+    their cell (`compare.with_cells`: the run's identity minus its seed), never by a label alone."""
+    if runs is not None and len(runs) and "run_id" in results.columns:
+        results = compare.with_cells(results, runs)
     history = build_history(results)
     colours = method_colours(history.table["label"]) if len(history.table) else {}
     metrics_present = set(history.table["metric"]) if len(history.table) else set()

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from dpcbench.bench import figures, paper
-from dpcbench.bench.compare import newest_runs
+from dpcbench.bench.compare import newest_runs, with_cells
 from dpcbench.bench.tables import (
     ComparisonTable,
     comparison_table,
@@ -81,7 +81,7 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    df = _label_rows_and_methods(newest_runs(df), runs)
+    df = _label_rows_and_methods(newest_runs(with_cells(df, runs)), runs)
     skip = {"time_s", "cpu_time_s", "peak_mem_mb", "removed_fraction"}
     metrics = metrics or [m for m in dict.fromkeys(df["metric"]) if m not in skip and not m.startswith("temporal")]
     scopes = scopes or [s for s in ("frame", "holes") if s in set(df["scope"])]
@@ -229,7 +229,7 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
     tables_dir.mkdir(parents=True, exist_ok=True)
     fig_dir.mkdir(parents=True, exist_ok=True)
     label = "STAND-IN DATA (embedded human and bunny, not the paper's sequences)" if standins else "the paper's sequences"
-    df = hole_rows(df, runs)
+    df = hole_rows(with_cells(df, runs), runs)
     normals_note = d2_normals_note(runs, set(df["run_id"]))
     t1, t2 = paper_tables(df, standins=standins, normals_note=normals_note)
     write_table(t1, tables_dir, "table1_gpsnr")

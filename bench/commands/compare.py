@@ -62,6 +62,8 @@ def current_from_store(store_path, experiment: str | None):
         known = ", ".join(sorted(map(str, results["experiment"].dropna().unique())))
         raise UserError(f"no runs of experiment {experiment!r} in the store (it has: {known}); "
                         "pass --experiment NAME")
+    # cells by the runs' identity (minus the seed), so two different runs never merge under one label
+    results = compare.with_cells(results, runs)
     summary = compare.summarize(results, experiment=experiment or None)
     chosen = results if not experiment else results[results["experiment"] == experiment]
     environment = _run_environment(runs, set(chosen["run_id"]))
