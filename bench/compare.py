@@ -93,6 +93,9 @@ STATUS_CHANGED = "changed"
 STATUS_MORE_MEMORY, STATUS_LESS_MEMORY = "more memory", "less memory"
 
 SUMMARY_FORMAT = "dpcbench-summary"
+#: the floor of every comparison: the registry method that leaves the damaged input as it is, and its mark
+#: (the same as `bench.tables.FLOOR_METHOD` / `FLOOR_MARK`)
+FLOOR_METHOD, FLOOR_MARK = "none", "▽"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -576,11 +579,13 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
     """The comparison as text: one aligned table per (sequence, holes) block, then a verdict line.
 
     Columns: method (+ params), metric (@peak), scope, baseline, current, change, tolerance,
-    status; the column widths are shared by all blocks so that they line up.
+    floor (`FLOOR_MARK` where `below_floor`), status; the column widths are shared by all blocks so that they line up.
     """
     table = comparison.table
+    below = below_floor(table)
     if only_changes:
         table = table[table["status"] != STATUS_OK]
+        below = below[table.index]
     display = pd.DataFrame({
         "method": [m + (f" ({short_params(p)})" if p != "{}" else "") for m, p in
                    zip(table["method"], table["method_params"])],
@@ -591,6 +596,7 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
         "change": [format_change(k, c, m) for k, c, m in zip(table["kind"], table["change"], table["metric"])],
         "tolerance": [format_tolerance(k, t, m) for k, t, m in
                       zip(table["kind"], table["tolerance"], table["metric"])],
+        "floor": [FLOOR_MARK if b else "" for b in below],
         "status": [s if g or s in (STATUS_OK, STATUS_NEW) else f"{s} (not gated)"
                    for s, g in zip(table["status"], table["gated"])],
     }, index=table.index)
@@ -599,7 +605,7 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
         lines.append("(no rows)" if not only_changes else "(no changes beyond tolerance)")
     else:
         widths = {c: max(len(c), int(display[c].str.len().max())) for c in display.columns}
-        left = {"method", "metric", "scope", "status"}
+        left = {"method", "metric", "scope", "status", "floor"}
 
         def row_text(values: dict) -> str:
             cells = [str(values[c]).ljust(widths[c]) if c in left else str(values[c]).rjust(widths[c])
@@ -625,5 +631,33 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
     judged = (f"; speed judged on CPU time for {by_cpu} of {int((time_rows['metric'] == 'time_s').sum())} "
               "time rows, on wall time for the others" if by_cpu else "")
     time_note = (judged if comparison.gate_time else f" (time compared, not gated: use --gate-time{judged})")
+    if below.any():
+        lines.append(f"{FLOOR_MARK} (column floor): the current value is worse than method `{FLOOR_METHOD}` (the damaged "
+                     f"input, holes left open) on the same data: worse than not filling at all ({int(below.sum())} rows).")
     lines.append(f"{verdict}; {len(comparison.table)} rows: {summary}{time_note}")
     return "\n".join(lines)
+
+
+def below_floor(table: pd.DataFrame) -> pd.Series:
+    """Per row of a comparison table: whether its current value is worse (in the metric's direction)
+    than the current value of method `FLOOR_METHOD` (no fill, default parameters) with the same
+    sequence, holes, metric, scope and peak. Metrics without a direction, resources and input facts
+    are never below the floor."""
+    out = pd.Series(False, index=table.index)
+    if table.empty:
+        return out
+    floor_rows = table[(table["method"] == FLOOR_METHOD) & (table["method_params"] == "{}")]
+    keys = ["sequence", "holes", "holes_params", "metric", "scope", "peak"]
+    floor = {tuple(r[k] for k in keys): r["current"] for _, r in floor_rows.iterrows()}
+    for index, row in table.iterrows():
+        metric = row["metric"]
+        entry = _registry.describe(metric)
+        if (row["method"] == FLOOR_METHOD or metric in RESOURCE_METRICS or metric in INFO_METRICS or entry is None
+                or entry.higher_is_better is None):
+            continue
+        f = floor.get(tuple(row[k] for k in keys))
+        c = row["current"]
+        if f is None or c is None or math.isnan(f) or math.isnan(c):
+            continue
+        out[index] = c < f if entry.higher_is_better else c > f
+    return out

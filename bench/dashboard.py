@@ -45,6 +45,8 @@ import pandas as pd
 
 from dpcbench.bench import compare
 from dpcbench.bench.paper_facts import PAPER_SEQUENCES
+from dpcbench.bench.tables import FLOOR_MARK, FLOOR_METHOD
+from dpcbench.metrics import registry as _registry
 
 QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
 #: display names; the unit is metrics.registry's (`metric_label`)
@@ -466,6 +468,12 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
         columns = [(m, s, p) for s in ("frame", "holes") for m in metrics + ["time_s", "cpu_time_s"] for p in peaks
                    if (m, s, p) in present]
         values = sub.set_index(["label", "metric", "scope", "peak"])
+        # the floor: method "none" (the damaged input, holes left open) in the same block
+        floor_rows = sub[(sub["method"] == FLOOR_METHOD) & (sub["method_params"] == "{}")]
+        floor = {(r.metric, r.scope, r.peak): float(r.mean) for r in floor_rows.itertuples(index=False)
+                 if r.metric not in compare.RESOURCE_METRICS and r.metric not in compare.INFO_METRICS
+                 and _registry.describe(r.metric) is not None and _registry.describe(r.metric).higher_is_better is not None}
+        any_below = False
         best = {}
         for column in columns:
             metric = column[0]
@@ -487,13 +495,20 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
                 mean, std = float(values.loc[key, "mean"]), float(values.loc[key, "std"])
                 css = "num best" if best.get(column) == mean else "num"
                 spread = f" ± {_fmt(std)}" if std and not math.isnan(std) else ""
-                cells.append(f'<td class="{css}">{_e(_fmt(mean))}{_e(spread)}</td>')
+                below = column in floor and (mean < floor[column] if compare.higher_is_better(column[0])
+                                             else mean > floor[column])
+                any_below |= below
+                mark = f' <span class="floor" title="below the floor: worse than no fill">{FLOOR_MARK}</span>' if below else ""
+                cells.append(f'<td class="{css}">{_e(_fmt(mean))}{_e(spread)}{mark}</td>')
             body.append(f'<tr><td><span class="swatch" style="background:{colours[label]}"></span>{_e(label)}</td>'
                         + "".join(cells) + "</tr>")
         params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
         parts.append(f"<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>"
                      f"<table class='latest'><thead><tr><th>method</th>{head}</tr></thead>"
-                     f"<tbody>{''.join(body)}</tbody></table>")
+                     f"<tbody>{''.join(body)}</tbody></table>"
+                     + (f"<p class='note'>{FLOOR_MARK}: below the floor, a mean worse than method "
+                        f"<code>{FLOOR_METHOD}</code> (the damaged input, holes left open) on the same data: worse "
+                        "than not filling at all.</p>" if any_below else ""))
     return "".join(parts)
 
 

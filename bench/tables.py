@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from dpcbench.bench import stats
+from dpcbench.bench.compare import FLOOR_MARK, FLOOR_METHOD  # noqa: F401  (re-exported; their one source)
 
 
 def higher_is_better(metric: str) -> bool | None:
@@ -83,11 +84,9 @@ def given_labels(runs: pd.DataFrame, part: str) -> dict:
     return out
 
 
-#: marks of a cell (Markdown and CSV text; LaTeX has its own): tied with the row's best, and below the floor
+#: the mark of a cell tied with the row's best (Markdown text; LaTeX has its own); the floor's mark and
+#: method (FLOOR_MARK, FLOOR_METHOD: the damaged input left as it is) come from bench.compare
 TIED_MARK = "†"
-FLOOR_MARK = "▽"
-#: the registry method that leaves the damaged input unchanged: every comparison's floor
-FLOOR_METHOD = "none"
 
 
 def md_escape(text) -> str:

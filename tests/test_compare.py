@@ -408,7 +408,7 @@ def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
     assert all(line.split()[0] == "temporal-graph" for line in regressed)
     assert "== human · holes: region (coherent=True, count=1, preset=medium)" in failed
     header = next(line for line in failed.splitlines() if line.startswith("method"))
-    assert header.split() == ["method", "metric", "scope", "baseline", "current", "change", "tolerance", "status"]
+    assert header.split() == ["method", "metric", "scope", "baseline", "current", "change", "tolerance", "floor", "status"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -482,3 +482,30 @@ def test_two_sequences_with_one_label_stay_apart_in_report_and_summary(tmp_path,
     walk = set(runs[runs["spec"].str.contains('"walk"')]["run_id"])
     expected = df[(df["metric"] == "gpsnr_d1") & (df["frame"] >= 0) & df["run_id"].isin(walk)]["value"].mean()
     assert gpsnr.loc["human (motion=walk)", "mean"] == pytest.approx(expected)
+
+
+def test_compare_marks_rows_below_the_floor():
+    values = {("none", "gpsnr_d1", "frame"): 15.0, ("a", "gpsnr_d1", "frame"): 10.0,
+              ("b", "gpsnr_d1", "frame"): 20.0, ("none", "nshd", "frame"): 1e-7, ("a", "nshd", "frame"): 5e-8,
+              ("b", "nshd", "frame"): 2e-7, ("a", "time_s", "frame"): 9.0, ("none", "time_s", "frame"): 0.1}
+    result = compare.compare_summaries(summary(values), summary(values))
+    below = compare.below_floor(result.table)
+    flagged = set(zip(result.table.loc[below, "method"], result.table.loc[below, "metric"]))
+    assert flagged == {("a", "gpsnr_d1"), ("b", "nshd")}  # lower PSNR / higher NSHD than no fill; time never
+    text = result.format()
+    line_a = next(line for line in text.splitlines() if line.startswith("a ") and "gpsnr_d1" in line)
+    line_b = next(line for line in text.splitlines() if line.startswith("b ") and "gpsnr_d1" in line)
+    assert line_a.split()[-2:] == [compare.FLOOR_MARK, "✓"] and compare.FLOOR_MARK not in line_b
+    assert "worse than not filling at all (2 rows)" in text
+
+
+def test_dashboard_latest_table_marks_the_floor():
+    from dpcbench.bench import dashboard
+
+    df = results_frame({("none", "gpsnr_d1", "frame"): [15.0], ("a", "gpsnr_d1", "frame"): [10.0],
+                        ("b", "gpsnr_d1", "frame"): [20.0]})
+    history = dashboard.build_history(df)
+    html_text = dashboard.latest_table(history, dashboard.method_colours(history.table["label"]), ["gpsnr_d1"])
+    rows = {r.split("</span>", 1)[1].split("</td>", 1)[0]: r for r in html_text.split("<tr>")[2:]}
+    assert compare.FLOOR_MARK in rows["a"] and compare.FLOOR_MARK not in rows["b"].split("</tr>")[0]
+    assert "below the floor" in html_text
