@@ -86,7 +86,7 @@ DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
-_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection"}
+_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection", "pin_isa"}
 REGION_MODES = ("given", "detected", "none")
 _SEQUENCE_KEYS = {"name", "path", "params", "frames", "label", "optional"}
 _HOLES_KEYS = {"generator", "params", "seeds", "seed", "label"}
@@ -374,6 +374,7 @@ class ExperimentConfig:
     description: str = ""
     timeout_s: float = DEFAULT_TIMEOUT_S
     regions: str = "given"
+    pin_isa: bool = False
     detection: dict = field(default_factory=dict)
     data_dir: str | None = None
     sequences: list[dict] = field(default_factory=list)
@@ -453,6 +454,9 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         raise ConfigError(f"experiment.regions: expected one of {', '.join(REGION_MODES)}, got {regions!r}")
     cfg = ExperimentConfig(name=exp["name"], description=str(exp.get("description", "")), timeout_s=float(timeout),
                            regions=regions, data_dir=exp.get("data_dir"), source=source)
+    if not isinstance(exp.get("pin_isa", False), bool):
+        raise ConfigError(f"experiment.pin_isa: expected true or false, got {exp['pin_isa']!r}")
+    cfg.pin_isa = exp.get("pin_isa", False)  # run pinned to one instruction set (bench.isa), e.g. a regression gate
     detection = exp.get("detection", {})
     if detection:
         if regions != "detected":
