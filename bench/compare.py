@@ -36,6 +36,9 @@ passes it in the good direction. Resource metrics
 speed check (it barely moves with the machine's load, the wall time mostly measures the load) and
 that key's ``time_s`` row is shown but never gated; elsewhere (a baseline or a store from before
 CPU time was recorded) ``time_s`` is judged as before.
+**The floor**: the text table marks (`FLOOR_MARK`, column "floor") each row whose current value is
+worse than that of method `FLOOR_METHOD` ("none": the damaged input, holes left open) on the same
+sequence, holes, metric, scope and peak (`below_floor`); the mark is information, never gated.
 A row present in the baseline and absent from the current summary is MISSING and fails the gate
 (a method that started crashing must not pass silently). Metrics without a tolerance, and
 INFO_METRICS (facts about the damaged input, such as removed_fraction), are shown as "changed" or

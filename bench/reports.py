@@ -376,7 +376,8 @@ def claims_markdown(t1: ComparisonTable, t2: ComparisonTable, *, standins: bool)
     the measured figure with its interval, and what the run shows about why."""
     judged = {"ranking": ranking_claim(t1, t2), "gains": gains_claim(t1, standins), "nshd": nshd_claim(t2, standins)}
     lines = ["Each claim of the paper's text, judged on this run's Tables 1-2 with paired statistics over the same "
-             f"(frame, seed) pairs ({stats.TEST_NAME}; alpha {stats.ALPHA})."
+             "(frame, seed) pairs: two-sided Wilcoxon signed-rank tests, Holm-corrected over the claim's comparisons, "
+             f"at {stats.ALPHA}, and paired bootstrap 95% intervals (bench/stats.py)."
              + (" **On stand-ins the order of the methods can be tested; absolute values (dB gains, the NSHD "
                 "factor) cannot**: they depend on the data." if standins else ""), "",
              "| Claim (the paper) | Verdict | Measured (95% interval) | What the run shows |", "|---|---|---|---|"]
@@ -388,7 +389,7 @@ def claims_markdown(t1: ComparisonTable, t2: ComparisonTable, *, standins: bool)
     if details:
         lines += ["", "Measured order of the paper's four columns per row (means; \"=\" equal means):", "",
                   "| Table | Row | Order (best first) |", "|---|---|---|"]
-        lines += [f"| {md_escape(m)} | {md_escape(r)} | {md_escape(o)} |" for m, r, o in details]
+        lines += [f"| `{m}` | {md_escape(r)} | {md_escape(o)} |" for m, r, o in details]
     return "\n".join(lines) + "\n"
 
 

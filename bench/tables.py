@@ -90,12 +90,12 @@ TIED_MARK = "†"
 
 
 def md_escape(text) -> str:
-    """A label as one Markdown table cell: backslash, ``|``, ``*``, ``_`` and backtick escaped, ``<``,
-    ``>`` and ``&`` as HTML entities (no raw HTML), line breaks as spaces."""
+    """A label as one Markdown table cell: backslash, ``|``, ``*``, ``_`` and backtick escaped, ``<``
+    as ``&lt;`` (so no raw HTML starts), line breaks as spaces."""
     text = " ".join(str(text).splitlines())
     for ch in ("\\", "|", "*", "_", "`"):
         text = text.replace(ch, "\\" + ch)
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return text.replace("<", "&lt;")
 
 
 _LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
