@@ -297,9 +297,12 @@ def ranking_claim(t1: ComparisonTable, t2: ComparisonTable) -> dict:
     for pair, where in flipped.items():
         per_metric = {}
         for table, c in where:
-            per_metric.setdefault(_METRIC_NAMES.get(table.metric, table.metric), []).append(c.mean_difference)
+            unit = " dB" if table.metric.startswith("gpsnr") else (f" x{1 / table.scale:.0e}" if table.scale != 1 else "")
+            per_metric.setdefault((_METRIC_NAMES.get(table.metric, table.metric), unit), []).append(
+                c.mean_difference * table.scale)
         why.append(f"{pair} beyond the interval on " + ", ".join(
-            f"{len(v)} {m} rows (by {min(-x for x in v):.3g} to {max(-x for x in v):.3g})" for m, v in per_metric.items()))
+            f"{len(v)} {m} rows (by {min(-x for x in v):.3g} to {max(-x for x in v):.3g}{u})"
+            for (m, u), v in per_metric.items()))
     floor = _below_floor_text([t1, t2], order)
     if floor:
         why.append(f"below the floor (worse than no fill): {floor}")
