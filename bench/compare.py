@@ -7,8 +7,10 @@ A **summary** condenses the results store into one row per
     std      = sqrt((1/n) * sum_f (value_f - mean)^2)   (population std, 0 for one value)
     n_frames = n
 
-Only the latest run of each (sequence, holes, holes_params, seed, method, method_params) enters, so
-a store holding several code versions summarizes the newest unless `code_version` is given.
+Only the latest run of each cell and seed enters (a cell: the run's canonical identity minus its
+seed, `cell_identity`, where `with_cells` has read the runs' specs; else RUN_KEY minus the seed), so a
+store holding several code versions summarizes the newest unless `code_version` is given; two
+different cells that share a sequence label get labels that tell them apart (`with_cells`).
 Frame-level values (frame >= 0) and sequence-level values (frame = -1) of the same metric are not
 mixed: a (run, metric, scope, peak) with frame-level values uses only those; one without uses its
 sequence-level value (e.g. temporal_consistency). Time is "time per frame": the runner stores
@@ -34,6 +36,9 @@ passes it in the good direction. Resource metrics
 speed check (it barely moves with the machine's load, the wall time mostly measures the load) and
 that key's ``time_s`` row is shown but never gated; elsewhere (a baseline or a store from before
 CPU time was recorded) ``time_s`` is judged as before.
+**The floor**: the text table marks (`FLOOR_MARK`, column "floor") each row whose current value is
+worse than that of method `FLOOR_METHOD` ("none": the damaged input, holes left open) on the same
+sequence, holes, metric, scope and peak (`below_floor`); the mark is information, never gated.
 A row present in the baseline and absent from the current summary is MISSING and fails the gate
 (a method that started crashing must not pass silently). Metrics without a tolerance, and
 INFO_METRICS (facts about the damaged input, such as removed_fraction), are shown as "changed" or
@@ -91,6 +96,9 @@ STATUS_CHANGED = "changed"
 STATUS_MORE_MEMORY, STATUS_LESS_MEMORY = "more memory", "less memory"
 
 SUMMARY_FORMAT = "dpcbench-summary"
+#: the floor of every comparison: the registry method that leaves the damaged input as it is, and its mark
+#: (the same as `bench.tables.FLOOR_METHOD` / `FLOOR_MARK`)
+FLOOR_METHOD, FLOOR_MARK = "none", "▽"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -131,16 +139,105 @@ def _normalize_keys(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
+def _spec_identity(spec_text) -> dict | None:
+    """`bench.config.RunSpec.identity` of a stored spec (what its ids hash, labels excluded), with the
+    sequence's ``path`` kept (two folders are two sequences); None for a spec without sequence,
+    holes and method (test stores, stores of old failures)."""
+    from dpcbench.bench.config import RunSpec
+
+    try:
+        spec = json.loads(spec_text) if isinstance(spec_text, str) else dict(spec_text or {})
+    except (TypeError, ValueError):
+        return None
+    if not all(isinstance(spec.get(k), dict) and spec.get(k) for k in ("sequence", "holes", "method")):
+        return None
+    fields = {"run_id": "", "inpaint_key": "", "experiment": "", "metrics": {}, "protocol": {}, "versions": {}}
+    run = RunSpec(**{**fields, **{k: spec[k] for k in ("sequence", "holes", "method", "metrics", "protocol",
+                                                       "versions") if k in spec}})
+    identity = run.identity()
+    identity["sequence"]["path"] = spec["sequence"].get("path")
+    return identity
+
+
+def cell_identity(spec_text) -> str | None:
+    """A run's cell: the hash (`bench.config.stable_hash`) of its canonical identity
+    (`RunSpec.identity`, the part of the run id that is not labels) minus the hole seed and minus
+    the code versions, so that the seeds of one cell pool and a newer method version replaces an
+    older one; None where the spec does not say (see `_spec_identity`)."""
+    from dpcbench.bench.config import stable_hash
+
+    identity = _spec_identity(spec_text)
+    if identity is None:
+        return None
+    identity["holes"].pop("seed", None)
+    identity.pop("versions", None)
+    return stable_hash(identity)
+
+
+def _flat(value, prefix: str = "") -> dict:
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            out.update(_flat(v, f"{prefix}{k}."))
+        return out
+    return {prefix[:-1]: json.dumps(value, sort_keys=True)}
+
+
+def with_cells(results: pd.DataFrame, runs: pd.DataFrame | None) -> pd.DataFrame:
+    """``results`` with a column ``cell`` (`cell_identity` of each run's stored spec; runs without a
+    spec fall back to RUN_KEY minus the seed) and a ``sequence`` that tells different data apart: where
+    runs that show one sequence label and one damage (holes and their parameters) differ in their
+    sequence or protocol (e.g. two `human` with motion walk and dance), the label gets the settings
+    that differ appended (``human (motion=dance)``).
+    Tables, summaries, `compare` and the dashboard group by these, never by a label alone."""
+    df = results.copy()
+    if runs is None or runs.empty or "spec" not in runs.columns or df.empty:
+        return df
+    specs = runs.drop_duplicates("run_id").set_index("run_id")["spec"]
+    identities = {rid: _spec_identity(specs.get(rid)) for rid in df["run_id"].unique() if rid in specs.index}
+    cells = {rid: cell_identity(specs.get(rid)) for rid in identities}
+    df["cell"] = df["run_id"].map(cells)
+    # data part of a run: its sequence (name, params, frames, path) and protocol (regions, detection)
+    data_part = {rid: _flat({"": ident["sequence"], "protocol": ident["protocol"]}) for rid, ident in identities.items()
+                 if ident is not None}
+    per_label = df.drop_duplicates("run_id")[["run_id", "sequence", "holes", "holes_params"]].copy()
+    per_label["holes_params"] = per_label["holes_params"].map(_canonical_json)
+    rename = {}
+    # a table row (and a summary block) is a sequence label with one damage: different data there
+    # would be averaged together, so that is where labels must differ
+    for (label, _, _), group in per_label.groupby(["sequence", "holes", "holes_params"], sort=False):
+        parts = {rid: data_part[rid] for rid in group["run_id"] if rid in data_part}
+        distinct = {json.dumps(p, sort_keys=True) for p in parts.values()}
+        if len(distinct) < 2:
+            continue
+        keys = sorted({k for p in parts.values() for k in p})
+        varying = [k for k in keys if len({p.get(k) for p in parts.values()}) > 1]
+        for rid, part in parts.items():
+            shown = ", ".join(f"{k[len('.params.'):] if k.startswith('.params.') else k.lstrip('.')}="
+                              f"{json.loads(part[k]) if k in part else '-'}" for k in varying)
+            rename[rid] = f"{label} ({shown})"
+    if rename:
+        df["sequence"] = [rename.get(rid, seq) for rid, seq in zip(df["run_id"], df["sequence"])]
+    return df
+
+
 def newest_runs(results: pd.DataFrame) -> pd.DataFrame:
-    """The rows of the newest run of each cell (RUN_KEY: data, damage and seed, method and its
-    parameters), each run counted once. A store keeps the runs of older code versions (a method's
-    version changes its run ids), which must not be averaged with the current ones."""
+    """The rows of the newest run of each cell and seed, each run counted once. A cell is the
+    ``cell`` column where `with_cells` added one (the run's identity minus the seed), else RUN_KEY
+    minus the seed (data label, damage, method and parameters). A store keeps the runs of older code
+    versions (a method's version changes its run ids), which must not be averaged with the current ones."""
     # a run in two experiments appears once per experiment in the store's table: count it once
     df = _normalize_keys(results.drop_duplicates(["run_id", "frame", "metric", "scope", "peak"]))
+    key = RUN_KEY
+    if "cell" in df.columns:
+        # runs without a stored spec keep RUN_KEY (minus the seed) as their cell
+        fallback = df[[k for k in RUN_KEY if k != "seed"]].astype(str).agg("|".join, axis=1)
+        df["cell"] = df["cell"].where(df["cell"].notna(), "key:" + fallback)
+        key = ["cell", "seed"]
     # the newest run per cell: its first created_at stands for the run
     run_times = df.groupby("run_id", sort=False, dropna=False).agg(created=("created_at", "min"),
-                                                     **{k: (k, "first") for k in RUN_KEY})
-    newest = run_times.sort_values("created").groupby(RUN_KEY, sort=False, dropna=False).tail(1).index
+                                                     **{k: (k, "first") for k in key})
+    newest = run_times.sort_values("created").groupby(key, sort=False, dropna=False).tail(1).index
     return df[df["run_id"].isin(newest)]
 
 
@@ -485,11 +582,13 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
     """The comparison as text: one aligned table per (sequence, holes) block, then a verdict line.
 
     Columns: method (+ params), metric (@peak), scope, baseline, current, change, tolerance,
-    status; the column widths are shared by all blocks so that they line up.
+    floor (`FLOOR_MARK` where `below_floor`), status; the column widths are shared by all blocks so that they line up.
     """
     table = comparison.table
+    below = below_floor(table)
     if only_changes:
         table = table[table["status"] != STATUS_OK]
+        below = below[table.index]
     display = pd.DataFrame({
         "method": [m + (f" ({short_params(p)})" if p != "{}" else "") for m, p in
                    zip(table["method"], table["method_params"])],
@@ -500,6 +599,7 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
         "change": [format_change(k, c, m) for k, c, m in zip(table["kind"], table["change"], table["metric"])],
         "tolerance": [format_tolerance(k, t, m) for k, t, m in
                       zip(table["kind"], table["tolerance"], table["metric"])],
+        "floor": [FLOOR_MARK if b else "" for b in below],
         "status": [s if g or s in (STATUS_OK, STATUS_NEW) else f"{s} (not gated)"
                    for s, g in zip(table["status"], table["gated"])],
     }, index=table.index)
@@ -508,7 +608,7 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
         lines.append("(no rows)" if not only_changes else "(no changes beyond tolerance)")
     else:
         widths = {c: max(len(c), int(display[c].str.len().max())) for c in display.columns}
-        left = {"method", "metric", "scope", "status"}
+        left = {"method", "metric", "scope", "status", "floor"}
 
         def row_text(values: dict) -> str:
             cells = [str(values[c]).ljust(widths[c]) if c in left else str(values[c]).rjust(widths[c])
@@ -534,5 +634,33 @@ def format_comparison(comparison: Comparison, *, only_changes: bool = False, wid
     judged = (f"; speed judged on CPU time for {by_cpu} of {int((time_rows['metric'] == 'time_s').sum())} "
               "time rows, on wall time for the others" if by_cpu else "")
     time_note = (judged if comparison.gate_time else f" (time compared, not gated: use --gate-time{judged})")
+    if below.any():
+        lines.append(f"{FLOOR_MARK} (column floor): the current value is worse than method `{FLOOR_METHOD}` (the damaged "
+                     f"input, holes left open) on the same data: worse than not filling at all ({int(below.sum())} rows).")
     lines.append(f"{verdict}; {len(comparison.table)} rows: {summary}{time_note}")
     return "\n".join(lines)
+
+
+def below_floor(table: pd.DataFrame) -> pd.Series:
+    """Per row of a comparison table: whether its current value is worse (in the metric's direction)
+    than the current value of method `FLOOR_METHOD` (no fill, default parameters) with the same
+    sequence, holes, metric, scope and peak. Metrics without a direction, resources and input facts
+    are never below the floor."""
+    out = pd.Series(False, index=table.index)
+    if table.empty:
+        return out
+    floor_rows = table[(table["method"] == FLOOR_METHOD) & (table["method_params"] == "{}")]
+    keys = ["sequence", "holes", "holes_params", "metric", "scope", "peak"]
+    floor = {tuple(r[k] for k in keys): r["current"] for _, r in floor_rows.iterrows()}
+    for index, row in table.iterrows():
+        metric = row["metric"]
+        entry = _registry.describe(metric)
+        if (row["method"] == FLOOR_METHOD or metric in RESOURCE_METRICS or metric in INFO_METRICS or entry is None
+                or entry.higher_is_better is None):
+            continue
+        f = floor.get(tuple(row[k] for k in keys))
+        c = row["current"]
+        if f is None or c is None or math.isnan(f) or math.isnan(c):
+            continue
+        out[index] = c < f if entry.higher_is_better else c > f
+    return out

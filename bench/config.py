@@ -91,7 +91,8 @@ DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
-_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection", "data_role", "holds_out"}
+_EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection", "data_role", "holds_out",
+                   "pin_isa"}
 #: values of experiment.data_role: data a method was tuned on, and data it never saw
 DATA_ROLES = ("tuning", "heldout")
 REGION_MODES = ("given", "detected", "none")
@@ -390,6 +391,7 @@ class ExperimentConfig:
     description: str = ""
     timeout_s: float = DEFAULT_TIMEOUT_S
     regions: str = "given"
+    pin_isa: bool = False
     detection: dict = field(default_factory=dict)
     data_dir: str | None = None
     data_role: str | None = None
@@ -485,6 +487,9 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
     cfg = ExperimentConfig(name=exp["name"], description=str(exp.get("description", "")), timeout_s=float(timeout),
                            regions=regions, data_dir=exp.get("data_dir"), data_role=role, holds_out=holds_out,
                            source=source)
+    if not isinstance(exp.get("pin_isa", False), bool):
+        raise ConfigError(f"experiment.pin_isa: expected true or false, got {exp['pin_isa']!r}")
+    cfg.pin_isa = exp.get("pin_isa", False)  # run pinned to one instruction set (bench.isa), e.g. a regression gate
     detection = exp.get("detection", {})
     if detection:
         if regions != "detected":

@@ -57,6 +57,8 @@ import pandas as pd
 from dpcbench.bench import compare, palette
 from dpcbench.bench.labels import METRIC_NAMES, SHOWN_UNITS, metric_label  # noqa: F401  (re-exported)
 from dpcbench.bench.paper_facts import PAPER_SEQUENCES
+from dpcbench.bench.tables import FLOOR_MARK, FLOOR_METHOD
+from dpcbench.metrics import registry as _registry
 
 QUALITY_ORDER = ["gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore", "temporal_consistency"]
 #: the methods of the paper's columns first, so that their colours never change when other methods come and go
@@ -793,6 +795,12 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
         columns = [(m, s, p) for s in ("frame", "holes") for m in metrics + ["time_s", "cpu_time_s"] for p in peaks
                    if (m, s, p) in present]
         values = sub.set_index(["label", "metric", "scope", "peak"])
+        # the floor: method "none" (the damaged input, holes left open) in the same block
+        floor_rows = sub[(sub["method"] == FLOOR_METHOD) & (sub["method_params"] == "{}")]
+        floor = {(r.metric, r.scope, r.peak): float(r.mean) for r in floor_rows.itertuples(index=False)
+                 if r.metric not in compare.RESOURCE_METRICS and r.metric not in compare.INFO_METRICS
+                 and _registry.describe(r.metric) is not None and _registry.describe(r.metric).higher_is_better is not None}
+        any_below = False
         best = {}
         for column in columns:
             metric = column[0]
@@ -814,13 +822,20 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
                 mean, std = float(values.loc[key, "mean"]), float(values.loc[key, "std"])
                 css = "num best" if best.get(column) == mean else "num"
                 spread = f" ± {_fmt(std)}" if std and not math.isnan(std) else ""
-                cells.append(f'<td class="{css}">{_e(_fmt(mean))}{_e(spread)}</td>')
+                below = column in floor and (mean < floor[column] if compare.higher_is_better(column[0])
+                                             else mean > floor[column])
+                any_below |= below
+                mark = f' <span class="floor" title="below the floor: worse than no fill">{FLOOR_MARK}</span>' if below else ""
+                cells.append(f'<td class="{css}">{_e(_fmt(mean))}{_e(spread)}{mark}</td>')
             body.append(f'<tr><td><span class="swatch" style="background:{colours[label]}"></span>{_e(label)}</td>'
                         + "".join(cells) + "</tr>")
         params = "" if holes_params == "{}" else f" ({compare.short_params(holes_params, 60)})"
         parts.append(f"<h3>{_e(sequence)} · {_e(holes)}{_e(params)}</h3>"
                      f"<table class='latest'><thead><tr><th>method</th>{head}</tr></thead>"
-                     f"<tbody>{''.join(body)}</tbody></table>")
+                     f"<tbody>{''.join(body)}</tbody></table>"
+                     + (f"<p class='note'>{FLOOR_MARK}: below the floor, a mean worse than method "
+                        f"<code>{FLOOR_METHOD}</code> (the damaged input, holes left open) on the same data: worse "
+                        "than not filling at all.</p>" if any_below else ""))
     return "".join(parts)
 
 
@@ -856,7 +871,10 @@ def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: p
                  baseline: tuple[pd.DataFrame, dict] | None, tolerances: dict[str, float] | None,
                  machines: dict[str, str] | None = None) -> Page:
     """The history, colours, metrics and latest comparison that the sections share; ``machines``
-    (code version -> machine, e.g. of history summaries) adds to those of the runs table."""
+    (code version -> machine, e.g. of history summaries) adds to those of the runs table. Runs group by
+    their cell (`compare.with_cells`: the run's identity minus its seed), never by a label alone."""
+    if runs is not None and len(runs) and "run_id" in results.columns:
+        results = compare.with_cells(results, runs)
     history = build_history(results, {**run_machines(runs), **(machines or {})})
     colours = method_colours(history.table["label"]) if len(history.table) else {}
     metrics_present = set(history.table["metric"]) if len(history.table) else set()

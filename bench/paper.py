@@ -9,6 +9,9 @@ from __future__ import annotations
 
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
+    CLAIMED_NSHD_FACTOR_OVER_HU,
+    CLAIMED_RANKING,
+    CLAIMS,
     HEADLINE_GAIN_DB,
     HU_ET_AL,
     PAPER_COLUMNS,

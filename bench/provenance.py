@@ -66,7 +66,14 @@ def environment() -> dict:
         "git_commit": git_commit(),
         "machine": {"node": platform.node(), "system": platform.system(), "release": platform.release(),
                     "arch": platform.machine(), "cpus": os.cpu_count()},
+        "isa": _isa(),
     }
+
+
+def _isa() -> str:
+    from dpcbench.bench.isa import describe
+
+    return describe()
 
 
 def summary_environment() -> dict:

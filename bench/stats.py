@@ -159,6 +159,35 @@ class RowVerdict:
         return {m for m, v in self.verdicts.items() if v == TIED}
 
 
+def paired(a: dict, b: dict, higher_is_better: bool = True, name: str = "") -> PairedComparison:
+    """``a`` against ``b`` over their shared pair keys (finite values): d = s * (a - b), s = +1 when
+    higher is better, else -1 (d > 0: a did better); mean, bootstrap interval and Wilcoxon p (raw;
+    ``p_holm`` is set to it: correct several with `holm`)."""
+    sign = 1.0 if higher_is_better else -1.0
+    keys = sorted(k for k in set(a) & set(b) if math.isfinite(a[k]) and math.isfinite(b[k]))
+    d = np.array([sign * (a[k] - b[k]) for k in keys])
+    low, high = mean_difference_interval(d)
+    p = signed_rank_p(d)
+    return PairedComparison(name, len(d), float(d.mean()) if len(d) else math.nan, low, high, p, p)
+
+
+def ratio_interval(a: dict, b: dict, confidence: float = CONFIDENCE, n_resamples: int = N_RESAMPLES,
+                   seed: int = SEED) -> tuple[float, float, float]:
+    """(mean(a) / mean(b), low, high) over the shared pair keys: a percentile-bootstrap interval of the
+    ratio of means, resampling whole pairs (`scipy.stats.bootstrap` with ``paired=True``, seeded)."""
+    keys = sorted(k for k in set(a) & set(b) if math.isfinite(a[k]) and math.isfinite(b[k]))
+    x, y = np.array([a[k] for k in keys]), np.array([b[k] for k in keys])
+    if len(keys) == 0 or y.mean() == 0:
+        return (math.nan, math.nan, math.nan)
+    ratio = float(x.mean() / y.mean())
+    if len(keys) < 2 or (np.all(x == x[0]) and np.all(y == y[0])):
+        return (ratio, ratio, ratio) if len(keys) >= 2 else (ratio, math.nan, math.nan)
+    res = _st.bootstrap((x, y), lambda u, v, axis=-1: u.mean(axis=axis) / v.mean(axis=axis), paired=True,
+                        confidence_level=confidence, n_resamples=n_resamples, method="percentile",
+                        rng=np.random.default_rng(seed), vectorized=True)
+    return (ratio, float(res.confidence_interval.low), float(res.confidence_interval.high))
+
+
 def row_verdict(observations: dict[str, dict], higher_is_better: bool | None) -> RowVerdict:
     """The verdicts of one row (see the module docstring for the procedure).
 
@@ -177,13 +206,7 @@ def row_verdict(observations: dict[str, dict], higher_is_better: bool | None) ->
     needed = min_pairs(len(others))
     if not others:
         return RowVerdict(best=best, n=len(obs[best]), needed=needed, verdicts={best: NO_CLAIM})
-    comparisons = {}
-    for m in others:
-        keys = sorted(set(obs[best]) & set(obs[m]), key=repr)
-        d = np.array([sign * (obs[best][k] - obs[m][k]) for k in keys])
-        low, high = mean_difference_interval(d)
-        comparisons[m] = PairedComparison(m, len(d), float(d.mean()) if len(d) else math.nan, low, high,
-                                          signed_rank_p(d))
+    comparisons = {m: paired(obs[best], obs[m], higher_is_better, m) for m in others}
     for m, p in zip(others, holm([comparisons[m].p_value if not math.isnan(comparisons[m].p_value) else 1.0
                                   for m in others])):
         comparisons[m].p_holm = p

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from dpcbench.bench import stats
+from dpcbench.bench.compare import FLOOR_MARK, FLOOR_METHOD  # noqa: F401  (re-exported; their one source)
 
 
 def higher_is_better(metric: str) -> bool | None:
@@ -83,20 +84,18 @@ def given_labels(runs: pd.DataFrame, part: str) -> dict:
     return out
 
 
-#: marks of a cell (Markdown and CSV text; LaTeX has its own): tied with the row's best, and below the floor
+#: the mark of a cell tied with the row's best (Markdown text; LaTeX has its own); the floor's mark and
+#: method (FLOOR_MARK, FLOOR_METHOD: the damaged input left as it is) come from bench.compare
 TIED_MARK = "†"
-FLOOR_MARK = "▽"
-#: the registry method that leaves the damaged input unchanged: every comparison's floor
-FLOOR_METHOD = "none"
 
 
 def md_escape(text) -> str:
-    """A label as one Markdown table cell: backslash, ``|``, ``*``, ``_`` and backtick escaped, ``<``,
-    ``>`` and ``&`` as HTML entities (no raw HTML), line breaks as spaces."""
+    """A label as one Markdown table cell: backslash, ``|``, ``*``, ``_`` and backtick escaped, ``<``
+    as ``&lt;`` (so no raw HTML starts), line breaks as spaces."""
     text = " ".join(str(text).splitlines())
     for ch in ("\\", "|", "*", "_", "`"):
         text = text.replace(ch, "\\" + ch)
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return text.replace("<", "&lt;")
 
 
 _LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",

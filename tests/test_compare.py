@@ -408,4 +408,104 @@ def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
     assert all(line.split()[0] == "temporal-graph" for line in regressed)
     assert "== human · holes: region (coherent=True, count=1, preset=medium)" in failed
     header = next(line for line in failed.splitlines() if line.startswith("method"))
-    assert header.split() == ["method", "metric", "scope", "baseline", "current", "change", "tolerance", "status"]
+    assert header.split() == ["method", "metric", "scope", "baseline", "current", "change", "tolerance", "floor", "status"]
+
+
+# ---------------------------------------------------------------------------------------------
+# one identity per cell
+TWO_HUMANS = """
+[experiment]
+name = "twohuman"
+
+[[sequences]]
+name = "human"
+params = { size = "tiny", motion = "walk" }
+frames = 2
+
+[[sequences]]
+name = "human"
+params = { size = "tiny", motion = "dance" }
+frames = 2
+
+[[holes]]
+generator = "region"
+params = { preset = "medium" }
+seeds = [0, 1]
+
+[[methods]]
+name = "none"
+
+[metrics]
+names = ["gpsnr_d1"]
+peaks = ["intrinsic"]
+scopes = ["frame"]
+"""
+
+
+def test_cell_identity_ignores_seed_and_versions_not_data():
+    from dpcbench.bench.config import parse_config, tomllib
+
+    specs = parse_config(tomllib.loads(TWO_HUMANS), source="t").expand()
+    cells = {}
+    for spec in specs:
+        cells.setdefault(compare.cell_identity(json.dumps(spec.to_dict())), set()).add(
+            (spec.sequence["params"]["motion"], spec.holes["seed"]))
+    # two cells (walk, dance), each holding both seeds
+    assert sorted(map(sorted, cells.values())) == [[("dance", 0), ("dance", 1)], [("walk", 0), ("walk", 1)]]
+    bumped = specs[0].to_dict()
+    bumped["versions"]["method"] = "999"
+    bumped["method"]["label"] = "another label"
+    assert compare.cell_identity(json.dumps(bumped)) == compare.cell_identity(json.dumps(specs[0].to_dict()))
+    assert compare.cell_identity("{}") is None
+
+
+def test_two_sequences_with_one_label_stay_apart_in_report_and_summary(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
+    config = tmp_path / "two.toml"
+    config.write_text(TWO_HUMANS)
+    store = tmp_path / "s.sqlite"
+    assert cli_main(["run", str(config), "--store", str(store), "--quiet", "--executor", "serial"]) == 0
+    runs = ResultsStore(store, readonly=True).runs_frame()
+    assert runs["run_id"].nunique() == 4 and set(runs["sequence"]) == {"human"}
+    assert cli_main(["report", str(store), "--out", str(tmp_path / "rep")]) == 0
+    text = (tmp_path / "rep" / "REPORT.md").read_text()
+    rows = [line.split(" | ")[0] for line in text.splitlines() if line.startswith("| human")]
+    assert "| human (motion=dance)" in rows and "| human (motion=walk)" in rows
+    assert cli_main(["compare", "--store", str(store), "--experiment", "twohuman",
+                     "--save-current", str(tmp_path / "cur.csv")]) in (0, 1)
+    current, _ = compare.read_summary(tmp_path / "cur.csv")
+    gpsnr = current[current["metric"] == "gpsnr_d1"].set_index("sequence")
+    assert sorted(gpsnr.index) == ["human (motion=dance)", "human (motion=walk)"]
+    assert gpsnr["n_frames"].tolist() == [4, 4]  # 2 frames x 2 seeds each, never merged
+    # each value is its own data's: the walk's mean is the mean of the walk runs only
+    df = ResultsStore(store, readonly=True).results_frame()
+    walk = set(runs[runs["spec"].str.contains('"walk"')]["run_id"])
+    expected = df[(df["metric"] == "gpsnr_d1") & (df["frame"] >= 0) & df["run_id"].isin(walk)]["value"].mean()
+    assert gpsnr.loc["human (motion=walk)", "mean"] == pytest.approx(expected)
+
+
+def test_compare_marks_rows_below_the_floor():
+    values = {("none", "gpsnr_d1", "frame"): 15.0, ("a", "gpsnr_d1", "frame"): 10.0,
+              ("b", "gpsnr_d1", "frame"): 20.0, ("none", "nshd", "frame"): 1e-7, ("a", "nshd", "frame"): 5e-8,
+              ("b", "nshd", "frame"): 2e-7, ("a", "time_s", "frame"): 9.0, ("none", "time_s", "frame"): 0.1}
+    result = compare.compare_summaries(summary(values), summary(values))
+    below = compare.below_floor(result.table)
+    flagged = set(zip(result.table.loc[below, "method"], result.table.loc[below, "metric"]))
+    assert flagged == {("a", "gpsnr_d1"), ("b", "nshd")}  # lower PSNR / higher NSHD than no fill; time never
+    text = result.format()
+    line_a = next(line for line in text.splitlines() if line.startswith("a ") and "gpsnr_d1" in line)
+    line_b = next(line for line in text.splitlines() if line.startswith("b ") and "gpsnr_d1" in line)
+    assert line_a.split()[-2:] == [compare.FLOOR_MARK, "✓"] and compare.FLOOR_MARK not in line_b
+    assert "worse than not filling at all (2 rows)" in text
+
+
+def test_dashboard_latest_table_marks_the_floor():
+    from dpcbench.bench import dashboard
+
+    df = results_frame({("none", "gpsnr_d1", "frame"): [15.0], ("a", "gpsnr_d1", "frame"): [10.0],
+                        ("b", "gpsnr_d1", "frame"): [20.0]})
+    history = dashboard.build_history(df)
+    html_text = dashboard.latest_table(history, dashboard.method_colours(history.table["label"]), ["gpsnr_d1"])
+    rows = {r.split("</span>", 1)[1].split("</td>", 1)[0]: r for r in html_text.split("<tr>")[2:]}
+    assert compare.FLOOR_MARK in rows["a"] and compare.FLOOR_MARK not in rows["b"].split("</tr>")[0]
+    assert "below the floor" in html_text

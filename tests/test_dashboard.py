@@ -378,14 +378,14 @@ def test_paper_gaps_per_sequence_and_hole_configuration(tmp_path):
 
 
 def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypatch, capsys):
-    """The README's flow: `reproduce-paper --quick` (here with 2 frames a sequence to keep it short),
+    """The README's flow: `reproduce-paper --quick` (here with 2 frames a sequence and one seed to keep it short),
     then `dpcbench dashboard` on the same store, and the page opened in a real browser: the gaps to
     the paper are shown per sequence and hole configuration."""
     if shutil.which("chromium") is None and shutil.which("chromium-browser") is None:
         pytest.skip("chromium is not installed (Debian: apt-get install chromium; ./install.sh --dev installs it)")
     monkeypatch.setenv("DPCBENCH_QUIET", "1")
     store = str(tmp_path / "results.sqlite")
-    code = cli_main(["reproduce-paper", "--quick", "--frames", "2", "--out", str(tmp_path / "r"), "--store", store])
+    code = cli_main(["reproduce-paper", "--quick", "--frames", "2", "--seeds", "0", "--out", str(tmp_path / "r"), "--store", store])
     out = capsys.readouterr().out
     assert code == 0, out
     assert (tmp_path / "r" / "REPORT.md").is_file()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 
 import numpy as np
 import pandas as pd
@@ -443,7 +444,7 @@ def test_labels_are_escaped_in_every_format():
     from dpcbench.bench.tables import csv_safe, latex_escape, md_escape
 
     evil = "x|y\n<b>z</b> 50% {a}_\\"
-    assert md_escape(evil) == "x\\|y &lt;b&gt;z&lt;/b&gt; 50% {a}\\_\\\\"
+    assert md_escape(evil) == "x\\|y &lt;b>z&lt;/b> 50% {a}\\_\\\\"
     assert latex_escape(evil) == r"x|y \textless{}b\textgreater{}z\textless{}/b\textgreater{} 50\% \{a\}\_\textbackslash{}"
     assert [csv_safe(v) for v in ("=1+1", "+a", "-b", "@c", "ok", -1.5)] == ["'=1+1", "'+a", "'-b", "'@c", "ok", -1.5]
     df = _tidy({("=HYPERLINK(1)", "a|b"): 10.0, ("=HYPERLINK(1)", "50%"): 11.0})
@@ -458,3 +459,50 @@ def test_one_precision_per_table():
                          decimals=None)
     # the smallest mean (0.00111) gets 3 significant digits: 5 decimals for every value
     assert t.cell_text("S", "b").startswith("12.00011 [") and t.cell_text("S", "a").startswith("0.00111 [")
+
+
+def test_the_paper_claims_are_judged(tmp_path):
+    from dpcbench.bench.reports import claims_markdown, gains_claim, nshd_claim, ranking_claim
+
+    df = _store_with_results(tmp_path / "s.sqlite", seeds=(0, 1, 2)).results_frame("exp")
+    t1, t2 = paper_tables(df, standins=True)
+    # Proposed > Hu > Lozes > Meshlab by 5 dB on every pair, and the reverse order in NSHD: the order holds
+    ranking = ranking_claim(t1, t2)
+    assert ranking["verdict"] == "reproduced", ranking
+    assert ranking["measured"].startswith("12 of 12 claimed pairs hold, 0 reversed (n = 9 pairs each")
+    # on stand-ins a dB gain and an NSHD factor are not testable, on the paper's data they are judged
+    assert gains_claim(t1, standins=True)["verdict"] == "not testable on this data"
+    gains = gains_claim(t1, standins=False)
+    assert gains["verdict"] == "not reproduced"  # +15 / +10 / +5 dB, every interval below the paper's gains
+    assert "over Meshlab +15.00 dB [+15.00, +15.00] (paper +26.80 dB)" in gains["measured"]
+    nshd = nshd_claim(t2, standins=False)
+    assert nshd["verdict"] == "not reproduced" and "x2.00" in nshd["measured"]  # Hu's NSHD is 2x Proposed's
+    text = claims_markdown(t1, t2, standins=True)
+    assert "**On stand-ins the order of the methods can be tested" in text
+    assert text.count("| **") == 3
+
+
+def test_a_reversed_order_is_not_reproduced_and_says_why(tmp_path):
+    from dpcbench.bench.reports import ranking_claim
+
+    df = _store_with_results(tmp_path / "s.sqlite", seeds=(0, 1, 2)).results_frame("exp")
+    swap = {"lozes-pde": "temporal-graph", "temporal-graph": "lozes-pde"}
+    flipped = df.assign(method=df["method"].map(lambda m: swap.get(m, m)),
+                        method_params=[json.dumps(PAPER_PARAMS[swap.get(m, m)]) for m in df["method"]])
+    t1, t2 = paper_tables(flipped, standins=True)
+    ranking = ranking_claim(t1, t2)
+    assert ranking["verdict"] == "not reproduced"
+    assert "Lozes > Hu beyond the interval" in ranking["why"] and "Hu > Proposed" in ranking["why"]
+
+
+def test_paper_report_has_the_claims_and_its_provenance(tmp_path):
+    store = _store_with_results(tmp_path / "s.sqlite", seeds=(0, 1, 2))
+    df, runs = store.results_frame("exp"), store.runs_frame("exp")
+    computed = set(runs["run_id"][:5])
+    report = write_paper_report(df, runs, tmp_path / "out", standins=True, preset="paper-quick", command="c",
+                                elapsed_s=60, figure_notes={}, store_path=store.path, computed=computed)
+    text = report.read_text()
+    assert "## The paper's claims" in text
+    n = df["run_id"].nunique()
+    assert (f"Provenance: {n} runs in this report: 5 computed now (code abc (5)); {n - 5} read from the store, "
+            f"computed before (code abc ({n - 5})); results store `{store.path}`") in text

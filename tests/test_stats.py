@@ -116,3 +116,19 @@ def test_pairs_are_matched_by_key_not_position():
 def test_no_direction_no_verdict():
     v = stats.row_verdict(_rows({"a": [1.0, 2.0], "b": [3.0, 4.0]}), higher_is_better=None)
     assert v.best is None and v.verdicts == {}
+
+
+def test_ratio_interval_of_proportional_pairs_is_the_factor():
+    a = {(f, 0): 3.0 * (f + 1) for f in range(6)}
+    b = {(f, 0): float(f + 1) for f in range(6)}
+    ratio, lo, hi = stats.ratio_interval(a, b)
+    assert ratio == pytest.approx(3.0) and lo == pytest.approx(3.0) and hi == pytest.approx(3.0)
+    c = {(f, 0): 2.0 * (f + 1) + (0.5 if f % 2 else -0.5) for f in range(6)}
+    ratio, lo, hi = stats.ratio_interval(c, b)
+    assert ratio == pytest.approx(np.mean(list(c.values())) / 3.5) and lo < ratio < hi
+
+
+def test_paired_orients_by_direction():
+    a, b = {(0, 0): 1.0, (1, 0): 2.0}, {(0, 0): 2.0, (1, 0): 4.0}
+    assert stats.paired(a, b, True).mean_difference == pytest.approx(-1.5)
+    assert stats.paired(a, b, False).mean_difference == pytest.approx(1.5)

@@ -62,6 +62,8 @@ def current_from_store(store_path, experiment: str | None):
         known = ", ".join(sorted(map(str, results["experiment"].dropna().unique())))
         raise UserError(f"no runs of experiment {experiment!r} in the store (it has: {known}); "
                         "pass --experiment NAME")
+    # cells by the runs' identity (minus the seed), so two different runs never merge under one label
+    results = compare.with_cells(results, runs)
     summary = compare.summarize(results, experiment=experiment or None)
     chosen = results if not experiment else results[results["experiment"] == experiment]
     environment = _run_environment(runs, set(chosen["run_id"]))
@@ -92,6 +94,20 @@ def _run_environment(runs, run_ids) -> dict | None:
         else:
             flat[key] = str(value)
     return flat
+
+
+def machine_line(meta: dict) -> str:
+    """Which machine and instruction set made a summary, from its ``env.*`` header (the run
+    environment: node, arch, cpus, isa as `bench.isa.describe` wrote it)."""
+    node, arch, cpus = meta.get("env.node"), meta.get("env.arch"), meta.get("env.cpus")
+    machine = (f"{node or '?'} ({arch or '?'}, {cpus or '?'} cpus)" if node or arch
+               else meta.get("env.machine", "machine not recorded"))
+    return f"made on {machine}; instruction set: {meta.get('env.isa') or 'not recorded (made before dpcbench recorded it)'}"
+
+
+def _pin_part(isa: str) -> str:
+    """The part of a `bench.isa.describe` text that decides the last bits: the dispatch (pinned or not)."""
+    return isa.split("; ", 1)[-1]
 
 
 def load_side(path: str | None, *, store: str | None, experiment: str | None, role: str):
@@ -135,8 +151,15 @@ def run(args) -> int:
 
     print(f"baseline: {baseline_path}  (code {baseline_meta.get('code_version', '?')}, "
           f"{baseline_meta.get('date', '?')})")
+    print(f"          {machine_line(baseline_meta)}")
     print(f"current:  {args.current or args.store or 'results store'}  (code "
           f"{current_meta.get('code_version', '?')}, {current_meta.get('date', '?')})")
+    print(f"          {machine_line(current_meta)}")
+    isas = (baseline_meta.get("env.isa"), current_meta.get("env.isa"))
+    if None not in isas and _pin_part(isas[0]) != _pin_part(isas[1]):
+        print("note: baseline and current were computed with different instruction sets; temporal-graph and "
+              "fu-nonlocal can move 0.1-0.5 dB from that alone (run the regression preset, which pins itself: "
+              "pin_isa in bench/presets/regression.toml)")
     print(f"tolerances: {tolerance_file or 'built-in defaults'}")
     print()
     print(result.format(only_changes=args.changes_only))

@@ -11,7 +11,9 @@ from dpcbench.bench.errors import UserError
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "report", help="method comparison report (Markdown, LaTeX, CSV tables and figures) from a results store",
-        description="Tables (rows = sequences, columns = methods, mean ± std over frames, best per row in bold) "
+        description="Tables (rows = sequences, columns = methods, mean and 95% interval over frames x seeds; bold: "
+                    "best beyond every other's interval, paired Wilcoxon signed-rank with Holm; the no-fill floor "
+                    "marked) "
                     "for every metric and scope of an experiment, bar charts, per-frame curves, runtime, failures.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("results", help="results store (SQLite file) or a folder holding results.sqlite")
@@ -68,6 +70,6 @@ def main(args) -> int:
     out = guard.folder(args.out, "--out")
     with guard.staged(out) as staged:  # written aside, moved in once no file of the user's would be replaced
         report = write_comparison_report(df, runs, staged, title=f"Method comparison: experiment {experiment}",
-                                         metrics=metrics)
+                                         metrics=metrics, store_path=store.path)
     print(f"report: {out / Path(report).relative_to(staged)}")
     return 0

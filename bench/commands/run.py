@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from pathlib import Path
 
 from dpcbench.bench.errors import UserError
@@ -78,6 +79,12 @@ def main(args) -> int:
         _check_runs_dir(args.runs_dir)
     store = ResultsStore(args.store, verify=True)
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
+    if cfg.pin_isa:  # the workers start after this, with the pin in their environment before numpy loads
+        from dpcbench.bench import isa
+
+        pinned = isa.pin()
+        print(f"experiment {cfg.name!r}: pin_isa = true, workers run with "
+              + " ".join(f"{k}={v!r}" for k, v in sorted(pinned.items())) + " (bench/isa.py)", file=sys.stderr)
     summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
                              scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
                              quiet=quiet, timeout_s=args.timeout)
