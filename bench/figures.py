@@ -5,6 +5,7 @@ which draw point clouds through `bench.render.render_clouds`.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import matplotlib
@@ -15,46 +16,83 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from dpcbench.bench import palette  # noqa: E402
 from dpcbench.bench.tables import ComparisonTable, frame_values  # noqa: E402
 from dpcbench.metrics.neighbours import median_neighbour_distance  # noqa: E402
 
 
-def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = "") -> Path:
-    """Grouped bars (one group per sequence, one bar per method) with ±std error bars; the paper's
-    values, when the table has them, as hatched bars in a second panel."""
-    panels = [("ours", table.rows, lambda r, c: (table.mean.get((r, c)), table.std.get((r, c))))]
+def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = "", names: dict[str, str] | None = None,
+              width_in: float | None = None) -> Path:
+    """Grouped bars for print (one group per table row, one bar per column) with the cells' 95%
+    intervals (`ComparisonTable.interval`, clipped at the metric's lower bound 0 for distances and
+    NSHD); the floor column (`table.floor`, no fill) is a dashed black line across each group rather
+    than a bar, and a bar below it carries the table's floor mark. The paper's values, when the table
+    has them, are a second panel on the same y scale. Colours follow the methods' registry names
+    (``names``: column label -> registry name; default: the label up to " ("), `bench.palette`.
+    Written as PNG (300 dpi) and PDF beside it, at double-column width unless ``width_in``."""
+    from dpcbench.bench.labels import metric_label
+    from dpcbench.bench.tables import FLOOR_MARK
+
+    names = names or {}
+    columns = [c for c in table.columns if c != table.floor]
+    colours = palette.configuration_colours((c, names.get(c, c.split(" (")[0])) for c in columns)
+    panels = [("this run", table.rows)]
     if table.paper:
-        panels.append(("paper", list(table.paper), lambda r, c: (table.paper[r].get(c), None)))
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels) + 1, 4.2), squeeze=False)
-    width = 0.8 / max(1, len(table.columns))
-    colors = plt.cm.tab10(np.arange(len(table.columns)))
-    for ax, (source, rows, get) in zip(axes[0], panels):
-        x = np.arange(len(rows))
-        for k, col in enumerate(table.columns):
-            means, errs = [], []
-            for r in rows:
-                m, s = get(r, col)
-                scale = table.scale if source == "ours" else 1.0
-                means.append(np.nan if m is None else m * scale)
-                errs.append(0.0 if s is None else s * scale)
-            ax.bar(x + (k - (len(table.columns) - 1) / 2) * width, means, width,
-                   yerr=errs if source == "ours" else None,
-                   label=col, color=colors[k], hatch="//" if source == "paper" else None, capsize=2,
-                   edgecolor="black", linewidth=0.4)
-        ax.set_xticks(x)
-        ax.set_xticklabels(rows, rotation=15, ha="right", fontsize=8)
-        unit = f" (x{1 / table.scale:g})" if table.scale != 1 else ""
-        ax.set_ylabel(f"{table.metric}{unit}")
-        ax.set_title(f"{'ours' if source == 'ours' else 'paper (published)'}", fontsize=10)
-        ax.grid(axis="y", alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(table.title + (f"\n{subtitle}" if subtitle else ""), fontsize=10)
-    fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+        panels.append(("paper (published)", list(table.paper)))
+    lower_bound = 0.0 if table.metric in ("nshd", "hausdorff", "chamfer") else -math.inf
+    width_in = width_in or DOUBLE_COLUMN_IN
+    with plt.rc_context(print_style()):
+        fig, axes = plt.subplots(1, len(panels), figsize=(width_in, 2.9), squeeze=False, sharey=True,
+                                 gridspec_kw={"width_ratios": [max(1, len(rows)) for _, rows in panels]})
+        width = 0.8 / max(1, len(columns))
+        for ax, (source, rows) in zip(axes[0], panels):
+            x = np.arange(len(rows))
+            for k, col in enumerate(columns):
+                means, low, high = [], [], []
+                for r in rows:
+                    if source == "this run":
+                        m = table.mean.get((r, col))
+                        lo, hi = table.interval(r, col) if m is not None else (math.nan, math.nan)
+                        m, lo, hi = (math.nan if v is None else v * table.scale for v in (m, lo, hi))
+                    else:
+                        m = table.paper[r].get(col, math.nan) if table.paper else math.nan
+                        lo = hi = math.nan
+                    lo = max(lo, lower_bound) if not math.isnan(lo) else lo
+                    means.append(m)
+                    low.append(0.0 if math.isnan(lo) else m - lo)
+                    high.append(0.0 if math.isnan(hi) else hi - m)
+                offsets = x + (k - (len(columns) - 1) / 2) * width
+                ax.bar(offsets, means, width, yerr=[low, high] if source == "this run" else None, label=col,
+                       color=colours[col], hatch="//" if source != "this run" else None, capsize=1.5,
+                       edgecolor="black", linewidth=0.3, error_kw={"linewidth": 0.6})
+                if source == "this run":
+                    for xo, r, m in zip(offsets, rows, means):
+                        if table.below_floor(r, col):
+                            ax.annotate(FLOOR_MARK, (xo, m), ha="center", va="bottom", fontsize=MIN_TEXT_PT)
+            if source == "this run" and table.floor:
+                for i, r in enumerate(rows):
+                    f = table.mean.get((r, table.floor))
+                    if f is not None:
+                        ax.hlines(f * table.scale, i - 0.45, i + 0.45, colors="black", linestyles="--", linewidth=1.0,
+                                  label=table.floor if i == 0 else None)
+            ax.set_xticks(x)
+            ax.set_xticklabels([_wrap(r, 18) for r in rows])
+            ax.set_title(source, loc="left")
+            ax.grid(axis="y", alpha=0.3)
+        scale = f" (x{1 / table.scale:.0e})".replace("e-0", "e-") if table.scale != 1 else ""
+        axes[0][0].set_ylabel(metric_label(table.metric) + scale)
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        fig.suptitle(table.title + (f"\n{subtitle}" if subtitle else ""))
+        fig.tight_layout()
+        fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, frameon=False)
+        return save_figure(fig, out_png)
+
+
+def _wrap(text: str, width: int) -> str:
+    """``text`` broken into lines of at most ``width`` characters (at spaces), for tick labels."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(str(text), width)) or str(text)
 
 
 #: print widths (inches) of an IEEE-style page: one column and the full text width
@@ -78,8 +116,6 @@ def print_style() -> dict:
 def column_colours(sel: pd.DataFrame, columns: list[str]) -> dict[str, str]:
     """A colour per column label from `bench.palette`, by the registry name of the method behind it
     (``sel`` has the ``column`` and ``method`` columns)."""
-    from dpcbench.bench import palette
-
     name_of = sel.drop_duplicates("column").set_index("column")["method"].to_dict() if "method" in sel else {}
     return palette.configuration_colours((c, str(name_of.get(c, c))) for c in columns)
 

@@ -548,8 +548,9 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
     write_table(t1, tables_dir, "table1_gpsnr")
     write_table(t2, tables_dir, "table2_nshd")
     subtitle = "embedded stand-ins, not the paper's data" if standins else ""
-    figures.bar_chart(t1, fig_dir / "table1_gpsnr.png")  # the titles say "(embedded stand-ins)"
-    figures.bar_chart(t2, fig_dir / "table2_nshd.png")
+    names = {label: name for name, label, _, _ in paper.TABLE_COLUMNS}  # column label -> registry name (colours)
+    figures.bar_chart(t1, fig_dir / "table1_gpsnr.png", names=names)  # the titles say "(embedded stand-ins)"
+    figures.bar_chart(t2, fig_dir / "table2_nshd.png", names=names)
     figures.per_frame_curves(df, "gpsnr_d1", "frame", "intrinsic", fig_dir / "per_frame_gpsnr.png",
                              column_of=paper_column, columns=paper.ALL_COLUMNS,
                              title="GPSNR D1 (intrinsic peak, whole frame) per frame" + (f" – {subtitle}" if subtitle else ""))

@@ -59,3 +59,29 @@ def test_print_style_keeps_text_readable():
     style = figures.print_style()
     assert min(v for k, v in style.items() if k.endswith("size")) >= figures.MIN_TEXT_PT
 
+
+
+def test_bar_chart_intervals_floor_and_colours(tmp_path, monkeypatch):
+    from dpcbench.bench.tables import comparison_table
+
+    df = _frames(sequences=("human", "bunny"))
+    df["seed"] = 0
+    table = comparison_table(df, "nshd", column_of=lambda sel: sel["method"], scale=1e7, decimals=None)
+    drawn = {}
+    original = figures.plt.Axes.bar
+
+    def bar(self, x, height, *args, **kwargs):
+        drawn[kwargs.get("label")] = (kwargs.get("color"), kwargs.get("yerr"))
+        return original(self, x, height, *args, **kwargs)
+
+    monkeypatch.setattr(figures.plt.Axes, "bar", bar)
+    out = figures.bar_chart(table, tmp_path / "t.png")
+    assert out.exists() and out.with_suffix(".pdf").exists()
+    assert "none" not in drawn  # the floor is a line, not a bar
+    colour, (low, high) = drawn["fu-nonlocal"]
+    assert colour == palette.METHOD_COLOURS["fu-nonlocal"]
+    lo, hi = table.interval("human", "fu-nonlocal")
+    assert high[0] == pytest.approx(hi * 1e7 - table.mean[("human", "fu-nonlocal")] * 1e7)
+    assert low[0] == pytest.approx(table.mean[("human", "fu-nonlocal")] * 1e7 - max(lo * 1e7, 0.0))
+    height, width = matplotlib.image.imread(out).shape[:2]
+    assert width / height < 3.0
