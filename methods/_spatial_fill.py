@@ -1,7 +1,8 @@
-"""The spatial fills of `temporal-fusion` (steps 6, 6c, 6d, 6e and 6f of `methods.temporal_fusion`'s module
-docstring, which says when each runs, why, and what it measured): surfaces for the parts of a hole that no
-frame saw, each with the tests that decide whether it is trusted, and the agreement rule of step 4 they share
-with the copies. Step 6b, the advancing front, is `methods._front_fill`.
+"""The spatial fills of `temporal-fusion` (its stage `methods.temporal_fusion.spatial` says when each runs;
+docs/temporal-fusion.md why, and what it measured; the step numbers below are the labels used there): surfaces
+for the parts of a hole that no frame saw, each with the tests that decide whether it is trusted, and the
+agreement rule of step 4 (stage fuse) they share with the copies. Step 6b, the advancing front, is
+`methods._front_fill`.
 
 - `rim_surface_fill` (step 6): a thin-plate-spline height field over the rim's PCA plane; `rim_sheet` (step 6f)
   narrows its support to the hole's own sheet.
