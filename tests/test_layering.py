@@ -21,7 +21,7 @@ PREFIX = "dpcbench."
 #: known imports of a method module from below, each with the reason it is still there
 KNOWN_METHOD_IMPORTS = {
     # step 6e's membrane is LozesPDE's graph fill (seed_hole / evolve); moving the graph below the methods is open
-    ("methods/_spatial_fill.py", "dpcbench.methods.lozes_pde"),
+    ("methods/_spatial_fill/membrane.py", "dpcbench.methods.lozes_pde"),
 }
 
 

@@ -189,3 +189,18 @@ def test_fill_region_returns_the_next_frame_s_motion_only_where_the_region_staye
     on = FusionConfig(window=1)
     record = fill_region(on, sequence(frames, [[region], [region]], on, False, spacing), 0, region, np.zeros((0, 3)))
     assert len(record.points) and record.next_motion is None
+
+
+def test_with_every_ablation_switch_off_the_oldest_pipeline_still_fills_a_hole_a_neighbour_saw():
+    """All of `ABLATIONS` False (the pipeline before any of those steps): a hole that frame 0 and 2 saw is still
+    copied onto the hidden surface, as by the defaults."""
+    base = bumpy_sphere()
+    region = HoleRegion.ball(base[100], 5.0)
+    hidden = base[region.contains(base)]
+    frames = [base.copy(), base[~region.contains(base)], base.copy()]
+    spacing = float(np.median(cKDTree(base).query(base, k=2)[0][:, 1]))
+    for params in ({}, {name: False for name in ABLATIONS}):
+        out = TemporalFusion(window=1, **params).inpaint(frames, [[], [region], []])
+        fill = out[1][len(frames[1]):]
+        assert len(fill) >= 0.8 * len(hidden), params
+        assert np.median(cKDTree(hidden).query(fill)[0]) < 0.2 * spacing, params

@@ -64,6 +64,8 @@ def align_frame(cfg: FusionConfig, seq: SequenceData, g: int, region: HoleRegion
         rotation, translation = icp_align(even_subset(source[in_shell], ICP_POINTS), local,
                                           max_distance=max_distance, max_iterations=int(cfg.icp_iterations),
                                           init=(rotation, translation))
+    if source is None:  # an empty schedule: nothing aligned
+        return None
     source_tree = cKDTree(source)
     residual = alignment_residual(source_tree, rim, rotation, translation)
     if cfg.refine:

@@ -3,6 +3,7 @@ rim's normal displacement field carried into the hole (Shepard interpolation).""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +16,7 @@ from dpcbench.metrics.neighbours import estimate_normals
 
 
 def seen_rim_residual(source_tree: cKDTree, rim: np.ndarray, rotation: np.ndarray, translation: np.ndarray,
-                      source_holes: list[HoleRegion]) -> float:
+                      source_holes: Sequence[HoleRegion]) -> float:
     """`alignment_residual` of ``rim`` (K, 3) to the source moved by (R, t), over the rim points whose
     place in the source's frame, (q - t) R, lies in none of ``source_holes`` (the source frame's own hole
     regions, in its coordinates): a rim point where the source has a hole has no counterpart there, and
