@@ -1,5 +1,5 @@
 """An advancing-front spatial fill for holes that no frame saw and that one surface over the whole hole
-cannot describe (temporal-fusion's step 6b; see `methods.temporal_fusion`'s module docstring).
+cannot describe (temporal-fusion's step 6b, the `Front` of `methods.temporal_fusion.spatial`; docs/temporal-fusion.md).
 
 The hole is grown inwards from its rim one cell shell a round, on a cubic lattice of cell edge ``cell``
 (one voxel on voxelized data, one point spacing s otherwise). A free lattice cell inside the region is

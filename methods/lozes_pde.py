@@ -67,10 +67,9 @@ from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._geometry import detect_regions, sampling_step  # sampling_step re-exported
 from dpcbench.methods.base import PerFrameMethod, Regions
-from dpcbench.methods.reference import detect_regions
 from dpcbench.metrics.errors import UserError
-from dpcbench.metrics.neighbours import point_spacing
 
 
 class LozesPDE(PerFrameMethod):
@@ -216,23 +215,6 @@ class LozesPDE(PerFrameMethod):
         grad = np.sqrt(np.bincount(rows, weights=edge_w * diff2, minlength=len(positions)) + eps ** 2)
         power = grad ** (self.p - 2.0)
         return edge_w * (power[rows] + power[cols])
-
-
-def sampling_step(points: np.ndarray, sample: int = 2000, radius_spacings: float = 4.0) -> float:
-    """Grid step s (same units as ``points`` (N, 3)) that reproduces the frame's areal density:
-    s = 1 / sqrt(rho), rho = median over ~``sample`` probe points (even stride) of
-    #{neighbours within r} / (pi r^2), r = ``radius_spacings`` * `metrics.neighbours.point_spacing`.
-
-    Counting in a ball a few spacings wide is right for any sampling pattern: it gives s = 1.01 on a
-    unit voxel grid, where nearest-neighbour spacings are exact, and 2.82 (not 3.14 as the 8-NN
-    spacing) on dfaust_50004_punching, whose points are not evenly spread.
-    """
-    tree = cKDTree(points)
-    radius = radius_spacings * point_spacing(points, tree=tree)
-    probe = points[:: max(1, len(points) // sample)]
-    counts = tree.query_ball_point(probe, radius, return_length=True, workers=-1)
-    density = float(np.median(counts)) / (np.pi * radius ** 2)
-    return 1.0 / np.sqrt(density)
 
 
 def _solve_dirichlet(gamma: sp.csr_matrix, positions: np.ndarray, n_known: int) -> np.ndarray:

@@ -20,7 +20,7 @@ Pipeline (pymeshlab filter names as in pymeshlab 2025.7):
      area(reconstructed): ball pivoting leaves ~12% of the dfaust points unreferenced, closing
      those gaps counts as new area (110k samples for a 99.6k-point dfaust frame).
    - ``output="holes-only"``: the input points are kept and points are added only on the hole
-     faces, at the input's areal density 1 / s^2 (s = `methods.lozes_pde.sampling_step`; the
+     faces, at the input's areal density 1 / s^2 (s = `methods._geometry.sampling_step`; the
      closing faces are flat, so their area is not inflated).
      Hole faces: those ``meshing_close_holes`` created; with Poisson reconstruction, which leaves
      no holes to close, also the faces whose centroid is farther than ``s`` from every input
@@ -68,8 +68,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._geometry import sampling_step
 from dpcbench.methods.base import PerFrameMethod, Regions
-from dpcbench.methods.lozes_pde import sampling_step
 from dpcbench.metrics.errors import UserError
 
 

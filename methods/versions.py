@@ -6,8 +6,8 @@ or stale results are reused (a forgotten bump once broke CI). As asv does for it
 the sha256 of its source files; ``tests/test_method_versions.py`` recomputes them and fails when a
 source changed while the version did not.
 
-The source files of a method: its own module plus every module of the ``methods`` package it
-imports, directly or through another (``_cubes``, ``_graph``, ``_registration``, and a public module
+The source files of a method: its own module (a package's ``__init__.py``) plus every module of the
+``methods`` package it imports, directly or through another (``_cubes``, ``_graph``, ``_registration``, and a public module
 such as ``reference`` whose helpers it calls), lazy imports inside functions included. Left out:
 ``methods/base.py`` and ``methods/registry.py`` (the interface and the names, shared by all) and
 modules outside ``methods`` (``holes.geometry.point_spacing``, ``metrics``), which have their own
@@ -60,7 +60,10 @@ class Record:
 
 
 def _module_path(module: str) -> Path:
-    return PACKAGE_DIR / (module.removeprefix(PREFIX).replace(".", "/") + ".py")
+    """The source file of a ``dpcbench.methods.*`` module: ``name.py``, or ``name/__init__.py`` for a package."""
+    stem = PACKAGE_DIR / module.removeprefix(PREFIX).replace(".", "/")
+    package = stem / "__init__.py"
+    return package if package.is_file() and not stem.with_suffix(".py").is_file() else stem.with_suffix(".py")
 
 
 def _imported_methods_modules(module: str) -> set[str]:

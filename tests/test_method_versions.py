@@ -32,7 +32,11 @@ def test_source_files_follow_private_helpers_and_lazy_imports():
     assert "methods/base.py" not in graph and "methods/registry.py" not in graph
     # temporal-fusion shares the registration helper with temporal-graph
     assert "methods/_registration.py" in versions.source_files("temporal-fusion")
-    assert versions.source_files("none") == ["methods/reference.py"]
+    assert versions.source_files("none") == ["methods/_geometry.py", "methods/reference.py"]
+    # a method that is a package: its __init__ and every stage module it imports, not another method's module
+    fusion = versions.source_files("temporal-fusion")
+    assert "methods/temporal_fusion/__init__.py" in fusion and "methods/temporal_fusion/spatial.py" in fusion
+    assert "methods/reference.py" not in fusion and "methods/_geometry.py" in fusion
     with pytest.raises(KeyError, match="unknown method"):
         versions.source_files("no-such-method")
 

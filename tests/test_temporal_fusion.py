@@ -1,5 +1,5 @@
 """temporal-fusion: each step on constructed cases with known answers, and the whole method on
-surfaces whose hidden part is known (methods/temporal_fusion.py)."""
+surfaces whose hidden part is known (methods/temporal_fusion/)."""
 
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from dpcbench.methods._spatial_fill import (
     plane_offsets,
     rim_sheet,
     rim_surface_fill,
+    unique_voxels,
 )
 from dpcbench.methods.temporal_fusion import (
     COPY_REACH,
@@ -40,8 +41,9 @@ from dpcbench.methods.temporal_fusion import (
     rim_displacement,
     snap_to_voxels,
     surface_voxels,
-    unique_voxels,
 )
+from dpcbench.methods.temporal_fusion.config import FusionConfig
+from dpcbench.methods.temporal_fusion.settle import over_captured
 
 
 def sphere(n: int, radius: float = 50.0) -> np.ndarray:
@@ -226,7 +228,7 @@ def test_on_voxelized_input_a_layer_is_a_voxel_the_captured_plane_does_not_cross
     """A plane voxelized by the exact plane-cube test (every cube it crosses), a disc of radius 3 taken out as the
     fill of a gap: those voxels are the plane's own. At the float bound (0.5 off a plane of 16 voxels within 2) some
     of them read as a layer over the rest (a staircase scatters up to half a cube diagonal about its plane); step
-    7b's voxel rule (`TemporalFusion._over_captured`: does the plane of the 50 captured voxels within 4 cross the
+    7b's voxel rule (`settle.over_captured`: does the plane of the 50 captured voxels within 4 cross the
     cube?) reads at most a tenth of them so, and reads at least 90 % of a layer one voxel above the plane's middle
     (rounded to voxels, none on the plane's own) as one."""
     n = np.asarray(normal) / np.linalg.norm(normal)
@@ -237,11 +239,11 @@ def test_on_voxelized_input_a_layer_is_a_voxel_the_captured_plane_does_not_cross
     captured = cKDTree(stair[~gap])
     if n[0] > 0.1:  # a tilt about both axes: the float bound misreads the staircase (not an axis-parallel plane)
         assert over_captured_surface(stair[gap], captured, 1.0, off_plane_spacings=FLOAT_LAYER_SPACINGS).any()
-    assert TemporalFusion._over_captured(stair[gap], captured, 1.0, True).sum() <= 0.1 * gap.sum()
+    assert over_captured(stair[gap], captured, 1.0, True).sum() <= 0.1 * gap.sum()
     inner = stair[np.abs(stair[:, :2] - 15.0).max(axis=1) < 5.0]
     layer = np.unique(np.floor(inner + n + 0.5), axis=0)
     layer = layer[cKDTree(stair).query(layer)[0] > 0]
-    assert TemporalFusion._over_captured(layer, cKDTree(stair), 1.0, True).mean() >= 0.9
+    assert over_captured(layer, cKDTree(stair), 1.0, True).mean() >= 0.9
 
 
 def test_a_misaligned_copy_adds_no_layer_over_what_the_frame_captured():
@@ -606,7 +608,7 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     ring with the wall rising from it) is capped before step 6c's closed surface is tried; a hole in a surface that
     goes on over it (the cylinder's top, a sphere's crown) is not walled. On the base the whole sequence's output
     is the cap's, with step 6c never called (it refused this base when called first: same output, 2.3x the CPU)."""
-    import dpcbench.methods.temporal_fusion as module
+    import dpcbench.methods.temporal_fusion.spatial as module
 
     body = footed_base()
     box = HoleRegion.box([0.0, 0.0, 1.0], [43.0, 43.0, 3.5])
@@ -629,7 +631,7 @@ def test_walls_rising_from_an_opening_send_it_to_the_cap_before_poisson(monkeypa
     capped = cap_fill(kept, box, cKDTree(kept), 1.0, voxelized=True)
     # less the cap's voxels that step 7b reads as a layer over the captured foot ring in the box: at the corner
     # where the ring meets the wall, the plane of the 50 voxels within 4 takes in the wall (79 of 1,828)
-    capped = capped[~TemporalFusion._over_captured(capped, cKDTree(kept), 1.0, True)]
+    capped = capped[~over_captured(capped, cKDTree(kept), 1.0, True)]
     fill = out[0][len(kept):]
     assert len(fill) >= 0.8 * opening.sum() and np.array_equal(np.unique(fill, axis=0), np.unique(capped, axis=0))
     quiet(TemporalFusion(walled_cap_first=False), frames, regions)
@@ -653,7 +655,7 @@ def test_poisson_in_boxes_false_skips_step_6c_in_a_region_that_keeps_captured_po
     """``poisson_in_boxes=False``: in a region that still holds captured points (an occlusion box; its open parts
     lie between the data inside it) step 6c's closed surface is not tried, and steps 6d-6e go on as before; an
     emptied region still gets it. By default (True) both regions get it, as up to version 41."""
-    import dpcbench.methods.temporal_fusion as module
+    import dpcbench.methods.temporal_fusion.spatial as module
 
     kept, box, emptied = _box_and_emptied_ball()
 
@@ -673,7 +675,7 @@ def test_step_6e_also_spans_what_step_6c_left_open_in_a_region_that_keeps_captur
     """``membrane_after_poisson`` (version 42): in an occlusion box a few points of step 6c no longer pre-empt step
     6e; the membrane runs on what they left open, with them among its anchors and counted as covered, and both
     fills are kept. In an emptied region step 6c's fill still ends step 6 there."""
-    import dpcbench.methods.temporal_fusion as module
+    import dpcbench.methods.temporal_fusion.spatial as module
 
     kept, box, emptied = _box_and_emptied_ball()
     few = {id(box): np.array([[4.0, 0.0, 30.0]]), id(emptied): np.array([[30.0, 0.0, 0.0]])}
@@ -1672,8 +1674,9 @@ def test_voxelized_fits_take_more_points_and_misplace_fewer_voxels():
     86 -> 66, 55 -> 35)."""
     method = TemporalFusion()
     assert method.mls_neighbours == "auto"
-    assert (method._fit_neighbours(True), method._fit_neighbours(False)) == (28, 20)
-    assert TemporalFusion(mls_neighbours=12)._fit_neighbours(True) == 12
+    config = FusionConfig.of(method.get_params())
+    assert (config.fit_neighbours(True), config.fit_neighbours(False)) == (28, 20)
+    assert FusionConfig.of(TemporalFusion(mls_neighbours=12).get_params()).fit_neighbours(True) == 12
     with pytest.raises(ValueError, match="mls_neighbours must be 'auto' or an integer"):
         TemporalFusion(mls_neighbours="many").inpaint([np.zeros((10, 3))] * 2, None)
 
@@ -1793,7 +1796,7 @@ def test_farther_frames_are_aligned_only_where_the_adjacent_ones_did_not_both_se
     """``adjacent_first`` (version 28): with f-1 and f+1 both sources, frames beyond them are not aligned (3 ICP
     rounds a frame: 6 calls, not 12) and the fill still lies on the hidden surface; at the last frame only f-1 is
     adjacent, so f-2 and f-3 are aligned and the output is the same as without the rule."""
-    import dpcbench.methods.temporal_fusion as module
+    import dpcbench.methods.temporal_fusion.align as module
 
     calls = []
     real = module.icp_align

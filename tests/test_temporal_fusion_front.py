@@ -192,7 +192,7 @@ def test_poisson_fill_keeps_nothing_detached_from_the_support():
 def test_poisson_hold_out_runs_only_where_the_surface_adds_points(monkeypatch):
     """Step 6c's hold-out (a second reconstruction) is skipped where the surface adds nothing: the same limb
     hole with every hidden point already covered returns nothing without it; open, it is tested and filled."""
-    import dpcbench.methods._spatial_fill as spatial_fill
+    import dpcbench.methods._spatial_fill.poisson as spatial_fill
 
     calls = []
     holds_out = spatial_fill._holds_out

@@ -1,0 +1,144 @@
+"""Golden output hashes of `temporal-fusion`: a sha256 of the exact output points per case, so a refactoring
+can show that it leaves every output bit-identical.
+
+    .venv/bin/python experiments/fusion_golden.py            # compute, compare with fusion_golden.json
+    .venv/bin/python experiments/fusion_golden.py --write    # record the hashes (only at a trusted state)
+
+Cases (about 4 CPU minutes in all): the embedded stand-ins at size "tiny" (the human and the bunny, 10-bit
+voxels, and the bunny sampled unvoxelized) with independent and coherent medium region holes and occlusion holes
+(`holes/`, seed 0, 3 frames), a one-frame case, a blind case (regions=None: `detect_holes` per frame), and
+3 frames of D-FAUST punching when ../shared/data holds it (skipped otherwise). The defaults run on every case;
+each switch of `TemporalFusion`, flipped once, runs on the cheap voxelized cases and the float coherent case.
+The hash is over, per frame, the output's shape and its float64 bytes in row order.
+Exit status 1 when a hash differs from the recorded one."""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+GOLDEN = Path(__file__).with_suffix(".json")
+DFAUST = ROOT.parent / "shared" / "data" / "dfaust_50004_punching"
+
+#: each keyword flipped once (booleans negated; the others set to a non-default value that is cheap)
+FLIPS: dict[str, object] = {name: None for name in (
+    "refine", "deform", "reuse_previous", "fallback", "rim_fill", "poisson", "poisson_bodies", "poisson_bridges",
+    "cap", "harmonic_cap", "walled_cap_first", "membrane", "front", "partial_sources", "sheet", "revoxelize",
+    "pool_adjacent", "adjacent_first", "count_copies", "reuse_next", "drop_layers", "coarse_retry",
+    "poisson_in_boxes", "membrane_after_poisson")}
+FLIPS.update(window=1, mls_neighbours=20, snap=False)
+
+
+def digest(outputs: list[np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for points in outputs:
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        h.update(repr(points.shape).encode())
+        h.update(points.tobytes())
+    return h.hexdigest()
+
+
+def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
+    """case name -> (damaged frames, regions or None)."""
+    from dpcbench.bench.standins import bunny, human
+    from dpcbench.holes.registry import get_generator
+
+    sequences = {
+        "human-tiny": [human.generate_frame(i, size="tiny")[0] for i in range(3)],
+        "bunny-tiny": [bunny.generate_frame(i, size="tiny")[0] for i in range(3)],
+        "bunny-tiny-float": [bunny.generate_frame(i, size="tiny", bit_depth=None)[0] for i in range(3)],
+    }
+    holes = {
+        "independent": ("region", dict(preset="medium")),
+        "coherent": ("region", dict(preset="medium", coherent=True)),
+        # the default stage rig leaves the tiny stand-ins all but whole: three cameras a ring, no cover rule
+        "occlusion": ("occlusion", dict(per_ring=3, seen_within=0)),
+    }
+    cases = {}
+    for seq_name, frames in sequences.items():
+        for hole_name, (generator, params) in holes.items():
+            damage = get_generator(generator, **params).damage(frames, 0)
+            cases[f"{seq_name}/{hole_name}"] = (damage.frames, damage.regions)
+    frames, regions = cases["human-tiny/independent"]
+    cases["human-tiny/one-frame"] = (frames[:1], regions[:1])
+    cases["human-tiny/blind"] = (frames, None)
+    frames, _ = cases["bunny-tiny-float/coherent"]
+    cases["bunny-tiny-float/blind"] = (frames, None)
+    if DFAUST.is_dir():
+        from dpcbench.bench.sequences import load_sequence
+
+        seq = load_sequence(DFAUST, colors=False)
+        frames = [np.asarray(f.points, dtype=np.float64) for f in seq.frames[:3]]
+        for hole_name in ("independent", "coherent"):
+            generator, params = holes[hole_name]
+            damage = get_generator(generator, **params).damage(frames, 0)
+            cases[f"dfaust-punching/{hole_name}"] = (damage.frames, damage.regions)
+    return cases
+
+
+#: the cases each flip runs on: cheap ones that reach every step (voxel gaps, copies, reuse, boxes, float data)
+FLIP_CASES = ("human-tiny/independent", "human-tiny/coherent", "human-tiny/occlusion", "bunny-tiny-float/coherent")
+
+
+def run(only: str | None = None) -> dict[str, str]:
+    from dpcbench.methods.temporal_fusion import TemporalFusion
+
+    cases = inputs()
+    jobs = [(f"{name} defaults", name, {}) for name in cases]
+    jobs += [(f"{name} {key}={value if value is not None else 'flipped'}", name, {key: value})
+             for key, value in FLIPS.items() for name in FLIP_CASES]
+    hashes = {}
+    for label, case, params in jobs:
+        if only and only not in label:
+            continue
+        frames, regions = cases[case]
+        params = {key: (not TemporalFusion().get_params()[key]) if value is None else value
+                  for key, value in params.items()}
+        start = time.process_time()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            outputs = TemporalFusion(**params).inpaint([f.copy() for f in frames], regions)
+        hashes[label] = digest(outputs)
+        added = sum(len(o) for o in outputs) - sum(len(f) for f in frames)
+        print(f"{hashes[label][:16]}  {label}  (+{added} points, {time.process_time() - start:.1f} s CPU)", flush=True)
+    return hashes
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--write", action="store_true", help="record the hashes in fusion_golden.json")
+    parser.add_argument("--only", help="run only the cases whose label contains this text")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    hashes = run(args.only)
+    if args.write:
+        if args.only and GOLDEN.is_file():  # a subset is added to (or replaces its entries in) the record
+            hashes = {**json.loads(GOLDEN.read_text(encoding="utf-8")), **hashes}
+        GOLDEN.write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        print(f"wrote {len(hashes)} hashes to {GOLDEN.relative_to(ROOT)}")
+        return 0
+    if not GOLDEN.is_file():
+        print(f"no {GOLDEN.name} yet: run with --write at a trusted state", file=sys.stderr)
+        return 2
+    recorded = json.loads(GOLDEN.read_text(encoding="utf-8"))
+    differ = [label for label in hashes if label in recorded and recorded[label] != hashes[label]]
+    missing = [label for label in hashes if label not in recorded]
+    for label in differ:
+        print(f"DIFFERS: {label}")
+    for label in missing:
+        print(f"not recorded: {label}")
+    print(f"{len(hashes) - len(differ) - len(missing)} of {len(hashes)} hashes match")
+    return 1 if differ or missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
