@@ -220,18 +220,26 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     real_cfg["experiment"]["name"] = f"{preset}-real-holes"
     real_cfg["experiment"]["regions"] = "detected"
     if data_dir:
-        found = available_paper_sequences(data_dir)
-        if not found:
+        from dpcbench.bench.datasets import PAPER
+        from dpcbench.bench.sources.paper import single_frame_rows
+
+        # a sequence found as one real frame (`8i_longdress_1300/longdress_vox10_1300.ply`, or
+        # `longdress/Ply/` holding one file) is a row of its own, read by path, with the per-frame columns
+        singles = single_frame_rows(PAPER, data_dir, PAPER_SEQUENCES)
+        found = [n for n in available_paper_sequences(data_dir) if n not in singles]
+        if not found and not singles:
             raise UserError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
                              "found there; expected e.g. longdress/Ply/longdress_vox10_1051.ply ... (see "
                              "`dpcbench datasets`), or leave --data-dir out to run on the embedded stand-ins")
         standins = False
         synthetic_cfg["experiment"]["name"] = f"{preset}-data"
         synthetic_cfg["experiment"]["data_dir"] = str(data_dir)
-        synthetic_cfg["sequences"] = [{"name": n, "frames": frames, "label": PAPER_SEQUENCES[n]} for n in found]
+        synthetic_cfg["sequences"] = ([{"name": n, "frames": frames, "label": PAPER_SEQUENCES[n]} for n in found]
+                                      + list(singles.values()))
         real_cfg["experiment"]["name"] = f"{preset}-data-real-holes"
         real_cfg["experiment"]["data_dir"] = str(data_dir)
-        real_cfg["sequences"] = [{"name": found[0], "frames": REAL_HOLE_FRAMES, "label": PAPER_SEQUENCES[found[0]]}]
+        real_cfg["sequences"] = ([{"name": found[0], "frames": REAL_HOLE_FRAMES, "label": PAPER_SEQUENCES[found[0]]}]
+                                 if found else [next(iter(singles.values()))])
         real_cfg["holes"] = [{"generator": "none"}]
     else:
         first = copy.deepcopy(base["sequences"][0])

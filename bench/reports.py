@@ -534,9 +534,11 @@ def paper_report_sections(df: pd.DataFrame, runs: pd.DataFrame, t1: ComparisonTa
 
 def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path, *, standins: bool,
                        preset: str, command: str, elapsed_s: float, figure_notes: dict[str, str],
-                       real_df: pd.DataFrame | None = None, store_path=None, computed=None) -> Path:
+                       real_df: pd.DataFrame | None = None, store_path=None, computed=None,
+                       ablation_md: str = "") -> Path:
     """The tables (several conventions), charts, curves and REPORT.md of `reproduce-paper`
-    (``computed``: ids of the runs this command computed, for the provenance line)."""
+    (``computed``: ids of the runs this command computed, for the provenance line; ``ablation_md``: the
+    ablation section, `bench.paper_ablation.ablation_markdown`, or '' when the store has no ablation)."""
     out = Path(out_dir)
     tables_dir, fig_dir = out / "tables", out / "figures"
     tables_dir.mkdir(parents=True, exist_ok=True)
@@ -582,6 +584,10 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
                                      command=command, elapsed_s=elapsed_s, figure_notes=figure_notes,
                                      variants=variants, normals_note=normals_note, store_path=store_path,
                                      computed=computed)
+    if ablation_md:  # after the variants, before the failed runs and the files
+        keys = list(sections)
+        at = keys.index("failed")
+        sections = {**{k: sections[k] for k in keys[:at]}, "ablation": ablation_md, **{k: sections[k] for k in keys[at:]}}
     report = out / "REPORT.md"
     report.write_text("\n".join(text for text in sections.values() if text))
     return report

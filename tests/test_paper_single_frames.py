@@ -53,3 +53,19 @@ def test_the_shared_longdress_frame_is_found_and_its_entry_loads_as_one_frame():
     assert list(rows) == ["longdress"] and rows["longdress"]["label"] == "Longdress, one real frame"
     seq = load_dataset(rows["longdress"]["path"], progress=False)
     assert len(seq) == 1 and len(seq.points[0]) == 857_966
+
+
+def test_reproduce_paper_protocol_adds_a_row_per_single_real_frame(tmp_path):
+    from dpcbench.bench.paper import TABLE_COLUMNS, paper_protocol
+
+    one = touch(tmp_path / "8i_longdress_1300" / "longdress_vox10_1300.ply")
+    protocol = paper_protocol(True, tmp_path)
+    assert not protocol.standins
+    rows = {s.sequence_label for s in protocol.synthetic}
+    assert "Longdress, one real frame" in rows
+    longdress = [s for s in protocol.synthetic if s.sequence_label == "Longdress, one real frame"]
+    # every column of the tables runs on it (the temporal ones reduce to their per-frame part on one frame)
+    assert {(s.method["name"], str(s.method.get("params") or {})) for s in longdress} == {
+        (name, str(params)) for name, _, params, _ in TABLE_COLUMNS}
+    assert all(str(one) in str(s.sequence) for s in longdress)
+    assert {s.sequence_label for s in protocol.real} == {"Longdress, one real frame"}

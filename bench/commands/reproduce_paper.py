@@ -115,6 +115,11 @@ def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, 
         f" {flag}" + ("" if value is True else f" {shlex.quote(str(value))}")
         for flag, value in [("--quick", args.quick), ("--data-dir", args.data_dir), ("--size", args.size),
                             ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out)] if value)
+    from dpcbench.bench.paper_ablation import ablation_frame, ablation_markdown
+
+    # the ablation of the paper configuration (`dpcbench run paper-ablation`), where this store holds it
+    ablation = store.results_frame("paper-ablation")
+    ablation_md = ablation_markdown(ablation_frame(ablation)) if len(ablation) else ""
     write_paper_report(df, run_rows, out, standins=protocol.standins, preset=protocol.preset,
                        command=command, elapsed_s=time.perf_counter() - t0, figure_notes=figure_notes,
-                       real_df=real_df, store_path=store.path, computed=computed)
+                       real_df=real_df, store_path=store.path, computed=computed, ablation_md=ablation_md)
