@@ -404,7 +404,8 @@ def _parse_metrics(table: dict) -> dict:
     if names is None:
         if registry is None:
             raise ConfigError("metrics.names: the metrics package is unavailable, so no default list; name the metrics")
-        names = [n for n in registry if n != "temporal_consistency"]
+        # the default list is the geometry metrics: colour metrics (cpsnr_*) need colours, so they are named
+        names = [n for n in registry if n != "temporal_consistency" and not n.startswith("cpsnr_")]
     if isinstance(names, str):
         names = [names]
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
