@@ -128,14 +128,19 @@ def neighbour_colours(rows: np.ndarray, cols: np.ndarray, target_colours: np.nda
 
 
 def colour_errors(query_colours: np.ndarray, compared: np.ndarray, mse_space: int) -> np.ndarray:
-    """(n, 3) float64 per-point squared colour errors of each channel, pc_error's arithmetic:
-    float32 differences squared in float32 (Y'CbCr), exact integers (RGB)."""
+    """(n, 3) float32 per-point squared colour errors of each channel, pc_error's arithmetic:
+    float32 differences squared in float32 (Y'CbCr), exact integers (RGB: squares <= 65025 are exact in
+    float32). Sum them in float64, as pc_error does."""
     if mse_space == 1:
-        d = to_ycbcr(query_colours) - to_ycbcr(compared)
-        return (d * d).astype(np.float64)
+        d = to_ycbcr(query_colours)
+        d -= to_ycbcr(compared)
+        d *= d
+        return d
     if mse_space == 0:
-        d = query_colours.astype(np.float64) - compared.astype(np.float64)
-        return d * d
+        d = query_colours.astype(np.float32)
+        d -= compared.astype(np.float32)
+        d *= d
+        return d
     raise ValueError(f"mse_space must be 0 (RGB) or 1 (BT.709 YCbCr), got {mse_space!r}")
 
 
@@ -190,7 +195,7 @@ def colour_mse_directions(pair: CloudPair, sel: Selection, mse_space: int) -> li
         if mask is not None:
             errors = errors[mask]
         if len(errors):
-            out.append(errors.sum(axis=0) / len(errors))
+            out.append(errors.sum(axis=0, dtype=np.float64) / len(errors))
     return out
 
 

@@ -243,3 +243,37 @@ def test_longdress_recoloured(shared_dir):
     yuv = pc_error_colour(pts, pts, cols, shifted, mse_space=1)
     d = to_ycbcr(base) - to_ycbcr(merged_colours(pts, shifted, kept))
     assert yuv["c[0], F"] == pytest.approx(float(np.mean((d[:, 0] * d[:, 0]).astype(np.float64))), rel=1e-9)
+
+
+# -- dpcbench score ----------------------------------------------------------------------------------
+
+def test_score_command_adds_colour_psnr(capsys):
+    import dpcbench.bench.cli as cli
+
+    ref, res = GOLDEN / "colour_ref.ply", GOLDEN / "colour_holes.ply"
+    assert cli.main(["score", str(ref), str(res), "--json", "--max-psnr", "inf"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    gold = next(c for c in json.loads((GOLDEN / "pc_error.json").read_text()) if c["name"] == "colour_holes")
+    for k, name in enumerate(("cpsnr_y", "cpsnr_u", "cpsnr_v")):
+        assert out["mean"][name] == pytest.approx(gold["r0_space1"][f"c[{k}],PSNRF"], rel=RELATIVE)
+    assert out["mean"]["gpsnr_d1"] == pytest.approx(gold["r0_space1"]["mseF,PSNR (p2point)"], rel=RELATIVE)
+    assert out["settings"]["colour"] == "both clouds have colours"
+    assert cli.main(["score", str(ref), str(res)]) == 0
+    table = capsys.readouterr().out
+    assert "cpsnr_y" in table.splitlines()[0]
+
+
+def test_score_command_says_when_colours_are_missing(tmp_path, capsys):
+    import dpcbench.bench.cli as cli
+    from dpcbench.bench.plyio import PointCloud, write_ply
+
+    ref = GOLDEN / "colour_ref.ply"
+    bare = write_ply(tmp_path / "bare.ply", PointCloud(read_ply(GOLDEN / "colour_noise.ply").points))
+    assert cli.main(["score", str(ref), str(bare), "--json"]) == 0
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert not any(k.startswith("cpsnr_") for k in out["mean"])
+    assert out["settings"]["colour"] == "no colour PSNR: the result has no colours"
+    assert "no colour PSNR" in captured.err
+    assert cli.main(["score", str(ref), str(bare), "--metric", "cpsnr_y"]) == 2
+    assert "has no colours" in capsys.readouterr().err
