@@ -21,7 +21,7 @@ For frame f with input points P (N, 3) and colours C (N, 3) uint8, and the metho
      each unknown colour is the weighted mean of its neighbours' colours, known colours fixed (the
      minimiser of sum w_ij (x_i - x_j)^2). A group of new points with no edge to a known point is
      anchored with weight 1 to each point's nearest input colour (else the system is singular).
-     Solved by conjugate gradients (Jacobi preconditioned, relative tolerance 1e-8): the matrix is
+     Solved directly (sparse LU, SuperLU, one factorisation for the three channels): the matrix is
      symmetric positive definite (diagonally dominant, every group anchored). New points within half
      the input's median neighbour distance of an input point are treated as on the captured surface:
      nearest colour, and known (whole-frame resamplings such as MeshLab's stay cheap).
@@ -104,7 +104,7 @@ def harmonic_colours(known_points: np.ndarray, known_colours: np.ndarray, unknow
     unknowns with no known neighbour is anchored to."""
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
-    from scipy.sparse.linalg import cg
+    from scipy.sparse.linalg import splu
     from scipy.spatial import cKDTree
 
     nu, nk = len(unknown_points), len(known_points)
@@ -130,18 +130,8 @@ def harmonic_colours(known_points: np.ndarray, known_colours: np.ndarray, unknow
     anchor = (~reaches[group]).astype(np.float64)
     rhs += anchor[:, None] * anchor_colours.astype(np.float64)
     degree = np.asarray(w_uu.sum(axis=1)).ravel() + to_known + anchor
-    a = (sp.diags(degree) - w_uu).tocsr()
-    precondition = sp.diags(1.0 / degree)
-    out = np.empty((nu, 3))
-    for c in range(3):
-        x0 = np.full(nu, rhs[:, c].sum() / max(degree.sum(), 1e-300))
-        x, info = cg(a, rhs[:, c], x0=x0, rtol=1e-8, atol=0.0, maxiter=10 * nu + 100, M=precondition)
-        if info != 0:  # never seen: the system is SPD and well conditioned; fall back to a direct solve
-            from scipy.sparse.linalg import spsolve
-
-            x = spsolve(a.tocsc(), rhs[:, c])
-        out[:, c] = x
-    return out
+    a = (sp.diags(degree) - w_uu).tocsc()
+    return splu(a).solve(rhs)
 
 
 def colour_frame(inputs: np.ndarray, colours: np.ndarray, outputs: np.ndarray, fill: str = "auto",
@@ -184,9 +174,18 @@ def colour_frame(inputs: np.ndarray, colours: np.ndarray, outputs: np.ndarray, f
     unknown = new_rows[~on_surface]
     if unknown.size == 0:
         return out
-    known_points = np.concatenate([inputs, outputs[known_extra]])
-    known_colours = np.concatenate([colours, out[known_extra]])
-    values = harmonic_colours(known_points, known_colours, outputs[unknown], nearest[~on_surface])
+    # only the known points among some unknown's k nearest known points can be its neighbours: the graph
+    # is built on those (found in the input tree and in a tree of the other known points), not on all
+    queries = outputs[unknown]
+    k = int(min(HARMONIC_NEIGHBOURS, len(inputs)))
+    _, near_in = tree.query(queries, k=k, workers=-1)
+    parts_p, parts_c = [inputs[np.unique(near_in)]], [colours[np.unique(near_in)]]
+    if known_extra.any():
+        extra_p, extra_c = outputs[known_extra], out[known_extra]
+        _, near_ex = cKDTree(extra_p).query(queries, k=int(min(HARMONIC_NEIGHBOURS, len(extra_p))), workers=-1)
+        parts_p.append(extra_p[np.unique(near_ex)])
+        parts_c.append(extra_c[np.unique(near_ex)])
+    values = harmonic_colours(np.concatenate(parts_p), np.concatenate(parts_c), queries, nearest[~on_surface])
     out[unknown] = np.clip(np.rint(values), 0, 255).astype(np.uint8)
     return out
 
