@@ -21,7 +21,8 @@ For frame f with input points P (N, 3) and colours C (N, 3) uint8, and the metho
      each unknown colour is the weighted mean of its neighbours' colours, known colours fixed (the
      minimiser of sum w_ij (x_i - x_j)^2). A group of new points with no edge to a known point is
      anchored with weight 1 to each point's nearest input colour (else the system is singular).
-     Solved directly (sparse LU, SuperLU, one factorisation for the three channels): the matrix is
+     Solved directly (sparse LU, SuperLU, one factorisation for the three channels; conjugate gradients,
+     Jacobi preconditioned, relative tolerance 1e-8, beyond 200k unknowns): the matrix is
      symmetric positive definite (diagonally dominant, every group anchored). New points within half
      the input's median neighbour distance of an input point are treated as on the captured surface:
      nearest colour, and known (whole-frame resamplings such as MeshLab's stay cheap).
@@ -41,6 +42,8 @@ from dpcbench.metrics.errors import UserError
 FILLS = ("auto", "nearest", "harmonic", "source")
 #: neighbours of the harmonic fill's graph
 HARMONIC_NEIGHBOURS = 8
+#: the most unknowns solved by sparse LU; more are solved by Jacobi-preconditioned conjugate gradients
+_DIRECT_MAX = 200_000
 #: new points closer than this many median input spacings to an input point take its colour
 _SURFACE_SPACINGS = 0.5
 
@@ -131,7 +134,15 @@ def harmonic_colours(known_points: np.ndarray, known_colours: np.ndarray, unknow
     rhs += anchor[:, None] * anchor_colours.astype(np.float64)
     degree = np.asarray(w_uu.sum(axis=1)).ravel() + to_known + anchor
     a = (sp.diags(degree) - w_uu).tocsc()
-    return splu(a).solve(rhs)
+    if nu <= _DIRECT_MAX:
+        return splu(a).solve(rhs)
+    from scipy.sparse.linalg import cg  # very many unknowns (a whole-frame resampling): LU fill-in would be large
+
+    out = np.empty((nu, 3))
+    jacobi = sp.diags(1.0 / degree)
+    for c in range(3):
+        out[:, c], _ = cg(a, rhs[:, c], rtol=1e-8, atol=0.0, maxiter=20 * nu, M=jacobi)
+    return out
 
 
 def colour_frame(inputs: np.ndarray, colours: np.ndarray, outputs: np.ndarray, fill: str = "auto",

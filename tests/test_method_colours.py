@@ -33,7 +33,12 @@ def test_kept_index_is_exact_matching():
         assert idx[i] == (same[0] if same.size else -1)
 
 
-def test_harmonic_matches_a_dense_solve():
+@pytest.mark.parametrize("direct", [True, False], ids=["lu", "cg"])
+def test_harmonic_matches_a_dense_solve(monkeypatch, direct):
+    from dpcbench.methods import _colour
+
+    if not direct:
+        monkeypatch.setattr(_colour, "_DIRECT_MAX", 0)
     rng = np.random.default_rng(1)
     known = rng.random((60, 3)) * 10
     unknown = rng.random((25, 3)) * 10
