@@ -135,3 +135,34 @@ def test_temporal_copy_reports_its_sources_and_carries_their_colours():
     _, cols = method.inpaint_with_colours(damaged, dcol, regions, fill="source")
     assert np.array_equal(cols[1][added], colours[0][row_of[added]])
     assert np.array_equal(cols[1][:n1], dcol[1])
+
+
+def test_inpaint_command_uses_the_methods_colours(tmp_path):
+    import json
+
+    from dpcbench.bench.cli import main
+    from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
+    from dpcbench.holes.regions import regions_to_json
+
+    full = _plane(30)
+    colours = _ramp(full)
+    region = HoleRegion.ball([15.0, 15.0, 0.0], 5.0)
+    keep = ~region.contains(full)
+    (tmp_path / "in").mkdir()
+    write_ply(tmp_path / "in" / "f_0000.ply", PointCloud(full[keep], colours[keep]))
+    (tmp_path / "holes.json").write_text(json.dumps(regions_to_json([[region]])))
+    outs = {}
+    for fill in ("nearest", "auto"):
+        out = tmp_path / fill
+        assert main(["inpaint", str(tmp_path / "in"), "--method", "lozes-pde", "--regions", str(tmp_path / "holes.json"),
+                     "--out", str(out), "--colour", fill]) == 0
+        cloud = read_ply(next(out.glob("*.ply")))
+        assert json.loads((out / "inpaint.json").read_text())["colour"] == fill
+        idx = kept_index(full[keep], cloud.points)
+        assert np.array_equal(cloud.colors[idx >= 0], colours[keep][idx[idx >= 0]])
+        outs[fill] = cloud
+    new = kept_index(full[keep], outs["auto"].points) < 0
+    assert new.any()
+    _, nearest = cKDTree(full[keep]).query(outs["nearest"].points[new])
+    assert np.array_equal(outs["nearest"].colors[new], colours[keep][nearest])
+    assert not np.array_equal(outs["auto"].colors[new], outs["nearest"].colors[new])  # harmonic, not nearest
