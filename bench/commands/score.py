@@ -76,8 +76,10 @@ def run(args) -> int:
         raise UserError(f"--max-psnr {args.max_psnr:g}: must be a positive number of dB (or inf)")
     # compact: float32 files stay float32 (the metrics take them as they are: on the integer grid
     # without a float64 copy), half the memory of a frame pair
-    reference = load_sequence(args.reference, compact=True)
-    result = load_sequence(args.result, compact=True)
+    # colours are read only when a colour metric may be computed (the defaults, or a cpsnr_* named)
+    colours = not args.metrics or any(n.startswith("cpsnr_") for n in args.metrics)
+    reference = load_sequence(args.reference, colors=colours, compact=True)
+    result = load_sequence(args.result, colors=colours, compact=True)
     if len(reference) != len(result):
         raise UserError(
             f"mismatched frame counts: {args.reference} has {len(reference)} frame(s), {args.result} has "
@@ -116,7 +118,7 @@ def run(args) -> int:
             warn(f"--region {args.region}: the regions of frame(s) {_frames(empty)} contain no reference point, so "
                  "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
                  "for this reference?")
-    names, colour_note = _with_colour_metrics(args, reference, result)
+    names, colour_note = _with_colour_metrics(args, reference, result) if colours else (args.metrics, "not asked")
     ref_colours = res_colours = None
     if any(n.startswith("cpsnr_") for n in names or []):
         ref_colours, res_colours = [f.colors for f in reference.frames], [f.colors for f in result.frames]
