@@ -424,8 +424,10 @@ def _parse_metrics(table: dict) -> dict:
     if names is None:
         if registry is None:
             raise ConfigError("metrics.names: the metrics package is unavailable, so no default list; name the metrics")
-        # the built-in metrics: an installed metric plug-in does not change a config's runs unless named
-        names = [n for n in registry if n != "temporal_consistency" and n not in registry.plugins]
+        # the built-in geometry metrics: an installed metric plug-in does not change a config's runs unless named,
+        # and the colour metrics (cpsnr_*) need colours, so they are named
+        names = [n for n in registry if n != "temporal_consistency" and n not in registry.plugins
+                 and not n.startswith("cpsnr_")]
     if isinstance(names, str):
         names = [names]
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):

@@ -12,6 +12,13 @@ the parameters back from the ``__init__`` signature, so configs and result recor
            of `holes.regions.HoleRegion`, the hole regions of each frame. A method never receives
            the removed ground-truth points: the interface has no way to pass them.
   returns: a new list of F arrays of shape (N'_f, 3), float64, all finite.
+
+Colour (8-bit RGB per point, (N_f, 3) uint8 beside each frame) is a parallel array, never passed to
+``inpaint``: `InpaintingMethod.inpaint_with_colours` runs ``inpaint`` and colours its output with a
+generic fill (`methods._colour`: kept points keep their colour; new points take the colour of the
+source point the method reports, `inpaint_with_sources`, or the nearest input colour, or a harmonic
+interpolation from the hole's rim). So every method and adapter carries colour, and its geometry is
+exactly that of ``inpaint``.
 """
 
 from __future__ import annotations
@@ -53,6 +60,30 @@ class InpaintingMethod(Parameterized):
 
     def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
         raise NotImplementedError
+
+    def inpaint_with_sources(self, frames: list[np.ndarray], regions: Regions = None) -> tuple[list[np.ndarray], list | None]:
+        """(``inpaint``'s output, sources): sources is None, or per output frame a pair of (N'_f,) int
+        arrays (source frame, source row in that input frame) saying which input point each output
+        point was copied from (-1, -1 for a point made by the method). A method that copies points
+        (temporal-copy) overrides this; its output must stay exactly ``inpaint``'s."""
+        return self.inpaint(frames, regions), None
+
+    def inpaint_with_colours(self, frames: list[np.ndarray], colours: Sequence[np.ndarray], regions: Regions = None,
+                             *, fill: str = "auto") -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """(points, colours): ``inpaint``'s output and an (N'_f, 3) uint8 colour per output point.
+
+        colours: F arrays (N_f, 3) of the input frames' RGB. fill (`methods._colour.FILLS`):
+        "nearest" (each new point its nearest input point's colour), "harmonic" (graph-harmonic
+        interpolation from the rim), "source" (the reported source point's colour, else nearest),
+        "auto" (source where reported, else harmonic)."""
+        from dpcbench.methods._colour import FILLS, check_colour_frames, colour_outputs
+
+        if fill not in FILLS:
+            raise UserError(f"{self.name}: unknown colour fill {fill!r}; choose one of {', '.join(FILLS)}")
+        checked, _ = check_sequence(frames, regions, method=self.name, needs_regions=False, detects_holes=True)
+        colours = check_colour_frames(checked, colours, self.name)
+        outputs, sources = self.inpaint_with_sources(frames, regions)
+        return outputs, colour_outputs(checked, colours, outputs, sources, fill)
 
     # -- helpers shared by every method ------------------------------------------------------
     def _check_inputs(self, frames: Sequence[np.ndarray], regions: Regions) -> tuple[list[np.ndarray], list | None]:

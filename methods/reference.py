@@ -90,24 +90,32 @@ class TemporalCopy(InpaintingMethod):
             raise UserError(f"temporal-copy: overlap_spacings must be >= 0, got {self.overlap_spacings}")
 
     def inpaint(self, frames: list[np.ndarray], regions: Regions = None) -> list[np.ndarray]:
+        return self.inpaint_with_sources(frames, regions)[0]
+
+    def inpaint_with_sources(self, frames: list[np.ndarray], regions: Regions = None) -> tuple[list[np.ndarray], list]:
+        """``inpaint``'s output and, per frame, (source frame, source row) of every point: the frame's
+        own row for its input points, the neighbour frame and row each copied point came from."""
         self._validate_params()
         frames, regions = self._check_inputs(frames, regions)
         if len(frames) == 1:
             warnings.warn("temporal-copy: a one-frame sequence has no neighbouring frame to copy from; "
                           "returning it unchanged", RuntimeWarning, stacklevel=2)
-            return [frames[0].copy()]
+            return [frames[0].copy()], [_own_rows(0, len(frames[0]))]
         if regions is None:
             regions = detect_regions(frames, self.name)
-        return [self._fill_frame(frames, f, regions[f]) for f in range(len(frames))]
+        filled = [self._fill_frame(frames, f, regions[f]) for f in range(len(frames))]
+        return [points for points, _ in filled], [sources for _, sources in filled]
 
-    def _fill_frame(self, frames, f, frame_regions) -> np.ndarray:
+    def _fill_frame(self, frames, f, frame_regions) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         target = frames[f]
+        own = _own_rows(f, len(target))
         if not frame_regions:
-            return target.copy()
+            return target.copy(), own
         target_tree = cKDTree(target)
         spacing = median_neighbour_distance(target, tree=target_tree)
         neighbours = [n for n in (f - 1, f + 1) if 0 <= n < len(frames)]
-        fills = []
+        fills: list[np.ndarray] = []
+        sources: list[tuple[np.ndarray, np.ndarray]] = []
         shells = [max(self.shell_factor * r.bounding_radius, self.min_shell_spacings * spacing) for r in frame_regions]
         # a region farther from the cloud than its shell reaches finds nothing to align: refuse it
         # (like temporal-graph) rather than add 0 points and look successful
@@ -117,10 +125,12 @@ class TemporalCopy(InpaintingMethod):
             counts = [int(region.contains(frames[n]).sum()) for n in neighbours]
             if max(counts) == 0:
                 continue
-            source = frames[neighbours[int(np.argmax(counts))]]  # argmax takes the first on ties: f-1
+            source_frame = neighbours[int(np.argmax(counts))]  # argmax takes the first on ties: f-1
+            source = frames[source_frame]
             shell = shells[k]
 
-            source_near = source[region.contains(source, margin=2 * shell)]
+            near_rows = np.flatnonzero(region.contains(source, margin=2 * shell))
+            source_near = source[near_rows]
             target_near = target[region.contains(target, margin=2 * shell)]
             rotation, translation = np.eye(3), np.zeros(3)
             for _ in range(max(1, int(self.alignment_rounds))):
@@ -136,13 +146,22 @@ class TemporalCopy(InpaintingMethod):
             for earlier in frame_regions[:k]:
                 inside &= ~earlier.contains(moved)
             candidates = moved[inside]
+            rows = near_rows[inside]
             if len(candidates) and self.overlap_spacings > 0:
                 gap, _ = target_tree.query(candidates, k=1)
-                candidates = candidates[gap > self.overlap_spacings * spacing]
+                far = gap > self.overlap_spacings * spacing
+                candidates, rows = candidates[far], rows[far]
             fills.append(candidates)
+            sources.append((np.full(len(rows), source_frame, dtype=np.intp), rows))
         if not fills:
-            return target.copy()
-        return np.concatenate([target, *fills], axis=0)
+            return target.copy(), own
+        return (np.concatenate([target, *fills], axis=0),
+                (np.concatenate([own[0], *(s[0] for s in sources)]), np.concatenate([own[1], *(s[1] for s in sources)])))
+
+
+def _own_rows(f: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sources of a frame's own n input points: (frame f, rows 0..n-1)."""
+    return np.full(n, f, dtype=np.intp), np.arange(n)
 
 
 __all__ = ["NoFill", "TemporalCopy", "detect_regions", "icp_align", "median_neighbour_distance"]

@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from dpcbench.metrics import geometry
+from dpcbench.metrics import colour, geometry
 from dpcbench.metrics.lazy import EntryTypeError, ObjectRegistry
 from dpcbench.metrics.temporal import temporal_consistency
 
@@ -134,6 +134,35 @@ METRICS: ObjectRegistry = ObjectRegistry("metric", {
             geometry.fscore_value,
             change="delta",
         ),
+        *[
+            _m(
+                f"cpsnr_{ch}",
+                True,
+                "dB",
+                f"colour PSNR of {label}, pc_error 0.14 --color=1 --mseSpace={space} c[{k}] PSNRF: "
+                f"10 log10({peak}^2 / max(MSE A->B, MSE B->A)), nearest-neighbour colours (needs colours)",
+                fn,
+                is_psnr=True,
+                change="delta",
+            )
+            for ch, label, space, k, peak, fn in (
+                ("y", "luma Y (BT.709)", 1, 0, 1, colour.cpsnr_y_value),
+                ("u", "chroma Cb (BT.709)", 1, 1, 1, colour.cpsnr_u_value),
+                ("v", "chroma Cr (BT.709)", 1, 2, 1, colour.cpsnr_v_value),
+                ("r", "red", 0, 0, 255, colour.cpsnr_r_value),
+                ("g", "green", 0, 1, 255, colour.cpsnr_g_value),
+                ("b", "blue", 0, 2, 255, colour.cpsnr_b_value),
+            )
+        ],
+        _m(
+            "cpsnr_rgb",
+            True,
+            "dB",
+            "colour PSNR of RGB: 10 log10(255^2 / max over directions of the mean R, G, B MSE) (needs colours)",
+            colour.cpsnr_rgb_value,
+            is_psnr=True,
+            change="delta",
+        ),
         _m(
             "temporal_consistency",
             False,
@@ -166,6 +195,11 @@ INPUT_METRICS: dict[str, Metric] = {
            level="input"),
     ]
 }
+
+#: The colour metrics (`metrics.colour`): computed only when both clouds carry colours.
+COLOUR_METRICS: tuple[str, ...] = ("cpsnr_y", "cpsnr_u", "cpsnr_v", "cpsnr_r", "cpsnr_g", "cpsnr_b", "cpsnr_rgb")
+#: What `dpcbench score` adds to its defaults when both clouds have colours.
+DEFAULT_COLOUR_METRICS: tuple[str, ...] = ("cpsnr_y", "cpsnr_u", "cpsnr_v")
 
 #: What `score_frame` computes when no metric is named (the keys of `dpcbench score --json`).
 DEFAULT_METRICS: tuple[str, ...] = ("gpsnr_d1", "gpsnr_d2", "nshd", "hausdorff", "chamfer", "fscore")

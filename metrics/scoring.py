@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dpcbench.metrics import geometry
+from dpcbench.metrics.colour import ColourPair
 from dpcbench.metrics.geometry import Selection, Settings, psnr, resolve_peak
 from dpcbench.metrics.pairs import DEFAULT_NORMAL_NEIGHBOURS, CloudPair
 from dpcbench.metrics.points import as_points
@@ -82,11 +83,16 @@ def _evaluate(pair: CloudPair, names, selection: Selection, settings: Settings, 
 
 
 def make_pair(reference: ArrayLike, result: ArrayLike, reference_normals: ArrayLike | None = None,
+              reference_colours: ArrayLike | None = None, result_colours: ArrayLike | None = None,
               **options: Any) -> CloudPair:
-    """A `CloudPair` built with the pair-related scoring options (drop_duplicates, normal_neighbours).
+    """A `CloudPair` built with the pair-related scoring options (drop_duplicates, normal_neighbours);
+    a `metrics.colour.ColourPair` (which the cpsnr_* metrics need) when both clouds' colours are given.
     ``reference`` and ``result`` may be arrays of any real dtype or open3d point clouds
     (`metrics.points.as_points`)."""
     _, pair_kw, _ = _split_options(options)
+    if reference_colours is not None and result_colours is not None:
+        return ColourPair(as_points(reference), as_points(result), reference_normals,
+                          reference_colours=reference_colours, result_colours=result_colours, **pair_kw)
     return CloudPair(as_points(reference), as_points(result), reference_normals, **pair_kw)
 
 
@@ -103,7 +109,8 @@ def score_pair(pair: CloudPair, metrics: MetricNames = None, *, peak: Peak = "in
 
 def score_frame(reference: ArrayLike, result: ArrayLike, metrics: MetricNames = None, *, peak: Peak = "intrinsic",
                 reference_normals: ArrayLike | None = None, regions: Sequence[Region] | None = None,
-                region_margin: float = 0.0, **options: Any) -> dict[str, float]:
+                region_margin: float = 0.0, reference_colours: ArrayLike | None = None,
+                result_colours: ArrayLike | None = None, **options: Any) -> dict[str, float]:
     """Score one result frame against its reference frame.
 
     reference: (N, 3) ground truth; result: (M, 3) (arrays of any real dtype, or open3d point
@@ -114,11 +121,13 @@ def score_frame(reference: ArrayLike, result: ArrayLike, metrics: MetricNames = 
     ``region_margin``. options: ``bit_depth``, ``fscore_threshold``, ``normal_neighbours`` (default
     12), ``drop_duplicates`` (default True, as pc_error), ``max_psnr`` (default 200 dB, None = keep inf),
     ``workers`` (threads of the neighbour queries, default -1 = all cores; values do not depend on it).
+    reference_colours (N, 3), result_colours (M, 3): uint8 RGB per point, needed by the cpsnr_* metrics
+    (`metrics.colour`).
 
     Returns {metric name: value}. The KD-trees and neighbour queries are built once and shared by all
     metrics.
     """
-    pair = make_pair(reference, result, reference_normals, **options)
+    pair = make_pair(reference, result, reference_normals, reference_colours, result_colours, **options)
     values, _ = score_pair(pair, metrics, peak=peak, regions=regions, region_margin=region_margin, **options)
     return values
 
@@ -141,12 +150,14 @@ def _nanmean(values: list[float]) -> float:
 
 def score_sequence(references: Frames, results: Frames, metrics: MetricNames = None, *, peak: Peak = "intrinsic",
                    reference_normals: Sequence[ArrayLike | None] | None = None, regions: RegionsPerFrame | None = None,
-                   region_margin: float = 0.0, **options: Any) -> dict[str, Any]:
+                   region_margin: float = 0.0, reference_colours: Sequence[ArrayLike | None] | None = None,
+                   result_colours: Sequence[ArrayLike | None] | None = None, **options: Any) -> dict[str, Any]:
     """Score a result sequence frame by frame, then average.
 
     references, results: lists of (N_f, 3) arrays of the same length; reference_normals: None or a
     list of per-frame (N_f, 3) arrays (None entries allowed); regions: None or a list of per-frame
     region lists. ``metrics`` may include the sequence-level "temporal_consistency".
+    reference_colours, result_colours: None or per-frame (N_f, 3) uint8 colours (for the cpsnr_* metrics).
 
     Returns {"frames": [{"frame": i, name: value, ...}], "mean": {name: mean over frames},
     "capped": [{"frame": i, "metric": name}] (PSNRs capped at max_psnr), and, when a sequence-level
@@ -168,7 +179,8 @@ def score_sequence(references: Frames, results: Frames, metrics: MetricNames = N
         get_metric(name)
     frame_names = [n for n in names if METRICS[n].level == "frame"]
     sequence_names = [n for n in names if METRICS[n].level == "sequence"]
-    for label, per_frame in (("reference_normals", reference_normals), ("regions", regions)):
+    for label, per_frame in (("reference_normals", reference_normals), ("regions", regions),
+                             ("reference_colours", reference_colours), ("result_colours", result_colours)):
         if per_frame is not None and len(per_frame) != len(references):
             raise ValueError(f"{label} given for {len(per_frame)} frames but the sequence has {len(references)}")
 
@@ -178,7 +190,8 @@ def score_sequence(references: Frames, results: Frames, metrics: MetricNames = N
         pair = None  # the previous frame's pair is freed before this frame's is built
         try:  # the frames are not bound to names: the pair (which keeps what it needs) is their only holder
             pair = make_pair(references[i], results[i], None if reference_normals is None else reference_normals[i],
-                             **options)
+                             None if reference_colours is None else reference_colours[i],
+                             None if result_colours is None else result_colours[i], **options)
             values, capped_names = score_pair(
                 pair, frame_names, peak=peak, regions=None if regions is None else regions[i],
                 region_margin=region_margin, **options,

@@ -6,8 +6,12 @@ folder / glob / file of PLY frames (typically the output folder of `dpcbench dam
 the blind protocol: the method finds the missing data itself (methods that cannot say so).
 
 DIR receives the inpainted frames ``<name>_0000.ply ...`` (binary PLY; when the input has colours,
-every output point takes the colour of its nearest input point) and ``inpaint.json`` (method,
-parameters, input, regions file, seconds per frame). DIR may not be INPUT, nor lie inside it.
+every output point carries one: the method's colours, `InpaintingMethod.inpaint_with_colours`, with the
+fill chosen by ``--colour``: captured points keep theirs, new points take their source point's colour
+where the method reports one (temporal-copy), else a harmonic interpolation from the hole's rim;
+``--colour nearest`` gives every new point its nearest input point's colour) and ``inpaint.json``
+(method, parameters, input, regions file, colour fill, seconds per frame). DIR may not be INPUT, nor
+lie inside it.
 """
 
 from __future__ import annotations
@@ -38,6 +42,11 @@ def register(subparsers) -> None:
     parser.add_argument("--regions", metavar="HOLES_JSON", default=None,
                         help="hole regions per frame (holes.json of `dpcbench damage`); omit for the blind protocol")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (not INPUT)")
+    parser.add_argument("--colour", default="auto", choices=["auto", "nearest", "harmonic", "source"],
+                        help="colour of the new points when the input has colours: auto (the source point's colour "
+                             "where the method reports one, else harmonic; default), nearest (nearest input point), "
+                             "harmonic (graph-harmonic interpolation from the hole's rim), source (source, else "
+                             "nearest)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace existing files in DIR that dpcbench did not write")
     add_input_options(parser)
@@ -81,18 +90,16 @@ def run(args) -> int:
     names = sequence_file_names(seq.name, len(seq)) + ["inpaint.json"]
     guard = Outputs(args.overwrite, inputs=[args.input, args.regions])
     out = guard.folder(args.out, "--out", names, sequence=True)
+    coloured = all(frame.colors is not None for frame in seq.frames)
     started = time.perf_counter()
-    results = method.inpaint(seq.points, regions)
+    if coloured:
+        results, colours = method.inpaint_with_colours(seq.points, [f.colors for f in seq.frames], regions,
+                                                       fill=args.colour)
+    else:
+        results, colours = method.inpaint(seq.points, regions), [None] * len(seq)
     seconds = time.perf_counter() - started
-    frames = []
-    for frame, points in zip(seq.frames, results):
-        colors = None
-        if frame.colors is not None:
-            from scipy.spatial import cKDTree
-
-            _, nearest = cKDTree(frame.points).query(points, workers=-1)
-            colors = frame.colors[nearest]
-        frames.append(PointCloud(np.asarray(points, dtype=np.float64), colors, precision=frame.precision))
+    frames = [PointCloud(np.asarray(points, dtype=np.float64), cols, precision=frame.precision)
+              for frame, points, cols in zip(seq.frames, results, colours)]
     with guard.staged(out) as stage:  # the frames and inpaint.json appear together, or not at all
         files = save_sequence(Sequence(seq.name, frames, seq.bit_depth, meta=dict(seq.meta)), stage)
         _write_record(args, method, regions, seconds, files, results, seq, stage)
@@ -112,6 +119,7 @@ def _write_record(args, method, regions, seconds, files, results, seq, stage) ->
         "input": str(args.input),
         "regions": str(args.regions) if args.regions else None,
         "protocol": "regions" if regions is not None else "blind",
+        "colour": args.colour if all(f.colors is not None for f in seq.frames) else None,
         "seconds": seconds,
         "seconds_per_frame": seconds / max(1, len(files)),
         "points": [int(len(p)) for p in results],

@@ -1,7 +1,9 @@
-"""`dpcbench score REFERENCE RESULT`: geometry metrics of a result against its ground truth.
+"""`dpcbench score REFERENCE RESULT`: geometry and colour metrics of a result against its ground truth.
 
 REFERENCE and RESULT are two PLY files or two sequence folders (or globs) with the same number of
-frames. Normals stored in the reference PLY are used for D2 (else they are estimated). Prints a
+frames. Normals stored in the reference PLY are used for D2 (else they are estimated). When both
+carry colours, colour PSNR (cpsnr_y, cpsnr_u, cpsnr_v: pc_error's BT.709 Y'CbCr figures) is added to
+the default metrics; when only one does, a note says so. Prints a
 table (one row per frame and the mean), or with --json the object
 {"frames": [{"frame": i, "<metric>": value, ...}], "mean": {...}, "capped": [...], "settings": {...},
 "warnings": [...]} (warnings: the one-line notes also printed on stderr, e.g. frames whose regions hold no point)
@@ -74,8 +76,10 @@ def run(args) -> int:
         raise UserError(f"--max-psnr {args.max_psnr:g}: must be a positive number of dB (or inf)")
     # compact: float32 files stay float32 (the metrics take them as they are: on the integer grid
     # without a float64 copy), half the memory of a frame pair
-    reference = load_sequence(args.reference, colors=False, compact=True)
-    result = load_sequence(args.result, colors=False, compact=True)
+    # colours are read only when a colour metric may be computed (the defaults, or a cpsnr_* named)
+    colours = not args.metrics or any(n.startswith("cpsnr_") for n in args.metrics)
+    reference = load_sequence(args.reference, colors=colours, compact=True)
+    result = load_sequence(args.result, colors=colours, compact=True)
     if len(reference) != len(result):
         raise UserError(
             f"mismatched frame counts: {args.reference} has {len(reference)} frame(s), {args.result} has "
@@ -122,6 +126,10 @@ def run(args) -> int:
             warn(f"--region {args.region}: the regions of frame(s) {_frames(empty)} contain no reference point, so "
                  "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
                  "for this reference?")
+    names, colour_note = _with_colour_metrics(args, reference, result) if colours else (args.metrics, "not asked")
+    ref_colours = res_colours = None
+    if any(n.startswith("cpsnr_") for n in names or []):
+        ref_colours, res_colours = [f.colors for f in reference.frames], [f.colors for f in result.frames]
     normals = [f.normals for f in reference.frames]
     given_normals = any(n is not None for n in normals)
     ref_points, res_points = reference.points, result.points
@@ -130,6 +138,8 @@ def run(args) -> int:
         # frame's coordinates are freed as soon as its pair holds what it needs (on the integer grid:
         # packed keys, a third of a float32 frame); see metrics.scoring.score_sequence
         ref_points, res_points, normals = _HandOver(ref_points), _HandOver(res_points), _HandOver(normals)
+        if ref_colours is not None:
+            ref_colours, res_colours = _HandOver(ref_colours), _HandOver(res_colours)
         reference.frames.clear()
         result.frames.clear()
     options = {"max_psnr": DEFAULT_MAX_PSNR if args.max_psnr is None else args.max_psnr, "workers": args.jobs}
@@ -138,9 +148,10 @@ def run(args) -> int:
     if bit_depth is not None:
         options["bit_depth"] = bit_depth
     scores = metrics.score_sequence(
-        ref_points, res_points, args.metrics, peak=peak,
+        ref_points, res_points, names, peak=peak,
         reference_normals=normals if given_normals else None,
-        regions=regions, region_margin=args.region_margin, **options,
+        regions=regions, region_margin=args.region_margin,
+        reference_colours=ref_colours, result_colours=res_colours, **options,
     )
     scores["settings"] = {
         "reference": args.reference,
@@ -149,6 +160,7 @@ def run(args) -> int:
         "scope": "holes" if regions is not None else "frame",
         "region_margin": args.region_margin if regions is not None else None,
         "reference_normals": "given" if given_normals else "estimated",
+        "colour": colour_note,
     }
     undefined = sorted({k for f in scores["frames"] for k, v in f.items()
                         if k != "frame" and isinstance(v, float) and np.isnan(v)})
@@ -160,6 +172,32 @@ def run(args) -> int:
         return 0
     _print_table(scores)
     return 0
+
+
+def _with_colour_metrics(args, reference, result) -> tuple[list[str] | None, str]:
+    """(metric names to compute, a note on colour). Without --metric: the default metrics, plus the
+    colour PSNRs (`DEFAULT_COLOUR_METRICS`) when both sequences carry colours; a note (also a warning
+    when exactly one has colours) says when they are left out. A colour metric named with --metric on
+    a sequence without colours is refused."""
+    from dpcbench.bench.errors import warn
+    from dpcbench.metrics.registry import DEFAULT_COLOUR_METRICS, DEFAULT_METRICS
+
+    missing = [label for label, seq in (("reference", reference), ("result", result)) if seq.frames[0].colors is None]
+    asked = [n for n in (args.metrics or []) if n.startswith("cpsnr_")]
+    if asked and missing:
+        which = " and ".join(f"the {m} ({args.reference if m == 'reference' else args.result})" for m in missing)
+        raise UserError(f"--metric {asked[0]}: {which} has no colours (red/green/blue); colour PSNR needs colours "
+                        "on both; drop the cpsnr_* metrics")
+    if not missing:
+        names = args.metrics if args.metrics else [*DEFAULT_METRICS, *DEFAULT_COLOUR_METRICS]
+        return names, "both clouds have colours" + ("" if any(n.startswith("cpsnr_") for n in names)
+                                                     else " (no colour metric asked)")
+    if len(missing) == 2:
+        return args.metrics, "none (neither cloud has colours)"
+    note = f"no colour PSNR: the {missing[0]} has no colours"
+    if not args.metrics:
+        warn(f"{note} ({args.reference if missing[0] == 'reference' else args.result}); geometry metrics only")
+    return args.metrics, note
 
 
 def _return_freed_memory() -> None:
@@ -229,6 +267,7 @@ def _print_table(scores: dict) -> None:
     for name, value in scores.get("sequence", {}).items():
         print(f"{name} (sequence): {value:.6g}")
     settings = scores["settings"]
-    print(f"peak: {settings['peak']}; scope: {settings['scope']}; reference normals: {settings['reference_normals']}")
+    print(f"peak: {settings['peak']}; scope: {settings['scope']}; reference normals: {settings['reference_normals']}; "
+          f"colour: {settings['colour']}")
     if scores["capped"]:
         print(f"note: {len(scores['capped'])} PSNR value(s) of identical clouds capped (see --max-psnr)")
