@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from dpcbench.bench.tables import comparison_table
+from dpcbench.bench.tables import comparison_table, write_table
 
 #: the colour metrics a report shows, in this order
 REPORT_COLOUR_METRICS = ("cpsnr_y", "cpsnr_u", "cpsnr_v", "cpsnr_rgb")
@@ -48,7 +48,6 @@ def colour_section(df: pd.DataFrame, out_dir: str | Path | None = None, *, headi
             if not table.rows:
                 continue
             if out_dir is not None:
-                from dpcbench.bench.reports import write_table
 
                 write_table(table, Path(out_dir) / "tables", f"{metric}_{scope}")
             lines += [f"### {metric} ({scope})", "", table.markdown(), ""]

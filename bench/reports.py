@@ -25,17 +25,8 @@ from dpcbench.bench.tables import (
     method_labels,
     runtime_table,
     uses_d2,
+    write_table,
 )
-
-
-def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, Path]:
-    """``stem``.md / .tex / .csv in ``out_dir``; returns the paths."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {"md": out_dir / f"{stem}.md", "tex": out_dir / f"{stem}.tex", "csv": out_dir / f"{stem}.csv"}
-    paths["md"].write_text(table.markdown())
-    paths["tex"].write_text(table.latex())
-    paths["csv"].write_text(table.csv())
-    return paths
 
 
 def _runtime_markdown(df: pd.DataFrame, column_of=None, columns: list[str] | None = None) -> str:
@@ -86,7 +77,8 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
     (out / "figures").mkdir(parents=True, exist_ok=True)
     df = _label_rows_and_methods(newest_runs(with_cells(df, runs)), runs)
     skip = {"time_s", "cpu_time_s", "peak_mem_mb", "removed_fraction"}
-    metrics = metrics or [m for m in dict.fromkeys(df["metric"]) if m not in skip and not m.startswith("temporal")]
+    metrics = metrics or [m for m in dict.fromkeys(df["metric"])
+                          if m not in skip and not m.startswith(("temporal", "cpsnr_"))]  # colour: its own section
     scopes = scopes or [s for s in ("frame", "holes") if s in set(df["scope"])]
     sections = [f"# {title}", ""]
     normals_note = d2_normals_note(runs, set(df["run_id"]))
@@ -115,6 +107,10 @@ def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str |
                                  title="Temporal consistency (sequence level)", decimals=4)
         write_table(table, out / "tables", "temporal_consistency")
         sections += ["## Temporal consistency", "", table.markdown(), ""]
+    if df["metric"].str.startswith("cpsnr_").any():  # colour PSNR where the runs scored it
+        from dpcbench.bench.colour_report import colour_section
+
+        sections += [colour_section(df, out), ""]
     sections += ["## Runtime", "", _runtime_markdown(df), "", _failed_markdown(runs)]
     report = out / "REPORT.md"
     report.write_text("\n".join(sections))

@@ -22,6 +22,7 @@ import io
 import json
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -403,3 +404,13 @@ def runtime_table(df: pd.DataFrame, column_of=None) -> pd.DataFrame:
     seq["peak_mem_mb"] = seq["run_id"].map(mem)
     seq["method"] = column_of(seq) if column_of else method_labels(seq)
     return seq.groupby(["sequence", "method"])[columns[2:]].mean().reset_index()
+
+
+def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, Path]:
+    """``stem``.md / .tex / .csv in ``out_dir``; returns the paths."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {"md": out_dir / f"{stem}.md", "tex": out_dir / f"{stem}.tex", "csv": out_dir / f"{stem}.csv"}
+    paths["md"].write_text(table.markdown())
+    paths["tex"].write_text(table.latex())
+    paths["csv"].write_text(table.csv())
+    return paths
