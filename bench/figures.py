@@ -12,6 +12,8 @@ import matplotlib
 import matplotlib.ticker
 
 matplotlib.use("Agg")  # before pyplot is imported (no display on servers): hence the E402s below
+# labels are user text (sequence and method names, "$HOME"), never TeX: a "$...$" must print as written
+matplotlib.rcParams["text.parse_math"] = False
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402

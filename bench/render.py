@@ -198,6 +198,7 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False  # labels are user text, never TeX
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
@@ -354,6 +355,7 @@ def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: lis
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False  # labels are user text, never TeX
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 

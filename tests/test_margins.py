@@ -159,7 +159,7 @@ def test_margins_of_a_win_a_tie_and_a_loss_to_the_floor():
     # Markdown: labels escaped; tuning and held-out side by side in the count table
     text = report.markdown()
     assert "A \\| win" in text and "| target | tuning data | held-out data |" in text
-    assert "| D1 &gt;= best other + 1 dB | 3 of 3 (2 beyond noise, 0 missed beyond noise) | 2 of 3" in text
+    assert "| D1 >= best other + 1 dB | 3 of 3 (2 beyond noise, 0 missed beyond noise) | 2 of 3" in text
     # CSV: a label a spreadsheet would run as a formula is quoted
     lines = report.csv().splitlines()
     assert any(line.startswith("tuning,tune,,'=C,fusion,d2,") for line in lines)
