@@ -90,9 +90,9 @@ def test_bar_chart_intervals_floor_and_colours(tmp_path, monkeypatch):
 def test_a_label_with_dollar_signs_prints_as_written(tmp_path):
     from dpcbench.bench.tables import comparison_table
 
-    df = _frames(sequences=(r"$\frac{broken", "a $5 bill"))
+    df = _frames(sequences=(r"$\frac{broken$", "a $5 and $6 bill"))
     df["seed"] = 0
-    table = comparison_table(df, "nshd", column_of=lambda sel: sel["method"] + r" $x^", scale=1e7)
+    table = comparison_table(df, "nshd", column_of=lambda sel: sel["method"] + r" $x^$", scale=1e7)
     assert figures.bar_chart(table, tmp_path / "t.png").exists()
     assert figures.per_frame_curves(df, "nshd", "frame", "", tmp_path / "f.png",
-                                    column_of=lambda sel: sel["method"] + "$").exists()
+                                    column_of=lambda sel: sel["method"] + r" $\sqrt{$").exists()
