@@ -29,7 +29,8 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
     intervals (`ComparisonTable.interval`, clipped at the metric's lower bound 0 for distances and
     NSHD); the floor column (`table.floor`, no fill) is a dashed black line across each group rather
     than a bar, and a bar below it carries the table's floor mark. The paper's values, when the table
-    has them, are a second panel on the same y scale. Colours follow the methods' registry names
+    has them, are a second panel on the same y scale (its own, said in its title, when the two ranges
+    differ by more than 4x). Rows with names over `MAX_TICK_CHARS` are lettered, with a key below. Colours follow the methods' registry names
     (``names``: column label -> registry name; default: the label up to " ("), `bench.palette`.
     Written as PNG (300 dpi) and PDF beside it, at double-column width unless ``width_in``."""
     from dpcbench.bench.labels import metric_label
@@ -44,8 +45,15 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
     lower_bound = 0.0 if table.metric in ("nshd", "hausdorff", "chamfer") else -math.inf
     width_in = width_in or DOUBLE_COLUMN_IN
     with plt.rc_context(print_style()):
-        fig, axes = plt.subplots(1, len(panels), figsize=(width_in, 2.9), squeeze=False, sharey=True,
-                                 gridspec_kw={"width_ratios": [max(1, len(rows)) for _, rows in panels]})
+        # one y scale for both panels, unless the paper's values dwarf this run's (stand-ins' NSHD is 100x
+        # smaller): then each panel has its own, said in its title
+        ours_max = max((abs(v) * table.scale for v in table.mean.values() if math.isfinite(v)), default=0.0)
+        paper_max = max((abs(v) for row in (table.paper or {}).values() for v in row.values()), default=0.0)
+        shared = not table.paper or (ours_max > 0 and paper_max > 0 and max(ours_max, paper_max) / min(
+            ours_max, paper_max) <= 4.0)
+        fig, axes = plt.subplots(1, len(panels), figsize=(width_in, 2.9), squeeze=False, sharey=shared,
+                                 gridspec_kw={"width_ratios": [max(1, len(rows)) * (1.0 if source == "this run" else 0.8)
+                                                               for source, rows in panels]})
         width = 0.8 / max(1, len(columns))
         for ax, (source, rows) in zip(axes[0], panels):
             x = np.arange(len(rows))
@@ -78,20 +86,43 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
                         ax.hlines(f * table.scale, i - 0.45, i + 0.45, colors="black", linestyles="--", linewidth=1.0,
                                   label=table.floor if i == 0 else None)
             ax.set_xticks(x)
-            ax.set_xticklabels([_wrap(r, 18) for r in rows])
-            ax.set_title(source, loc="left")
+            if source == "this run":
+                ax.set_xticklabels(tick_labels(rows)[0])
+            else:
+                ax.set_xticklabels(rows, rotation=30, ha="right")
+            ax.set_title(source + ("" if shared else " (own y scale)"), loc="left")
             ax.grid(axis="y", alpha=0.3)
         scale = f" (x{1 / table.scale:.0e})".replace("e-0", "e-") if table.scale != 1 else ""
-        axes[0][0].set_ylabel(metric_label(table.metric) + scale)
+        for ax in axes[0] if not shared else axes[0][:1]:
+            ax.set_ylabel(metric_label(table.metric) + scale)
         handles, labels = axes[0][0].get_legend_handles_labels()
         fig.suptitle(table.title + (f"\n{subtitle}" if subtitle else ""))
         fig.tight_layout()
-        fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, frameon=False)
+        legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, frameon=False)
+        key = tick_labels(table.rows)[1]
+        if key:  # the rows' full names under the legend, for the short tick labels
+            fig.canvas.draw()
+            bottom = legend.get_window_extent().transformed(fig.transFigure.inverted()).y0
+            fig.text(0.02, bottom - 0.02, "\n".join(_wrap(line, 130) for line in key), ha="left", va="top",
+                     fontsize=MIN_TEXT_PT)
         return save_figure(fig, out_png)
 
 
+#: tick labels longer than this are replaced by letters, with a key of the full names under the figure
+MAX_TICK_CHARS = 14
+
+
+def tick_labels(rows: list[str]) -> tuple[list[str], list[str]]:
+    """(tick labels, key lines): the rows themselves when every one is at most `MAX_TICK_CHARS` long,
+    else the letters A, B, ... and the key ["A: <row>", ...]."""
+    if all(len(str(r)) <= MAX_TICK_CHARS for r in rows):
+        return [str(r) for r in rows], []
+    letters = [chr(ord("A") + i) if i < 26 else f"R{i + 1}" for i in range(len(rows))]
+    return letters, [f"{letter}: {row}" for letter, row in zip(letters, rows)]
+
+
 def _wrap(text: str, width: int) -> str:
-    """``text`` broken into lines of at most ``width`` characters (at spaces), for tick labels."""
+    """``text`` broken into lines of at most ``width`` characters (at spaces)."""
     import textwrap
 
     return "\n".join(textwrap.wrap(str(text), width)) or str(text)
