@@ -96,3 +96,9 @@ def test_a_label_with_dollar_signs_prints_as_written(tmp_path):
     assert figures.bar_chart(table, tmp_path / "t.png").exists()
     assert figures.per_frame_curves(df, "nshd", "frame", "", tmp_path / "f.png",
                                     column_of=lambda sel: sel["method"] + r" $\sqrt{$").exists()
+
+
+def test_long_row_names_become_letters_with_a_key():
+    assert figures.tick_labels(["human", "bunny"]) == (["human", "bunny"], [])
+    ticks, key = figures.tick_labels(["Bunny (stand-in) · coherent holes", "human"])
+    assert ticks == ["A", "B"] and key == ["A: Bunny (stand-in) · coherent holes", "B: human"]
