@@ -185,3 +185,22 @@ def test_run_folder_round_trip(tmp_path):
     run.rename(tmp_path / "other")
     with pytest.raises(UserError, match="belongs to run folder key"):
         read_run_folder(tmp_path / "other")
+
+
+def test_every_package_folder_is_listed_for_the_wheel():
+    """A sub-package missing from pyproject's `packages` installs editable but is absent from the wheel."""
+    from dpcbench.bench.config import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(config["packages"])
+    folders = {folder: name for name, folder in config["package-dir"].items()}
+    missing = []
+    for top in ("bench", "methods", "metrics", "holes"):
+        for init in sorted((root / top).rglob("__init__.py")):
+            rel = init.parent.relative_to(root).as_posix()
+            base = max((f for f in folders if rel == f or rel.startswith(f + "/")), key=len)
+            name = folders[base] + rel[len(base):].replace("/", ".")
+            if name not in listed:
+                missing.append(name)
+    assert missing == [], f"add to [tool.setuptools] packages in pyproject.toml: {missing}"
