@@ -1,0 +1,61 @@
+"""Which strategy of temporal-fusion's spatial cascade filled or refused each hole of one damaged frame.
+
+Runs `TemporalFusion.inpaint` on the damaged frame(s) of a `dpcbench damage` folder and prints, per hole region,
+every strategy of `methods.temporal_fusion.spatial.CASCADE` that ran and how many points it added (0 = it refused or
+found nothing open). Usage (after experiments/one_frame.sh has written OUTDIR/damaged):
+
+    .venv/bin/python experiments/cascade_trace.py /tmp/fusionfill/ld-medium/damaged
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dpcbench.bench.plyio import read_ply
+from dpcbench.holes.regions import regions_from_json
+from dpcbench.methods.temporal_fusion import spatial
+from dpcbench.methods.temporal_fusion.method import TemporalFusion
+
+
+def _traced(strategy, log):
+    fill = strategy.fill
+
+    def traced(cfg, hole, state):
+        before = len(state.spatial) + len(state.sheet_fill)
+        start = time.process_time()
+        out = fill(cfg, hole, state)
+        added = len(out.spatial) + len(out.sheet_fill) - before
+        log.append((np.round(hole.region.center, 1).tolist(), hole.region.bounding_radius, strategy.__name__, added,
+                    time.process_time() - start))
+        return out
+
+    return staticmethod(traced)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
+    args = parser.parse_args(argv)
+    files = sorted(args.damaged.glob("*.ply"))
+    if not files or not (args.damaged / "holes.json").is_file():
+        print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
+        return 2
+    frames = [np.asarray(read_ply(p).points, dtype=np.float64) for p in files]
+    regions = regions_from_json(args.damaged / "holes.json", len(frames))
+    log: list = []
+    for strategy in spatial.CASCADE:
+        strategy.fill = _traced(strategy, log)
+    out = TemporalFusion().inpaint(frames, regions)
+    for centre, radius, name, added, cpu in log:
+        print(f"region at {centre} r={radius:.1f}: {name:14s} +{added:6d} points ({cpu:.1f} s CPU)")
+    print(f"added {sum(len(o) - len(f) for o, f in zip(out, frames))} points in all")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
