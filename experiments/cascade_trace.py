@@ -4,7 +4,7 @@ Runs `TemporalFusion.inpaint` on the damaged frame(s) of a `dpcbench damage` fol
 every strategy of `methods.temporal_fusion.spatial.CASCADE` that ran and how many points it added (0 = it refused or
 found nothing open). Usage (after experiments/one_frame.sh has written OUTDIR/damaged):
 
-    .venv/bin/python experiments/cascade_trace.py /tmp/fusionfill/ld-medium/damaged
+    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged
 """
 
 from __future__ import annotations
@@ -15,9 +15,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
 
-from dpcbench.bench.plyio import read_ply
-from dpcbench.holes.regions import regions_from_json
 from dpcbench.methods.temporal_fusion import spatial
 from dpcbench.methods.temporal_fusion.method import TemporalFusion
 
@@ -41,12 +40,11 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
     args = parser.parse_args(argv)
-    files = sorted(args.damaged.glob("*.ply"))
-    if not files or not (args.damaged / "holes.json").is_file():
+    loaded = read_damage_output(args.damaged)
+    if loaded is None:
         print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
         return 2
-    frames = [np.asarray(read_ply(p).points, dtype=np.float64) for p in files]
-    regions = regions_from_json(args.damaged / "holes.json", len(frames))
+    _, frames, regions = loaded
     log: list = []
     for strategy in spatial.CASCADE:
         strategy.fill = _traced(strategy, log)

@@ -2,8 +2,8 @@
 temporal-fusion as it is, except that test (1) keeps every seed (``_within_hull_of`` answers True), and write the
 result as PLY frames for `dpcbench score`. A measurement of the refusal rule, not a method. Usage:
 
-    .venv/bin/python experiments/membrane_no_hull.py /tmp/ld-medium/damaged /tmp/ld-medium/no-hull
-    .venv/bin/dpcbench score ../shared/data/8i_longdress_1300/longdress_vox10_1300.ply /tmp/ld-medium/no-hull
+    .venv/bin/python experiments/membrane_no_hull.py out/ld-medium/damaged out/ld-medium/no-hull
+    .venv/bin/dpcbench score ../shared/data/8i_longdress_1300/longdress_vox10_1300.ply out/ld-medium/no-hull
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
 
-from dpcbench.bench.plyio import read_ply, write_ply
-from dpcbench.holes.regions import regions_from_json
+from dpcbench.bench.plyio import write_ply
 from dpcbench.methods._spatial_fill import membrane
 from dpcbench.methods.temporal_fusion.method import TemporalFusion
 
@@ -25,12 +25,11 @@ def main(argv=None) -> int:
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
     parser.add_argument("out", type=Path, help="folder for the filled PLY frames")
     args = parser.parse_args(argv)
-    files = sorted(args.damaged.glob("*.ply"))
-    if not files or not (args.damaged / "holes.json").is_file():
+    loaded = read_damage_output(args.damaged)
+    if loaded is None:
         print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
         return 2
-    frames = [np.asarray(read_ply(p).points, dtype=np.float64) for p in files]
-    regions = regions_from_json(args.damaged / "holes.json", len(frames))
+    files, frames, regions = loaded
     membrane._within_hull_of = lambda points, inside, anchors: np.ones(len(points), dtype=bool)
     out = TemporalFusion().inpaint(frames, regions)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -3,7 +3,7 @@
 # score the whole frame (D1, D2, NSHD, ...). Usage:
 #   experiments/one_frame.sh FRAME.ply PRESET SEED OUTDIR [METHOD ...]
 # e.g. experiments/one_frame.sh ../shared/data/8i_longdress_1300/longdress_vox10_1300.ply medium 21 \
-#          /tmp/fusionfill/ld-medium none lozes-pde temporal-fusion fu-nonlocal
+#          out/ld-medium none lozes-pde temporal-fusion fu-nonlocal
 # Prints one score table per method and writes OUTDIR/<method>.json (dpcbench score --json).
 set -euo pipefail
 if [ $# -lt 4 ]; then
