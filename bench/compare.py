@@ -60,6 +60,7 @@ import numpy as np
 import pandas as pd
 
 from dpcbench.bench.atomic import atomic_write_text
+from dpcbench.bench.canonical import sorted_json
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.provenance import git_commit, summary_environment
 from dpcbench.metrics import registry as _registry
@@ -127,7 +128,7 @@ def _canonical_json(text) -> str:
     if text is None or (isinstance(text, float) and math.isnan(text)) or text == "":
         return "{}"
     value = json.loads(text) if isinstance(text, str) else text
-    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+    return sorted_json(value)
 
 
 def _normalize_keys(df: pd.DataFrame) -> pd.DataFrame:

@@ -70,15 +70,14 @@ mode) each method calls `detect_holes` with its defaults, so those ids carry the
 from __future__ import annotations
 
 import copy
-import hashlib
 import itertools
-import json
 import math
 import os
 import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from dpcbench.bench.canonical import canonical_json, stable_hash  # noqa: F401 - re-exported: run ids hash with them
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.paper_facts import PAPER_SEQUENCES  # the paper's sequences (name -> row label), one source
 
@@ -104,33 +103,6 @@ _METRICS_KEYS = {"names", "peaks", "scopes", "region_margin", "temporal_consiste
 
 class ConfigError(UserError):
     """A config mistake (a `UserError`); the message starts with the offending key."""
-
-
-# -- canonical hashing -----------------------------------------------------------------------
-def _normalize(value):
-    """Canonical form for hashing: whole floats -> int, tuples -> lists, dict keys sorted (by json)."""
-    if isinstance(value, bool) or value is None or isinstance(value, str):
-        return value
-    if isinstance(value, float):
-        if math.isfinite(value) and value == int(value) and abs(value) < 2**53:
-            return int(value)
-        return float(repr(value)) if math.isfinite(value) else str(value)
-    if isinstance(value, int):
-        return int(value)
-    if isinstance(value, dict):
-        return {str(k): _normalize(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_normalize(v) for v in value]
-    return str(value)
-
-
-def canonical_json(value) -> str:
-    return json.dumps(_normalize(value), sort_keys=True, separators=(",", ":"))
-
-
-def stable_hash(value) -> str:
-    """First 16 hex digits of SHA-256 of the canonical JSON of ``value``."""
-    return hashlib.sha256(canonical_json(value).encode()).hexdigest()[:16]
 
 
 # -- runs ------------------------------------------------------------------------------------

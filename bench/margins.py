@@ -54,6 +54,7 @@ import numpy as np
 import pandas as pd
 
 from dpcbench.bench import stats
+from dpcbench.bench.canonical import sorted_json
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.tables import csv_safe, md_escape
 
@@ -372,7 +373,7 @@ def compute_margins(obs: pd.DataFrame, method: str, roles: dict[str, tuple[str, 
 
 # -- from a results store ----------------------------------------------------------------------
 def _canonical(value) -> str:
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+    return sorted_json(value, stringify=True)
 
 
 def _holes_label(holes: dict) -> str:

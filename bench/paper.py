@@ -7,6 +7,7 @@ The paper's own facts (sequences, column labels, published Tables 1-2, headline 
 
 from __future__ import annotations
 
+from dpcbench.bench.canonical import sorted_json
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
     CLAIMED_NSHD_FACTOR_OVER_HU,
@@ -56,7 +57,7 @@ def _params_key(params) -> str:
     import json
 
     value = json.loads(params) if isinstance(params, str) and params else (params or {})
-    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+    return sorted_json(value)
 
 
 #: (registry name, canonical parameters JSON) -> column label

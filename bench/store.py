@@ -36,7 +36,6 @@ Write discipline (what makes a killed run harmless and a rerun idempotent):
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sqlite3
@@ -46,6 +45,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from dpcbench.bench.canonical import sorted_json
 from dpcbench.bench.errors import UserError
 
 SCHEMA_VERSION = 2
@@ -114,7 +114,8 @@ def now_iso() -> str:
 
 
 def _json(value) -> str:
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+    """A JSON column's text: sorted keys, compact, values as given (``str`` for what JSON cannot write)."""
+    return sorted_json(value, stringify=True)
 
 
 def _uri(path: Path, **query: str) -> str:
