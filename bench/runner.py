@@ -19,6 +19,7 @@ from pathlib import Path
 from dpcbench.bench.config import RunSpec
 from dpcbench.bench.executors import make_executor
 from dpcbench.bench.provenance import clean_stale_temp, git_commit
+from dpcbench.bench.records import RunRecord, run_record
 
 
 class RunSummary:
@@ -39,12 +40,11 @@ def default_runs_dir(store_path: Path) -> Path:
     return Path(store_path).resolve().parent / "runs"
 
 
-def _failure_record(spec: RunSpec, outcome: dict) -> dict:
-    return {"sequence": spec.sequence_label, "holes": spec.holes["generator"], "holes_params": spec.holes["params"],
-            "seed": spec.holes["seed"], "method": spec.method["name"], "method_params": spec.method["params"],
-            "method_version": spec.versions["method"], "code_version": git_commit(), "spec": spec.to_dict(),
-            "wall_time_s": outcome.get("wall_time_s"), "cpu_time_s": outcome.get("cpu_time_s"), "env": {"log": outcome.get("log"),
-                                                              "traceback": outcome.get("traceback")}}
+def _failure_record(spec: RunSpec, outcome: dict, error: str) -> RunRecord:
+    """The record of a failed run: the worker's timing, its log and traceback as the environment."""
+    return run_record(spec, status="failed", error=error, code_version=git_commit(),
+                      wall_time_s=outcome.get("wall_time_s"), cpu_time_s=outcome.get("cpu_time_s"),
+                      env={"log": outcome.get("log"), "traceback": outcome.get("traceback")})
 
 
 def warm_caches(specs: list[RunSpec], quiet: bool = True) -> None:
@@ -135,11 +135,12 @@ def run_experiment(specs: list[RunSpec], store, *, runs_dir: str | os.PathLike |
     try:
         for spec, outcome in runner.execute(todo, runs_path, force):
             if outcome.get("status") == "done":
-                store.record_run(spec.run_id, outcome["record"], outcome["results"], [spec.experiment])
+                record = RunRecord.from_facts(spec.run_id, outcome["record"], "done")
+                store.record_run(spec.run_id, record, outcome["results"], [spec.experiment])
                 summary.done.append(spec.run_id)
             else:
                 error = outcome.get("error", "unknown error")
-                store.record_failure(spec.run_id, _failure_record(spec, outcome), error, [spec.experiment])
+                store.record_failure(spec.run_id, _failure_record(spec, outcome, error), error, [spec.experiment])
                 summary.failed.append(spec.run_id)
                 summary.errors[spec.run_id] = error
                 if not quiet:

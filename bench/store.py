@@ -9,7 +9,7 @@ Schema (version `SCHEMA_VERSION`)::
     runs(run_id TEXT PRIMARY KEY, status TEXT 'done'|'failed', error TEXT,
          sequence, holes, holes_params (JSON), seed, method, method_params (JSON), method_version,
          code_version (git commit), spec (JSON), wall_time_s, cpu_time_s, peak_mem_mb, env (JSON),
-         created_at, finished_at, output_dir)
+         created_at, finished_at, output_dir)        -- the fields of bench.records.RunRecord
     experiment_runs(experiment TEXT, run_id TEXT)      -- a run may belong to several experiments
     results(run_id, frame INTEGER, metric, scope, peak, value REAL)
         PRIMARY KEY (run_id, frame, metric, scope, peak)  -- frame = -1 for sequence-level values
@@ -36,17 +36,18 @@ Write discipline (what makes a killed run harmless and a rerun idempotent):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sqlite3
 from contextlib import contextmanager
-from datetime import datetime, timezone
 from pathlib import Path
 
 import pandas as pd
 
-from dpcbench.bench.canonical import sorted_json
 from dpcbench.bench.errors import UserError
+from dpcbench.bench.records import COLUMNS as RECORD_COLUMNS
+from dpcbench.bench.records import RunRecord, now_iso  # noqa: F401 - now_iso re-exported
 
 SCHEMA_VERSION = 2
 #: schema versions this code can open (older ones are migrated on a writable open, see the module docstring)
@@ -57,18 +58,10 @@ RESULT_COLUMNS = [
     "run_id", "experiment", "sequence", "holes", "holes_params", "seed", "method", "method_params",
     "method_version", "code_version", "frame", "metric", "scope", "peak", "value", "created_at",
 ]
-#: columns of `ResultsStore.runs_frame`, in order
-RUN_COLUMNS = [
-    "run_id", "experiment", "status", "error", "sequence", "holes", "holes_params", "seed", "method",
-    "method_params", "method_version", "code_version", "spec", "wall_time_s", "cpu_time_s", "peak_mem_mb", "env",
-    "created_at", "finished_at", "output_dir",
-]
-
-_RUN_TABLE_COLUMNS = [
-    "run_id", "status", "error", "sequence", "holes", "holes_params", "seed", "method", "method_params",
-    "method_version", "code_version", "spec", "wall_time_s", "cpu_time_s", "peak_mem_mb", "env", "created_at",
-    "finished_at", "output_dir",
-]
+#: the ``runs`` table's columns, in order: the fields of `bench.records.RunRecord`
+_RUN_TABLE_COLUMNS = list(RECORD_COLUMNS)
+#: columns of `ResultsStore.runs_frame`, in order: the table's, with the experiment after the run id
+RUN_COLUMNS = [_RUN_TABLE_COLUMNS[0], "experiment", *_RUN_TABLE_COLUMNS[1:]]
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL);
@@ -107,15 +100,6 @@ def default_store_path() -> Path:
         return Path(env).expanduser()
     cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return cache / "dpcbench" / "results.sqlite"
-
-
-def now_iso() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-def _json(value) -> str:
-    """A JSON column's text: sorted keys, compact, values as given (``str`` for what JSON cannot write)."""
-    return sorted_json(value, stringify=True)
 
 
 def _uri(path: Path, **query: str) -> str:
@@ -300,19 +284,14 @@ class ResultsStore:
 
     # -- writes ----------------------------------------------------------------------------
     @staticmethod
-    def _run_row(run_id: str, record: dict, status: str, error: str | None) -> tuple:
-        return (
-            run_id, status, error,
-            record.get("sequence"), record.get("holes"), _json(record.get("holes_params", {})),
-            record.get("seed"), record.get("method"), _json(record.get("method_params", {})),
-            record.get("method_version"), record.get("code_version"), _json(record.get("spec", {})),
-            record.get("wall_time_s"), record.get("cpu_time_s"), record.get("peak_mem_mb"),
-            _json(record.get("env", {})),
-            record.get("created_at") or now_iso(), record.get("finished_at") or now_iso(),
-            None if record.get("output_dir") is None else str(record.get("output_dir")),
-        )
+    def _record(run_id: str, record: RunRecord | dict, status: str, error: str | None) -> RunRecord:
+        """``record`` as the `RunRecord` of run ``run_id`` with this status and error (a dict of run
+        facts is completed by `RunRecord.from_facts`)."""
+        if isinstance(record, RunRecord):
+            return dataclasses.replace(record, run_id=run_id, status=status, error=error)
+        return RunRecord.from_facts(run_id, record, status, error)
 
-    def _write(self, run_id: str, record: dict, status: str, error: str | None, results: list[dict],
+    def _write(self, run_id: str, record: RunRecord | dict, status: str, error: str | None, results: list[dict],
                experiments: list[str]) -> None:
         if self.readonly:
             raise UserError(f"{self.path}: opened read-only")
@@ -328,22 +307,22 @@ class ResultsStore:
                 conn.execute("DELETE FROM results WHERE run_id = ?", (run_id,))
                 conn.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_RUN_TABLE_COLUMNS)}) "
                              f"VALUES ({', '.join('?' * len(_RUN_TABLE_COLUMNS))})",
-                             self._run_row(run_id, record, status, error))
+                             self._record(run_id, record, status, error).to_row())
                 conn.executemany("INSERT OR REPLACE INTO results VALUES (?,?,?,?,?,?)", rows)
                 conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)",
                                  [(e, run_id) for e in experiments if e])
 
-    def record_run(self, run_id: str, record: dict, results: list[dict], experiments: list[str] = ()) -> None:
+    def record_run(self, run_id: str, record: RunRecord | dict, results: list[dict],
+                   experiments: list[str] = ()) -> None:
         """Store a finished run and all its results in one transaction (replacing earlier rows).
 
-        record:  run facts: sequence, holes, holes_params (dict), seed, method, method_params (dict),
-                 method_version, code_version, spec (dict), wall_time_s, cpu_time_s, peak_mem_mb, env (dict),
-                 created_at, finished_at, output_dir.
+        record:  a `bench.records.RunRecord`, or a dict of run facts (its fields but run_id, status and
+                 error; missing ones filled by `RunRecord.from_facts`).
         results: dicts with frame (int, -1 = sequence level), metric, scope, peak ("" if none), value.
         """
         self._write(run_id, record, "done", None, results, list(experiments))
 
-    def record_failure(self, run_id: str, record: dict, error: str, experiments: list[str] = ()) -> None:
+    def record_failure(self, run_id: str, record: RunRecord | dict, error: str, experiments: list[str] = ()) -> None:
         """Mark a run failed with its message (stale results of that id are dropped)."""
         self._write(run_id, record, "failed", str(error), [], list(experiments))
 

@@ -69,6 +69,7 @@ from dpcbench.bench.provenance import (
     read_run_folder,
     write_run_folder,
 )
+from dpcbench.bench.records import now_iso, run_record  # light (no pandas): created_at is the run's start
 from dpcbench.holes.lazy import import_entry
 
 WORKER_FLAG = "--worker"
@@ -246,11 +247,11 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) 
 def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = False) -> dict:
     """Do one run in this process; returns the outcome dict the driver stores.
 
-    outcome: {"run_id", "status": "done", "record": {...run facts...}, "results": [rows]}
+    outcome: {"run_id", "status": "done", "record": {...run facts: `RunRecord.facts`...}, "results": [rows]}
     Raises on any failure (the worker wrapper turns that into a "failed" outcome).
     """
     c0, t0 = process_cpu_s(), time.perf_counter()
-    created = _now()
+    created = now_iso()
     run_dir = Path(runs_dir) / spec.inpaint_key
     truth = load_run_sequence(spec.sequence)
     if force or not is_complete_run_folder(run_dir) or not _has_checksums(run_dir):
@@ -281,15 +282,10 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     env = environment()
     env["frames_reused"] = reused
     env["d2_normals"] = d2_normals_source(truth)
-    record = {
-        "sequence": spec.sequence_label, "holes": spec.holes["generator"], "holes_params": spec.holes["params"],
-        "seed": spec.holes["seed"], "method": spec.method["name"], "method_params": spec.method["params"],
-        "method_version": spec.versions["method"], "code_version": env["git_commit"], "spec": spec.to_dict(),
-        "wall_time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0,
-        "peak_mem_mb": manifest["total"]["peak_mem_mb"], "env": env,
-        "created_at": created, "finished_at": _now(), "output_dir": str(run_dir),
-    }
-    return {"run_id": spec.run_id, "status": "done", "record": record, "results": results}
+    record = run_record(spec, status="done", code_version=env["git_commit"], wall_time_s=time.perf_counter() - t0,
+                        cpu_time_s=process_cpu_s() - c0, peak_mem_mb=manifest["total"]["peak_mem_mb"], env=env,
+                        created_at=created, finished_at=now_iso(), output_dir=str(run_dir))
+    return {"run_id": spec.run_id, "status": "done", "record": record.facts(), "results": results}
 
 
 def _has_checksums(run_dir: Path) -> bool:
@@ -298,15 +294,6 @@ def _has_checksums(run_dir: Path) -> bool:
         return "sha256" in json.loads((run_dir / "manifest.json").read_text())
     except (OSError, ValueError):
         return False
-
-
-def _now() -> str:
-    """UTC now as the store writes it (`bench.store.now_iso`'s format). Not imported from there: that
-    import loads pandas, seconds of a run's start under load, and `created_at` would then lag the
-    start of the run's wall and CPU time by that much."""
-    from datetime import datetime, timezone
-
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
 # -- the worker process -------------------------------------------------------------------------
