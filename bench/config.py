@@ -438,7 +438,17 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
     if not isinstance(data, dict):
         raise ConfigError("config: expected a table")
     _unknown_keys(data, _TOP_KEYS, "config")
-    exp = data.get("experiment")
+    cfg = _parse_experiment(data.get("experiment"), source)
+    cfg.sequences = _parse_sequences(_table_list(data, "sequences"), base_dir)
+    cfg.holes = _parse_holes(_table_list(data, "holes"))
+    cfg.methods = _parse_methods(_table_list(data, "methods"))
+    cfg.metrics = _parse_metrics(data.get("metrics", {}))
+    return cfg
+
+
+def _parse_experiment(exp, source: str) -> ExperimentConfig:
+    """The [experiment] table as an `ExperimentConfig` without runs (name, timeout, regions, data role,
+    pinning, detection parameters)."""
     if not isinstance(exp, dict) or not exp.get("name"):
         raise ConfigError("experiment.name: missing; add [experiment] with name = \"...\"")
     _unknown_keys(exp, _EXPERIMENT_KEYS, "experiment")
@@ -474,21 +484,32 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
 
         _check_param_types(detect_holes, detection, "experiment.detection")
         cfg.detection = dict(detection)
+    return cfg
 
-    for i, seq in enumerate(_table_list(data, "sequences")):
+
+def _check_frames(frames, where: str) -> None:
+    """``frames``: None, a positive count, [start, stop) or [start, stop, step]."""
+    if frames is None:
+        return
+    ok = (isinstance(frames, int) and not isinstance(frames, bool) and frames > 0) or (
+        isinstance(frames, list) and len(frames) in (2, 3)
+        and all(isinstance(x, int) and not isinstance(x, bool) for x in frames)
+        and 0 <= frames[0] < frames[1] and (len(frames) == 2 or frames[2] > 0))
+    if not ok:
+        raise ConfigError(f"{where}.frames: expected a positive count, [start, stop) with start < stop, or "
+                          f"[start, stop, step] with step > 0 (every step-th frame), got {frames!r}")
+
+
+def _parse_sequences(tables: list[dict], base_dir) -> list[dict]:
+    """One entry per [[sequences]] table and grid point of its params (with its ``_where`` and ``_optional``)."""
+    out = []
+    for i, seq in enumerate(tables):
         where = f"sequences[{i}]"
         _unknown_keys(seq, _SEQUENCE_KEYS, where)
         if not seq.get("name") and not seq.get("path"):
             raise ConfigError(f"{where}: give `name` (an embedded or paper dataset) or `path` (a PLY folder)")
         frames = seq.get("frames")
-        if frames is not None:
-            ok = (isinstance(frames, int) and not isinstance(frames, bool) and frames > 0) or (
-                isinstance(frames, list) and len(frames) in (2, 3)
-                and all(isinstance(x, int) and not isinstance(x, bool) for x in frames)
-                and 0 <= frames[0] < frames[1] and (len(frames) == 2 or frames[2] > 0))
-            if not ok:
-                raise ConfigError(f"{where}.frames: expected a positive count, [start, stop) with start < stop, or "
-                                  f"[start, stop, step] with step > 0 (every step-th frame), got {frames!r}")
+        _check_frames(frames, where)
         path = None
         if seq.get("path"):  # relative paths are relative to the config file's folder
             try:
@@ -506,11 +527,16 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
             if not path:
                 _check_dataset_params(entry["name"], params, f"{where}.params")
             # "_optional" is not part of the run's identity (expand_config drops it)
-            cfg.sequences.append({**entry, "params": params, "_where": where, "_optional": optional})
+            out.append({**entry, "params": params, "_where": where, "_optional": optional})
+    return out
 
+
+def _parse_holes(tables: list[dict]) -> list[dict]:
+    """One entry per [[holes]] table, grid point of its params and seed (with the generator's entry and version)."""
     from dpcbench.holes.registry import GENERATORS, generator_class
 
-    for i, hole in enumerate(_table_list(data, "holes")):
+    out = []
+    for i, hole in enumerate(tables):
         where = f"holes[{i}]"
         _unknown_keys(hole, _HOLES_KEYS, where)
         gen = hole.get("generator")
@@ -532,12 +558,17 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         for params in _expand_params(hole.get("params", {}), f"{where}.params"):
             _validate_instance(cls, params, f"{where}.params")
             for seed in seeds:
-                cfg.holes.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
-                                  "entry": GENERATORS[gen], "version": GENERATORS.version_of(gen, cls)})
+                out.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
+                            "entry": GENERATORS[gen], "version": GENERATORS.version_of(gen, cls)})
+    return out
 
+
+def _parse_methods(tables: list[dict]) -> list[dict]:
+    """One entry per [[methods]] table and grid point of its params (with the method's entry and version)."""
     from dpcbench.methods.registry import METHODS, method_class
 
-    for i, meth in enumerate(_table_list(data, "methods")):
+    out = []
+    for i, meth in enumerate(tables):
         where = f"methods[{i}]"
         _unknown_keys(meth, _METHOD_KEYS, where)
         name = meth.get("name")
@@ -550,11 +581,9 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
         _check_param_types(cls, meth.get("params", {}), f"{where}.params")
         for params in _expand_params(meth.get("params", {}), f"{where}.params"):
             _validate_instance(cls, params, f"{where}.params")
-            cfg.methods.append({"name": name, "params": params, "label": meth.get("label"),
-                                "entry": METHODS[name], "version": METHODS.version_of(name, cls)})
-
-    cfg.metrics = _parse_metrics(data.get("metrics", {}))
-    return cfg
+            out.append({"name": name, "params": params, "label": meth.get("label"),
+                        "entry": METHODS[name], "version": METHODS.version_of(name, cls)})
+    return out
 
 
 def load_config(path: str | os.PathLike, overrides: dict | None = None) -> ExperimentConfig:

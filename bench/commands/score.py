@@ -58,22 +58,11 @@ def run(args) -> int:
     import dpcbench.metrics as metrics
     from dpcbench.bench.errors import RECORDED, warn
     from dpcbench.bench.sequences import load_sequence
-    from dpcbench.metrics.geometry import resolve_peak
     from dpcbench.metrics.registry import METRICS
     from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
 
     _return_freed_memory()
-    if not (args.jobs >= 1 or args.jobs == -1):
-        raise UserError(f"--jobs {args.jobs}: give a positive number of threads, or -1 for all cores")
-    if not (math.isfinite(args.region_margin) and args.region_margin >= 0):
-        raise UserError(f"--region-margin {args.region_margin:g}: must be a distance >= 0 (coordinate units); "
-                        "a negative margin would shrink the regions and score nothing")
-    if args.region_margin and not args.region:
-        raise UserError("--region-margin: only used with --region HOLES_JSON")
-    if args.fscore_threshold is not None and not (math.isfinite(args.fscore_threshold) and args.fscore_threshold > 0):
-        raise UserError(f"--fscore-threshold {args.fscore_threshold:g}: must be a positive distance")
-    if args.max_psnr is not None and not args.max_psnr > 0:
-        raise UserError(f"--max-psnr {args.max_psnr:g}: must be a positive number of dB (or inf)")
+    _check_options(args)
     # compact: float32 files stay float32 (the metrics take them as they are: on the integer grid
     # without a float64 copy), half the memory of a frame pair
     # colours are read only when a colour metric may be computed (the defaults, or a cpsnr_* named)
@@ -85,47 +74,8 @@ def run(args) -> int:
             f"mismatched frame counts: {args.reference} has {len(reference)} frame(s), {args.result} has "
             f"{len(result)}; score sequences of the same length"
         )
-    peak = args.peak
-    bit_depth = None
-    if peak.strip().lower() == "bitdepth":
-        if reference.bit_depth is None:
-            raise UserError(
-                f"--peak bitdepth: {args.reference} is not voxelized (non-integer coordinates), so it has no bit "
-                "depth; give it explicitly (--peak bitdepth:10) or use a number"
-            )
-        bit_depth = reference.bit_depth
-    elif peak.strip().lower() != "intrinsic":
-        try:
-            value = resolve_peak(peak, None, None)  # parses the text: its ValueError is a refusal of --peak
-        except ValueError as err:
-            raise UserError(f"--peak {peak}: {err}") from None
-        from dpcbench.holes.regions import COORD_LIMIT
-
-        if not (math.isfinite(value) and value <= COORD_LIMIT):
-            raise UserError(f"--peak {peak}: must be a finite distance up to {COORD_LIMIT:g} (a larger peak puts every "
-                            "PSNR above the cap, as if the clouds were identical)")
-    regions = None
-    if args.region:
-        from dpcbench.holes.regions import regions_from_json, union_mask
-
-        regions = regions_from_json(args.region, frame_count=len(reference), label=f"--region {args.region}")
-        from dpcbench.bench.sequences import check_regions_frames
-
-        check_regions_frames(args.region, reference, f"--region {args.region}")
-        empty = [i for i, (frame, regs) in enumerate(zip(reference.frames, regions))
-                 if regs and not union_mask(regs, frame.points, args.region_margin).any()]
-        holeless = [i for i, regs in enumerate(regions) if not regs]
-        if len(empty) + len(holeless) == len(regions):
-            why = "; ".join(part for part in (
-                f"the regions of frame(s) {_frames(empty)} contain none" if empty else "",
-                f"frame(s) {_frames(holeless)} have no region" if holeless else "") if part)
-            raise UserError(
-                f"--region {args.region}: no frame has a reference point inside its regions ({why}), so there is "
-                "nothing to score; use the holes.json made for this reference (or grow --region-margin)")
-        if empty:
-            warn(f"--region {args.region}: the regions of frame(s) {_frames(empty)} contain no reference point, so "
-                 "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
-                 "for this reference?")
+    peak, bit_depth = _peak(args, reference)
+    regions, empty = _regions(args, reference)
     names, colour_note = _with_colour_metrics(args, reference, result) if colours else (args.metrics, "not asked")
     ref_colours = res_colours = None
     if any(n.startswith("cpsnr_") for n in names or []):
@@ -172,6 +122,79 @@ def run(args) -> int:
         return 0
     _print_table(scores)
     return 0
+
+
+def _check_options(args) -> None:
+    """Refuse option values that cannot mean anything (before any file is read)."""
+    if not (args.jobs >= 1 or args.jobs == -1):
+        raise UserError(f"--jobs {args.jobs}: give a positive number of threads, or -1 for all cores")
+    if not (math.isfinite(args.region_margin) and args.region_margin >= 0):
+        raise UserError(f"--region-margin {args.region_margin:g}: must be a distance >= 0 (coordinate units); "
+                        "a negative margin would shrink the regions and score nothing")
+    if args.region_margin and not args.region:
+        raise UserError("--region-margin: only used with --region HOLES_JSON")
+    if args.fscore_threshold is not None and not (math.isfinite(args.fscore_threshold) and args.fscore_threshold > 0):
+        raise UserError(f"--fscore-threshold {args.fscore_threshold:g}: must be a positive distance")
+    if args.max_psnr is not None and not args.max_psnr > 0:
+        raise UserError(f"--max-psnr {args.max_psnr:g}: must be a positive number of dB (or inf)")
+
+
+def _peak(args, reference) -> tuple[str, int | None]:
+    """(the --peak text, the reference's bit depth when the peak is ``bitdepth`` alone); a peak that is
+    neither ``intrinsic`` nor a finite distance up to the coordinate limit is refused."""
+    from dpcbench.metrics.geometry import resolve_peak
+
+    peak = args.peak
+    bit_depth = None
+    if peak.strip().lower() == "bitdepth":
+        if reference.bit_depth is None:
+            raise UserError(
+                f"--peak bitdepth: {args.reference} is not voxelized (non-integer coordinates), so it has no bit "
+                "depth; give it explicitly (--peak bitdepth:10) or use a number"
+            )
+        bit_depth = reference.bit_depth
+    elif peak.strip().lower() != "intrinsic":
+        try:
+            value = resolve_peak(peak, None, None)  # parses the text: its ValueError is a refusal of --peak
+        except ValueError as err:
+            raise UserError(f"--peak {peak}: {err}") from None
+        from dpcbench.holes.regions import COORD_LIMIT
+
+        if not (math.isfinite(value) and value <= COORD_LIMIT):
+            raise UserError(f"--peak {peak}: must be a finite distance up to {COORD_LIMIT:g} (a larger peak puts every "
+                            "PSNR above the cap, as if the clouds were identical)")
+    return peak, bit_depth
+
+
+def _regions(args, reference) -> tuple[list | None, list[int]]:
+    """(the --region regions per frame or None, the frames whose regions hold no reference point); a
+    holes.json whose regions hold no reference point in any frame is refused."""
+    from dpcbench.bench.errors import warn
+
+    empty: list[int] = []
+    regions = None
+    if args.region:
+        from dpcbench.holes.regions import regions_from_json, union_mask
+
+        regions = regions_from_json(args.region, frame_count=len(reference), label=f"--region {args.region}")
+        from dpcbench.bench.sequences import check_regions_frames
+
+        check_regions_frames(args.region, reference, f"--region {args.region}")
+        empty = [i for i, (frame, regs) in enumerate(zip(reference.frames, regions))
+                 if regs and not union_mask(regs, frame.points, args.region_margin).any()]
+        holeless = [i for i, regs in enumerate(regions) if not regs]
+        if len(empty) + len(holeless) == len(regions):
+            why = "; ".join(part for part in (
+                f"the regions of frame(s) {_frames(empty)} contain none" if empty else "",
+                f"frame(s) {_frames(holeless)} have no region" if holeless else "") if part)
+            raise UserError(
+                f"--region {args.region}: no frame has a reference point inside its regions ({why}), so there is "
+                "nothing to score; use the holes.json made for this reference (or grow --region-margin)")
+        if empty:
+            warn(f"--region {args.region}: the regions of frame(s) {_frames(empty)} contain no reference point, so "
+                 "their in-hole scores are undefined (NaN) and left out of the mean; is this the holes.json made "
+                 "for this reference?")
+    return regions, empty
 
 
 def _with_colour_metrics(args, reference, result) -> tuple[list[str] | None, str]:
