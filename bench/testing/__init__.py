@@ -105,47 +105,31 @@ def _same(a: Any, b: Any) -> bool:
         return bool(np.array_equal(np.asarray(a), np.asarray(b)))
 
 
-def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | None = None, *,
-                 name: str | None = None, checks: tuple[str, ...] = CHECKS,
-                 progress: Callable[[str, float], None] | None = None) -> dict[str, float]:
-    """Run the conformance checks (`CHECKS`, see the module docstring) on a method class (or a name
-    the registry knows: a built-in, a plug-in, or an import path ``"pkg.mod:Class"``), constructed
-    with ``params`` (default: its defaults). ``name``: the name it is registered under, which the
-    class's ``name`` must equal. ``checks``: the subset to run (the others are skipped).
-    ``progress(check, seconds)`` is called after each check passes.
+class _Context:
+    """What the checks of one `check_method` call share: the class, the name it is registered under,
+    its parameters, the sample sequence, the state one check leaves for the next, and the helpers
+    that fail a check."""
 
-    Returns {check: seconds} of the checks run; raises `ConformanceError` at the first failure.
-    """
-    if isinstance(method, str):
-        from dpcbench.holes.lazy import is_import_path
-        from dpcbench.methods.registry import METHODS, method_class
+    def __init__(self, cls, name: str | None, label: str, params: dict[str, Any]):
+        self.cls, self.name, self.label, self.params = cls, name, label, params
+        self.frames, self.regions = sample_sequence()
+        self.state: dict[str, Any] = {}
 
-        if name is None and (method in METHODS.plugins or not is_import_path(method)):
-            name = method  # a registered name must be the class's `name`; an import path names none
-        method = method_class(method)
-    cls = method
-    label = name or getattr(cls, "name", "") or getattr(cls, "__name__", repr(cls))
-    unknown = [c for c in checks if c not in CHECKS]
-    if unknown:
-        raise ValueError(f"unknown check(s) {unknown}; known: {', '.join(CHECKS)}")
-    params = dict(params or {})
-    frames, regions = sample_sequence()
-    state: dict[str, Any] = {}
-    timings: dict[str, float] = {}
+    def fail(self, check: str, message: str):
+        raise ConformanceError(self.label, check, message)
 
-    def fail(check: str, message: str):
-        raise ConformanceError(label, check, message)
-
-    def run(check: str, fn: Callable[[], Any]) -> Any:
+    def run(self, check: str, fn: Callable[[], Any]) -> Any:
         """``fn()`` quietly; an exception it raises fails ``check`` with the exception named."""
         try:
             return _quiet(fn)
         except ConformanceError:
             raise
         except Exception as err:
-            fail(check, f"raised {type(err).__name__}: {err}")
+            self.fail(check, f"raised {type(err).__name__}: {err}")
 
-    def check_frames(check: str, out: Any, n: int, inputs: list[np.ndarray]) -> list[np.ndarray]:
+    def check_frames(self, check: str, out: Any, n: int, inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """``out`` if it is a list of ``n`` new, finite (N, 3) float64 arrays; else ``check`` fails."""
+        fail = self.fail
         if not isinstance(out, list) or len(out) != n:
             fail(check, f"inpaint must return a list of {n} frames, got {type(out).__name__}"
                         f"{f' of {len(out)}' if hasattr(out, '__len__') else ''}")
@@ -160,6 +144,12 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
             if any(np.shares_memory(arr, frame) for frame in inputs):
                 fail(check, f"frame {f} of the output shares memory with an input frame; return new arrays")
         return out
+
+
+def _interface_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
+    """The checks of the class and its parameters: class facts, inpaint's signature, __init__ storing
+    its parameters, get_params/set_params."""
+    cls, name, params, state, fail, run = ctx.cls, ctx.name, ctx.params, ctx.state, ctx.fail, ctx.run
 
     def class_facts():
         if not (isinstance(cls, type) and issubclass(cls, InpaintingMethod)):
@@ -223,6 +213,15 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
             fail("params-round-trip", "set_params(no_such_parameter=1) did not raise ValueError")
         state["params"] = got
 
+    return {"class-facts": class_facts, "signature": signature, "init-stores-parameters": init_stores_parameters, "params-round-trip": params_round_trip}
+
+
+def _output_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
+    """The checks of inpaint's output on the sample sequence: new float64 frames, inputs untouched,
+    read-only input, the same output twice, no change without holes."""
+    cls, frames, regions, state = ctx.cls, ctx.frames, ctx.regions, ctx.state
+    fail, run, check_frames = ctx.fail, ctx.run, ctx.check_frames
+
     def output():
         given = [frame.copy() for frame in frames]
         state["given"] = given
@@ -261,6 +260,14 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
             if not np.array_equal(a, b):
                 fail("no-hole-identity", f"with no hole region, frame {f} came back changed ({len(b)} -> {len(a)} "
                                          "points); return the input as it is")
+
+    return {"output": output, "inputs-untouched": inputs_untouched, "read-only-input": read_only_input, "deterministic": deterministic, "no-hole-identity": no_hole_identity}
+
+
+def _robustness_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
+    """The checks of what inpaint refuses or survives: no regions (blind), one frame, defective input."""
+    cls, frames, regions, state = ctx.cls, ctx.frames, ctx.regions, ctx.state
+    fail, run, check_frames = ctx.fail, ctx.run, ctx.check_frames
 
     def blind():
         if cls.detects_holes and not cls.needs_regions:
@@ -314,10 +321,36 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
             else:
                 fail("bad-input", f"input with a {defect} defect was accepted; check it (self._check_inputs)")
 
-    steps = {"class-facts": class_facts, "signature": signature, "init-stores-parameters": init_stores_parameters,
-             "params-round-trip": params_round_trip, "output": output, "inputs-untouched": inputs_untouched,
-             "read-only-input": read_only_input, "deterministic": deterministic,
-             "no-hole-identity": no_hole_identity, "blind": blind, "one-frame": one_frame, "bad-input": bad_input}
+    return {"blind": blind, "one-frame": one_frame, "bad-input": bad_input}
+
+
+def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | None = None, *,
+                 name: str | None = None, checks: tuple[str, ...] = CHECKS,
+                 progress: Callable[[str, float], None] | None = None) -> dict[str, float]:
+    """Run the conformance checks (`CHECKS`, see the module docstring) on a method class (or a name
+    the registry knows: a built-in, a plug-in, or an import path ``"pkg.mod:Class"``), constructed
+    with ``params`` (default: its defaults). ``name``: the name it is registered under, which the
+    class's ``name`` must equal. ``checks``: the subset to run (the others are skipped).
+    ``progress(check, seconds)`` is called after each check passes.
+
+    Returns {check: seconds} of the checks run; raises `ConformanceError` at the first failure.
+    """
+    if isinstance(method, str):
+        from dpcbench.holes.lazy import is_import_path
+        from dpcbench.methods.registry import METHODS, method_class
+
+        if name is None and (method in METHODS.plugins or not is_import_path(method)):
+            name = method  # a registered name must be the class's `name`; an import path names none
+        method = method_class(method)
+    cls = method
+    label = name or getattr(cls, "name", "") or getattr(cls, "__name__", repr(cls))
+    unknown = [c for c in checks if c not in CHECKS]
+    if unknown:
+        raise ValueError(f"unknown check(s) {unknown}; known: {', '.join(CHECKS)}")
+    params = dict(params or {})
+    ctx = _Context(cls, name, label, params)
+    timings: dict[str, float] = {}
+    steps = {**_interface_checks(ctx), **_output_checks(ctx), **_robustness_checks(ctx)}
     # a check that needs an earlier one's state runs it first (its time is counted there)
     needs = {"params-round-trip": ("init-stores-parameters",), "output": ("params-round-trip",),
              "inputs-untouched": ("output",), "read-only-input": ("params-round-trip",),
