@@ -423,102 +423,89 @@ def fit_placement(vertices0: np.ndarray, triangles: np.ndarray, areas: np.ndarra
     return Placement(s, o, int(np.ceil(oversampling * s * s * area)))
 
 
-def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int | None = None,
-                       density: float | None = None, bit_depth: int | None = 10, seed: int = 0,
-                       oversampling: float = DEFAULT_OVERSAMPLING, drop_degenerate: bool = False,
-                       cache: bool = True, progress: bool = False):
-    """A `bench.sequences.Sequence` sampled from mesh files (module docstring); ``frames``: indices into
-    ``files`` (None: all). The Sequence carries ``motion`` (a `MeshMotion`) when connectivity is shared."""
-    from dpcbench.bench.plyio import PointCloud
-    from dpcbench.bench.sequences import Sequence
-    from dpcbench.bench.standins.cache import cache_key, load_cached, store_cached
-
-    _check_params(points, density, bit_depth, oversampling)
-    bit_depth = None if bit_depth is None else int(bit_depth)
-    indices = list(range(len(files))) if frames is None else [int(i) for i in frames]
-    meshes = {}
-
-    def mesh(i):
-        if i not in meshes:
-            meshes[i] = read_mesh(files[i])
-        return meshes[i]
-
-    # every frame is read: the placement depends on the whole sequence's bounding box
-    for i in range(len(files)):
-        mesh(i)
-    v0, t0 = mesh(0)
-    shared = all(len(mesh(i)[0]) == len(v0) and np.array_equal(mesh(i)[1], t0) for i in range(len(files)))
+def _read_all(files: list[Path], name: str) -> tuple[list[tuple[np.ndarray, np.ndarray]], bool]:
+    """Every mesh of ``files`` (the placement depends on the whole sequence's bounding box, so all are
+    read) and whether they share connectivity (same vertex count and faces); warns when they do not."""
+    meshes = [read_mesh(f) for f in files]
+    v0, t0 = meshes[0]
+    shared = all(len(v) == len(v0) and np.array_equal(t, t0) for v, t in meshes)
     if not shared:
-        odd = next(i for i in range(len(files)) if len(mesh(i)[0]) != len(v0) or not np.array_equal(mesh(i)[1], t0))
-        warnings.warn(f"{name}: {files[odd].name} has {len(mesh(odd)[0])} vertices and {len(mesh(odd)[1])} faces, "
+        odd = next(i for i, (v, t) in enumerate(meshes) if len(v) != len(v0) or not np.array_equal(t, t0))
+        warnings.warn(f"{name}: {files[odd].name} has {len(meshes[odd][0])} vertices and {len(meshes[odd][1])} faces, "
                       f"{files[0].name} {len(v0)} and {len(t0)}, or different faces: the frames do not share "
                       "connectivity, so each frame is sampled on its own and the sequence has no true point "
-                      "motion (temporal consistency falls back to nearest-point links)", UserWarning, stacklevel=2)
-    # degenerate faces: checked in every frame (a face may collapse only in some)
-    triangles_of = {}
-    for i in range(len(files)):
-        v, t = mesh(i)
+                      "motion (temporal consistency falls back to nearest-point links)", UserWarning, stacklevel=3)
+    return meshes, shared
+
+
+def _surface_triangles(files: list[Path], meshes: list, shared: bool, drop_degenerate: bool,
+                       name: str) -> list[np.ndarray]:
+    """The triangles each frame is sampled on. Degenerate faces (repeated vertex or zero area: no normal)
+    are checked in every frame, since a face may collapse only in some: refused, or with
+    ``drop_degenerate`` left out (with shared connectivity: a face degenerate in any frame, from all)."""
+    degenerate = []
+    for path, (v, t) in zip(files, meshes):
         bad = degenerate_faces(v, t)
-        if bad.any():
+        if bad.any() and not drop_degenerate:
             first = int(np.flatnonzero(bad)[0])
-            if not drop_degenerate:
-                raise UserError(f"{files[i]}: {int(bad.sum())} degenerate face(s) (repeated vertex or zero area; "
-                                f"first: face {first}, vertices {t[first].tolist()}); their normal is undefined. "
-                                "Clean the mesh (e.g. pymeshlab meshing_remove_null_faces) "
-                                "or pass drop_degenerate=true")
-        triangles_of[i] = bad
-    if shared:
-        keep = ~np.any([triangles_of[i] for i in range(len(files))], axis=0)
-        if not keep.all():
-            warnings.warn(f"{name}: dropped {int((~keep).sum())} face(s) degenerate in some frame", UserWarning,
-                          stacklevel=2)
-        tri_shared = t0[keep]
-    params = {"points": points, "density": density, "bit_depth": bit_depth, "seed": int(seed),
-              "oversampling": float(oversampling), "drop_degenerate": bool(drop_degenerate)}
-    identity = {"files": _files_fingerprint(files), "params": params, "shared": shared}
+            raise UserError(f"{path}: {int(bad.sum())} degenerate face(s) (repeated vertex or zero area; "
+                            f"first: face {first}, vertices {t[first].tolist()}); their normal is undefined. "
+                            "Clean the mesh (e.g. pymeshlab meshing_remove_null_faces) "
+                            "or pass drop_degenerate=true")
+        degenerate.append(bad)
+    if not shared:
+        return [t[~bad] for (_, t), bad in zip(meshes, degenerate)]
+    keep = ~np.any(degenerate, axis=0)
+    if not keep.all():
+        warnings.warn(f"{name}: dropped {int((~keep).sum())} face(s) degenerate in some frame", UserWarning,
+                      stacklevel=3)
+    return [meshes[0][1][keep]] * len(meshes)
 
-    fill = bit_depth is not None and points is None and density is None
 
-    def reference(i):
-        t = tri_shared if shared else mesh(i)[1][~triangles_of[i]]
-        return mesh(i)[0], t
+def _placement(references: list, key: str, *, points, density, bit_depth, oversampling, seed, cache: bool,
+               name: str) -> Placement:
+    """The sequence's placement on the grid (cached under ``key``), fitted on the reference frame (frame 0
+    of the folder) within the bounding box of the surface (vertices no face refers to left out) over
+    every frame."""
+    from dpcbench.bench.standins.cache import load_cached, store_cached
 
-    def target_of(i):
-        v, t = reference(i)
-        areas, _ = face_areas_normals(v, t)
-        return int(points if points is not None else (round(density * areas.sum()) if density is not None
-                                                        else DEFAULT_POINTS)), areas
-
-    # bounding box of the surface (vertices no face refers to are left out) over every frame of the folder
-    lo = np.min([reference(i)[0][reference(i)[1]].reshape(-1, 3).min(0) for i in range(len(files))], axis=0)
-    hi = np.max([reference(i)[0][reference(i)[1]].reshape(-1, 3).max(0) for i in range(len(files))], axis=0)
-
-    # placement (sequence level, cached): fitted on the reference frame (frame 0 of the folder)
-    key = cache_key("mesh", GENERATOR_VERSION, identity, -1)
+    lo = np.min([v[t].reshape(-1, 3).min(0) for v, t in references], axis=0)
+    hi = np.max([v[t].reshape(-1, 3).max(0) for v, t in references], axis=0)
     stored = load_cached(key, "mesh") if cache else None
     if stored is not None:
-        place = Placement(float(stored["scale"]), stored["offset"], int(stored["samples"]))
+        return Placement(float(stored["scale"]), stored["offset"], int(stored["samples"]))
+    v_ref, t_ref = references[0]
+    areas, _ = face_areas_normals(v_ref, t_ref)
+    target = int(points if points is not None else (round(density * areas.sum()) if density is not None
+                                                    else DEFAULT_POINTS))
+    if target < 1:
+        raise UserError(f"{name}: density {density} gives no point on a surface of area {areas.sum():.4g}")
+    if bit_depth is None:
+        place = Placement(1.0, np.zeros(3), target)
+    elif points is None and density is None:  # fill the grid
+        top = (1 << bit_depth) - 1
+        extent = float((hi - lo).max())
+        if extent <= 0:
+            raise UserError(f"{name}: the meshes have zero extent; nothing to voxelize")
+        scale = (top - 1) / extent
+        place = Placement(scale, top / 2.0 - scale * (lo + hi) / 2.0,
+                          int(np.ceil(oversampling * scale * scale * areas.sum())))
     else:
-        v_ref, t_ref = reference(0)
-        target, areas = target_of(0)
-        if target < 1:
-            raise UserError(f"{name}: density {density} gives no point on a surface of area {areas.sum():.4g}")
-        if bit_depth is None:
-            place = Placement(1.0, np.zeros(3), target)
-        elif fill:
-            top = (1 << bit_depth) - 1
-            extent = float((hi - lo).max())
-            if extent <= 0:
-                raise UserError(f"{name}: the meshes have zero extent; nothing to voxelize")
-            scale = (top - 1) / extent
-            place = Placement(scale, top / 2.0 - scale * (lo + hi) / 2.0,
-                              int(np.ceil(oversampling * scale * scale * areas.sum())))
-        else:
-            _, normals = face_areas_normals(v_ref, t_ref)
-            place = fit_placement(v_ref, t_ref, areas, normals, lo, hi, target, bit_depth, oversampling, seed, name)
-        if cache:
-            store_cached(key, "mesh", {"scale": np.array(place.scale), "offset": place.offset,
-                                       "samples": np.array(place.samples)})
+        _, normals = face_areas_normals(v_ref, t_ref)
+        place = fit_placement(v_ref, t_ref, areas, normals, lo, hi, target, bit_depth, oversampling, seed, name)
+    if cache:
+        store_cached(key, "mesh", {"scale": np.array(place.scale), "offset": place.offset,
+                                   "samples": np.array(place.samples)})
+    return place
+
+
+def _sample_frames(references: list, indices: list[int], place: Placement, identity: dict, *, shared: bool,
+                   bit_depth, oversampling, seed, cache: bool, progress: bool, name: str) -> tuple[list, list, list]:
+    """(point clouds, (faces, barycentric) anchors, placed vertices) of the frames ``indices``, each
+    from the frame cache or sampled: with shared connectivity every frame at the same surface points
+    (drawn once on the reference frame), else each frame on its own with its own seed."""
+    from dpcbench.bench.plyio import PointCloud
+    from dpcbench.bench.standins.cache import cache_key, load_cached, store_cached
 
     samples = None  # (faces, bary) on the reference frame, drawn only when a frame must be computed
     out_frames, anchors, placed_vertices = [], [], []
@@ -528,14 +515,14 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
 
         iterator = progress_bar(indices, desc=f"sampling {name}", unit="frame")
     for i in iterator:
-        v, t = reference(i)
+        v, t = references[i]
         v_out = v * place.scale + place.offset
         fkey = cache_key("mesh", GENERATOR_VERSION, identity, i)
         arrays = load_cached(fkey, "mesh") if cache else None
         if arrays is None:
             if shared:
                 if samples is None:
-                    areas0, _ = face_areas_normals(*reference(0))
+                    areas0, _ = face_areas_normals(*references[0])
                     samples = sample_barycentric(areas0, place.samples, np.random.default_rng(seed))
                 faces, bary = samples
             else:
@@ -551,11 +538,39 @@ def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int
         out_frames.append(PointCloud(arrays["points"].astype(np.float64), None, normals))
         anchors.append((arrays["faces"].astype(np.int64), arrays["bary"]))
         placed_vertices.append(v_out)
+    return out_frames, anchors, placed_vertices
+
+
+def load_mesh_sequence(files: list[Path], frames=None, *, name: str, points: int | None = None,
+                       density: float | None = None, bit_depth: int | None = 10, seed: int = 0,
+                       oversampling: float = DEFAULT_OVERSAMPLING, drop_degenerate: bool = False,
+                       cache: bool = True, progress: bool = False):
+    """A `bench.sequences.Sequence` sampled from mesh files (module docstring); ``frames``: indices into
+    ``files`` (None: all). The Sequence carries ``motion`` (a `MeshMotion`) when connectivity is shared."""
+    from dpcbench.bench.sequences import Sequence
+    from dpcbench.bench.standins.cache import cache_key
+
+    _check_params(points, density, bit_depth, oversampling)
+    bit_depth = None if bit_depth is None else int(bit_depth)
+    indices = list(range(len(files))) if frames is None else [int(i) for i in frames]
+    meshes, shared = _read_all(files, name)
+    triangles = _surface_triangles(files, meshes, shared, drop_degenerate, name)
+    references = [(v, t) for (v, _), t in zip(meshes, triangles)]
+    params = {"points": points, "density": density, "bit_depth": bit_depth, "seed": int(seed),
+              "oversampling": float(oversampling), "drop_degenerate": bool(drop_degenerate)}
+    identity = {"files": _files_fingerprint(files), "params": params, "shared": shared}
+    place = _placement(references, cache_key("mesh", GENERATOR_VERSION, identity, -1), points=points,
+                       density=density, bit_depth=bit_depth, oversampling=oversampling, seed=seed, cache=cache,
+                       name=name)
+    out_frames, anchors, placed_vertices = _sample_frames(
+        references, indices, place, identity, shared=shared, bit_depth=bit_depth, oversampling=oversampling,
+        seed=seed, cache=cache, progress=progress, name=name)
+    v0, t0 = meshes[0]
     meta = {"generator": "mesh", "version": GENERATOR_VERSION, "source": str(files[0].parent),
             "params": params, "frame_indices": indices, "scale": place.scale, "offset": place.offset.tolist(),
             "samples_per_frame": place.samples, "shared_connectivity": shared,
             "vertices": len(v0), "faces": len(t0)}
-    motion = MeshMotion(placed_vertices, tri_shared, anchors, [f.points for f in out_frames]) if shared else None
+    motion = MeshMotion(placed_vertices, triangles[0], anchors, [f.points for f in out_frames]) if shared else None
     seq = Sequence(name, out_frames, bit_depth, [files[i] for i in indices], meta)
     seq.motion = motion
     return seq
