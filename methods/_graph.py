@@ -154,7 +154,7 @@ def temporal_links(rows: np.ndarray, aligned: np.ndarray, rotation: np.ndarray, 
         linked &= ~in_hole
     near &= ~in_hole
     # contradicted: the neighbour has data there but none of it near the row. Also an inpainted
-    # f-1: letting only captured data contradict was measured worse (see methods/NOTES.md)
+    # f-1: letting only captured data contradict was measured worse (see docs/notes-journal.md)
     contradicted = ~near & ~in_hole
     if off_surface is not None and contradicted.any() and len(aligned) >= 3:
         cand = np.flatnonzero(contradicted)

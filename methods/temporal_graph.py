@@ -85,7 +85,7 @@ frozen dataclasses: `FrameContext` (one frame), `LocalPoints` (one group of hole
 `NeighbourFrame`, `InterSource`, `CubeFill`, `GroupFill`. `_CubeGraphInpainting` only wires them:
 `_inpaint_sequence` (frames in order), `_inpaint_frame`, `_fill_group`, `_fill_cube`.
 
-Measured figures behind the choices: methods/NOTES.md.
+Measured figures behind the choices: docs/notes-journal.md.
 """
 
 from __future__ import annotations
@@ -740,7 +740,7 @@ class _CubeGraphInpainting(InpaintingMethod):
 
         A link joins a point to its counterpart in the neighbouring frame's sampling, so its length
         is measured in point spacings (one voxel on voxelized data), not in the cube's unit (see
-        methods/NOTES.md for the measurement on dfaust).
+        docs/notes-journal.md for the measurement on dfaust).
         """
         spacing = 1.0 if integer else point_spacing(frame, tree=tree)
         return self.link_radius * max(unit, spacing)
@@ -946,7 +946,7 @@ class TemporalGraph(_CubeGraphInpainting):
                            whose voxel, by rounding, holds no point yet, one per voxel; a cell of
                            one point spacing on unvoxelized data): overlapping cubes whose sources
                            sit half a voxel apart then fill the same hole in layers (measured in
-                           methods/NOTES.md).
+                           docs/notes-journal.md).
       graph_on             "estimate" / "source": the K-NN graph on the initial estimate
                            Omega_bar c_t + Omega c_s_hat, or, as the paper (Sec. 3.3, "we
                            approximate the connectivities via the similarities in its
@@ -1013,7 +1013,7 @@ class TemporalGraph(_CubeGraphInpainting):
     paper configuration is this one without the temporal terms: beta = 0, [Fu18TIP] frame by frame).
 
     Measured figures behind the tuned variant's choices (and the commit each was measured at):
-    methods/NOTES.md.
+    docs/notes-journal.md.
     """
 
     name = "temporal-graph"

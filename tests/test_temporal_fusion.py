@@ -1727,7 +1727,7 @@ def test_pooled_adjacent_copies_misplace_fewer_voxels():
     """Step 4b with ``pool_adjacent`` (version 26): the fit that re-voxelizes the fused copy also takes the other
     adjacent frame's copy, ``mls_neighbours`` points a copy. Each copy is another voxelization of the surface
     (`crossed_sphere_voxels` at a random sub-voxel shift), moved back with its own alignment error (0.2 voxel
-    per axis, about what samba's copies keep, methods/NOTES.md "version 17"). On a sphere of radius 30 with a
+    per axis, about what samba's copies keep, docs/notes-journal.md "version 17"). On a sphere of radius 30 with a
     hole of radius 8, six holes: voxels missed plus voxels added fall from 569 (one copy, 28 points) to 285 (two
     copies, 56 points; each hole 137 / 55 / 117 / 119 / 117 / 24 -> 31 / 42 / 83 / 65 / 41 / 23)."""
     assert TemporalFusion().pool_adjacent is True

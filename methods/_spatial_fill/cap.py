@@ -62,7 +62,7 @@ def cap_fill(local: np.ndarray, region: HoleRegion, covered: cKDTree | None, spa
     the middle of the wall's column). False (version 28): `rim_surface_fill` of the loop with the normals
     test off and a linear polynomial part, the least-bending thin plate, which continues the slope the loop
     has at its edge: at the bunny's base, whose rim rises from the body's walls, it rose 2-3 voxels above the
-    rim and out of the box, and the middle of the opening stayed open (methods/NOTES.md "version 29")."""
+    rim and out of the box, and the middle of the opening stayed open (docs/notes-journal.md "version 29")."""
     loop = local[region.contains(local, margin=band_spacings * spacing)]
     if len(loop) < 12:
         return np.zeros((0, 3))

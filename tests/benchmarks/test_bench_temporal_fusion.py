@@ -28,7 +28,7 @@ Occlusion holes at paper scale (`test_bench_fusion_occlusion`): two frames of th
 (17-29 occlusion pieces a frame, ~1,500 points removed) and of the bunny at default size (635k points,
 86-91 pieces, 63k points = 10 % removed a frame, most of it the base: one opening of bounding radius 199
 voxels that no frame sees), both frames damaged, so every opening goes through the spatial fills (steps
-6, 6c, 6d). Bunny, 3 frames, CPU (one-off profile, methods/NOTES.md "version 14"): 275.5 s at version 13,
+6, 6c, 6d). Bunny, 3 frames, CPU (one-off profile, docs/notes-journal.md "version 14"): 275.5 s at version 13,
 117.8 s at version 14 (open3d's normal orientation and a scan of the region's bounding cube replaced).
 This benchmark, 2026-11-26, version 14, --benchmark-timer=time.process_time, one run each: human-800k
 3.3 s (880 / 1,154 points added), bunny-635k 81.9 s (~41 s a frame; 25,097 / 45,955 added), most of it
@@ -72,7 +72,7 @@ occlusion"`, CPU, one run: 100k / 290k / 800k 1.35 / 2.60 / 4.69 s; occlusion hu
 back to back: 10.54, the same points added), bunny-635k 85.1 s (its base still capped first); coherent 800k 35.3 s
 (11.8 s a frame) against version 34's 31.2 s run after it: the hole over a hand that version 34 capped first (the
 cap 6.2 voxels RMS off the hand, 0.1 s) now gets step 6c's surface and its hold-out (0.94 off), 1-3 s a frame;
-frame D1 over the 3 frames 4.06 -> 12.88 dB (methods/NOTES.md, "version 35").
+frame D1 over the 3 frames 4.06 -> 12.88 dB (docs/notes-journal.md, "version 35").
 Version 38 (step 9, open holes take the next frame's fill moved back), `-k "size or coherent"`, CPU, one run: 100k /
 290k / 800k 1.18 / 1.86 / 3.76 s, coherent 800k 35.9 s for 3 frames; `-k "holes or occlusion"`: 1 / 3 holes at
 ~280k 0.58 / 1.26 s (with 5: 1.86 s, about 0.32 s a hole), occlusion human-800k 10.7 s, bunny-635k 89.2 s. Wall-clock (the default timer, version 37, one
@@ -208,7 +208,7 @@ def test_bench_fusion_longdress(benchmark, shared_dir, holes):
     voxels), one frame, so no other frame saw its holes and every hole goes to the spatial fills (steps 6-6e).
     ``region``: 4 medium balls (seed 0); ``occlusion``: the rig's boxes (seed 0, 91 of them). The whole-frame
     D1 / D2 of the result and of no fill go into extra_info (outside the timed call). Measured 2026-11-28, version
-    42, CPU time, one run each (one-off scripts, methods/NOTES.md "Longdress, one frame, occlusion holes"): region
+    42, CPU time, one run each (one-off scripts, docs/notes-journal.md "Longdress, one frame, occlusion holes"): region
     8.1 s CPU (7.4 s wall through the CLI), D1 / D2 14.05 / 26.58 against no fill 8.30 / 29.05; occlusion 84-88 s CPU (73 s of it
     step 6c refusing its wide boxes; ``poisson_in_boxes=False`` 8 s), 18.64 / 27.65 against 15.41 / 32.03."""
     from dpcbench.bench.sequences import load_sequence
