@@ -332,7 +332,7 @@ class ResultsStore:
                 conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)",
                                  [(e, run_id) for e in experiments if e])
 
-    def record_run(self, run_id: str, record: dict, results: list[dict], experiments: list[str] = ()) -> None:
+    def record_run(self, run_id: str, record: dict, results: list[dict], experiments: list[str] | tuple[str, ...] = ()) -> None:
         """Store a finished run and all its results in one transaction (replacing earlier rows).
 
         record:  run facts: sequence, holes, holes_params (dict), seed, method, method_params (dict),
@@ -342,7 +342,7 @@ class ResultsStore:
         """
         self._write(run_id, record, "done", None, results, list(experiments))
 
-    def record_failure(self, run_id: str, record: dict, error: str, experiments: list[str] = ()) -> None:
+    def record_failure(self, run_id: str, record: dict, error: str, experiments: list[str] | tuple[str, ...] = ()) -> None:
         """Mark a run failed with its message (stale results of that id are dropped)."""
         self._write(run_id, record, "failed", str(error), [], list(experiments))
 
