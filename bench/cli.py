@@ -24,8 +24,8 @@ from dpcbench.bench import __version__
 from dpcbench.bench.errors import RECORDED, UserError
 
 
-def one_line(text: str) -> str:
-    """The message on one line (newlines and runs of spaces folded)."""
+def one_line(text: object) -> str:
+    """The message (``str(text)``: a string or an exception) on one line, newlines and runs of spaces folded."""
     return " ".join(str(text).split())
 
 

@@ -207,7 +207,7 @@ def _check_param_types(cls, params: dict, where: str) -> None:
     requires numbers."""
     import inspect
 
-    sig = inspect.signature(cls.__init__ if isinstance(cls, type) else cls)
+    sig = inspect.signature(cls.__init__ if inspect.isclass(cls) else cls)
     known = {n: p for n, p in sig.parameters.items() if n != "self" and p.kind in
              (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)}
     accepts_any = any(p.kind == inspect.Parameter.VAR_KEYWORD for p in sig.parameters.values())
@@ -540,7 +540,7 @@ def _parse_holes(tables: list[dict]) -> list[dict]:
         where = f"holes[{i}]"
         _unknown_keys(hole, _HOLES_KEYS, where)
         gen = hole.get("generator")
-        if gen not in GENERATORS:
+        if not isinstance(gen, str) or gen not in GENERATORS:
             raise ConfigError(f"{where}.generator: unknown hole generator {gen!r}; known: {', '.join(sorted(GENERATORS)) or 'none registered'}")
         if "seeds" in hole and "seed" in hole:
             raise ConfigError(f"{where}: give `seeds` or `seed`, not both")
@@ -572,7 +572,7 @@ def _parse_methods(tables: list[dict]) -> list[dict]:
         where = f"methods[{i}]"
         _unknown_keys(meth, _METHOD_KEYS, where)
         name = meth.get("name")
-        if name not in METHODS:
+        if not isinstance(name, str) or name not in METHODS:
             raise ConfigError(f"{where}.name: unknown method {name!r}; known methods: {', '.join(sorted(METHODS))}")
         try:
             cls = method_class(name)

@@ -51,6 +51,7 @@ import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -245,7 +246,7 @@ def short_version(version: str) -> str:
     version = str(version)
     match = re.fullmatch(r"(.*?)[+-]dirty", version)
     dirty = match is not None
-    core = match.group(1) if dirty else version
+    core = match.group(1) if match is not None else version
     short = core[:8] if re.fullmatch(r"[0-9a-f]{9,}", core) else core[:12]
     return short + ("+" if dirty else "")
 
@@ -301,7 +302,7 @@ def run_machines(runs: pd.DataFrame | None) -> dict[str, str]:
 
     if runs is None or runs.empty or "env" not in runs.columns:
         return {}
-    names = {}
+    names: dict[str, list[str]] = {}
     for version, env_text in zip(runs["code_version"].fillna("unknown").astype(str), runs["env"]):
         try:
             env = json.loads(env_text) if isinstance(env_text, str) and env_text else {}
@@ -349,7 +350,7 @@ def benchmark_charts(benchmarks: pd.DataFrame) -> list[Chart]:
         previous = machine_of.get(key) or previous
     function = benchmarks["fullname"].str.split("::").str[-1].str.split("[").str[0]
     group = benchmarks["group"].fillna("").where(benchmarks["group"].fillna("") != "", function)
-    charts = []
+    charts: list[Chart] = []
     for name, rows in benchmarks.assign(group=group).groupby("group", sort=True):
         traces = []
         for i, (fullname, line) in enumerate(rows.groupby("fullname", sort=True)):
@@ -483,7 +484,8 @@ def _trace(history: History, label: str, rows: pd.DataFrame, colour: str, ticks:
     }
 
 
-def _layout(title: str, y_title: str, ticks: dict[str, str], log: bool) -> dict:
+def _layout(title: str, y_title: str, ticks: dict[Any, str], log: bool) -> dict:
+    # ticks: x key (a code version, or a benchmark session's (datetime, commit)) -> its label, in x order
     return {
         "title": {"text": title, "font": {"size": 12.5}, "x": 0.01, "xanchor": "left"},
         "height": 290, "margin": {"l": 62, "r": 14, "t": 34, "b": 62}, "showlegend": False,
@@ -503,7 +505,7 @@ def quality_charts(history: History, colours: dict[str, str], metrics: list[str]
     configuration (dotted for a PSNR peak other than the default), the paper's value for the
     sequence as a dashed line in the method's colour."""
     ticks = version_ticks(history)
-    charts = []
+    charts: list[Chart] = []
     table = history.table
     keys = table[["sequence", "holes", "holes_params"]].drop_duplicates().sort_values(["sequence", "holes", "holes_params"])
     for sequence, holes, holes_params in keys.itertuples(index=False):
@@ -559,7 +561,7 @@ def time_charts(history: History, colours: dict[str, str], metric: str = "time_s
     ticks = version_ticks(history)
     changes = machine_changes(history)
     times = history.table[history.table["metric"] == metric]
-    charts = []
+    charts: list[Chart] = []
     for (sequence, holes, holes_params), rows in times.groupby(["sequence", "holes", "holes_params"], sort=True):
         notes = {v: f"<br><b>{html.escape(text)}</b>: not comparable with the point before" for v, text in changes.items()}
         traces = [_trace(history, label, rows[rows["label"] == label], colours[label], ticks, notes=notes)
@@ -799,7 +801,7 @@ def latest_table(history: History, colours: dict[str, str], metrics: list[str]) 
         floor_rows = sub[(sub["method"] == FLOOR_METHOD) & (sub["method_params"] == "{}")]
         floor = {(r.metric, r.scope, r.peak): float(r.mean) for r in floor_rows.itertuples(index=False)
                  if r.metric not in compare.RESOURCE_METRICS and r.metric not in compare.INFO_METRICS
-                 and _registry.describe(r.metric) is not None and _registry.describe(r.metric).higher_is_better is not None}
+                 and (described := _registry.describe(r.metric)) is not None and described.higher_is_better is not None}
         any_below = False
         best = {}
         for column in columns:
@@ -901,7 +903,7 @@ def prepare_page(results: pd.DataFrame, runs: pd.DataFrame | None, benchmarks: p
     if runs is not None and len(runs):
         n_failed = int(runs.loc[runs["status"] == "failed", "run_id"].nunique())
     n_bench = int(benchmarks["fullname"].nunique()) if benchmarks is not None and len(benchmarks) else 0
-    n_sessions = int(benchmarks.drop_duplicates(["datetime", "commit"]).shape[0]) if n_bench else 0
+    n_sessions = int(benchmarks.drop_duplicates(["datetime", "commit"]).shape[0]) if benchmarks is not None and n_bench else 0
     return Page(results, runs, benchmarks, history, paper_reference(), colours, metrics_present, quality_metrics,
                 comparison, compared_what, n_failed, n_bench, n_sessions)
 
@@ -1064,7 +1066,7 @@ def _run_seconds(runs: pd.DataFrame | None) -> tuple[dict, dict]:
     if runs is None or runs.empty or "wall_time_s" not in runs.columns:
         return {}, {}
     once = runs.drop_duplicates("run_id").assign(code_version=lambda d: d["code_version"].fillna("unknown").astype(str))
-    sums = {}
+    sums: dict[str, dict[str, float]] = {}
     for column in ("wall_time_s", "cpu_time_s"):
         if column not in once.columns:
             sums[column] = {}
@@ -1186,7 +1188,7 @@ SECTIONS = (comparison_section, quality_section, paper_section, latest_section, 
 
 def stylesheet() -> str:
     """The page's CSS, a package data file (bench/static/dashboard.css) inlined in every page."""
-    return resources.files(__package__).joinpath("static", "dashboard.css").read_text(encoding="utf-8")
+    return resources.files(__package__).joinpath("static").joinpath("dashboard.css").read_text(encoding="utf-8")
 
 
 def render_dashboard(results: pd.DataFrame, *, runs: pd.DataFrame | None = None,

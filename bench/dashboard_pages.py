@@ -106,7 +106,7 @@ def run_links(run) -> list[tuple[str, str]]:
     """(text, file URI) of the run's folder, manifest and log, those that exist on this machine. The
     worker writes a run into ``<runs>/<inpaint key>/`` (the store's output_dir) and its log into
     ``<runs>/logs/<run id>.log``."""
-    out = []
+    out: list[tuple[str, str]] = []
     folder = Path(str(run.output_dir)) if isinstance(run.output_dir, str) and run.output_dir else None
     if folder is None or not folder.is_dir():
         return out

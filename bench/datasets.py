@@ -242,27 +242,27 @@ def describe_datasets(data_dir=None) -> list[dict]:
             rows.append({"name": info.name, "kind": "embedded", "description": info.description,
                          "available": False, "reason": f"{type(err).__name__}: {err}", "params": {}})
     root = data_dir_from(data_dir)
-    for info in PAPER.values():
+    for paper in PAPER.values():
         reason = ""
         if root is None:
             reason = f"no data folder (--data-dir or {DATA_DIR_ENV})"
         elif not root.is_dir():
             reason = f"data folder {root} does not exist"
         else:
-            folder = find_paper_folder(info, root)
+            folder = find_paper_folder(paper, root)
             if folder is None:
-                reason = f"no {info.folder} PLY frames under {root}"
+                reason = f"no {paper.folder} PLY frames under {root}"
             else:
-                expected = expected_files(info)
+                expected = expected_files(paper)
                 if expected is not None:
                     missing = sum(not (folder / f).is_file() for f in expected)
                     if missing:
                         reason = f"{missing} of {len(expected)} frame files missing in {folder}"
-        rows.append({"name": info.name, "kind": "paper", "description": f"{info.title}: {info.summary}",
-                     "terms": info.terms, "available": not reason, "reason": reason})
-    for info in MESHES.values():
-        folder = find_mesh_folder(info, data_dir)
-        rows.append({"name": info.name, "kind": "mesh", "description": f"{info.title}: {info.summary}",
-                     "terms": info.terms, "available": folder is not None,
-                     "reason": "" if folder else f"no {info.folder}/ found (--data-dir, {DATA_DIR_ENV} or ../shared/data)"})
+        rows.append({"name": paper.name, "kind": "paper", "description": f"{paper.title}: {paper.summary}",
+                     "terms": paper.terms, "available": not reason, "reason": reason})
+    for mesh in MESHES.values():
+        folder = find_mesh_folder(mesh, data_dir)
+        rows.append({"name": mesh.name, "kind": "mesh", "description": f"{mesh.title}: {mesh.summary}",
+                     "terms": mesh.terms, "available": folder is not None,
+                     "reason": "" if folder else f"no {mesh.folder}/ found (--data-dir, {DATA_DIR_ENV} or ../shared/data)"})
     return rows

@@ -232,10 +232,10 @@ class MarginReport:
             lines.append("")
             heads = ["row", "experiment", "D1 / D2"] + [t.heading for t in targets]
             lines += ["| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
-            for r in (x for x in self.rows if x.role == role):
-                d1d2 = f"{_num(r.means.get('d1'))} / {_num(r.means.get('d2'))}"
-                cells = [md_escape(r.label), md_escape(r.experiment), d1d2]
-                cells += [md_escape(_margin_cell(r.margins[t.key])) if t.key in r.margins else "–"
+            for row in (x for x in self.rows if x.role == role):
+                d1d2 = f"{_num(row.means.get('d1'))} / {_num(row.means.get('d2'))}"
+                cells = [md_escape(row.label), md_escape(row.experiment), d1d2]
+                cells += [md_escape(_margin_cell(row.margins[t.key])) if t.key in row.margins else "–"
                           for t in targets]
                 lines.append("| " + " | ".join(cells) + " |")
             lines.append("")

@@ -129,8 +129,8 @@ def declared_vertex_count(path: Path) -> int | None:
     if suffix == ".ply":
         with open(path, "rb") as fh:
             head = fh.read(65536)
-        for line in head[: head.find(b"end_header")].decode("latin-1").splitlines():
-            parts = line.split()
+        for text in head[: head.find(b"end_header")].decode("latin-1").splitlines():
+            parts = text.split()
             if len(parts) == 3 and parts[:2] == ["element", "vertex"] and parts[2].isdigit():
                 return int(parts[2])
         return None
@@ -199,7 +199,7 @@ def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     declared = declared_vertex_count(path)
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any() or (declared is not None and declared != len(vertices)):
-        count = int(bad.sum()) if bad.any() else declared - len(vertices)
+        count = int(bad.sum()) if bad.any() or declared is None else declared - len(vertices)
         raise UserError(f"{path}: {count} vertex/vertices have NaN, infinite or unreadable coordinates (the file "
                         f"declares {declared} vertices, {len(vertices) - int(bad.sum())} were read as finite); "
                         "repair the mesh before sampling it")

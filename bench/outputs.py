@@ -199,7 +199,7 @@ class Outputs:
         self.input_files: set[Path] = set()
         for source in inputs:
             self._protect(source)
-        self._ledger = None
+        self._ledger: dict[str, tuple[int, int]] | None = None
 
     # -- inputs -----------------------------------------------------------------------------
     def _protect(self, source) -> None:

@@ -299,6 +299,7 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     specs = [s for s in protocol.synthetic if s.sequence_label == first_seq and s.holes == first_holes]
     done = _done_folders(store, specs)
     if done:
+        assert first_holes is not None  # done's specs are runs with first_holes
         spec0, folder0 = next(iter(done.values()))
         truth = load_run_sequence(spec0.sequence)
         content0 = read_run_folder(folder0)
@@ -311,8 +312,9 @@ def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
         first = None
         if regions[shown[0]]:
             first = regions[shown[0]][flattest_region(truth.frames[shown[0]].points, regions[shown[0]])]
-        zoom = [None if first is None or not regions[f] else
-                min(regions[f], key=lambda r: float(np.linalg.norm(r.center - first.center))) for f in shown]
+        anchor = None if first is None else first.center
+        zoom = [None if anchor is None or not regions[f] else
+                min(regions[f], key=lambda r: float(np.linalg.norm(r.center - anchor))) for f in shown]
         rows = [("Ground truth", [truth.frames[f].points for f in shown]),
                 ("With holes", [content0["damaged"][f] for f in shown])]
         for _, label, _ in PAPER_METHODS:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -146,7 +147,7 @@ def ablation_frame(results: pd.DataFrame) -> pd.DataFrame:
 
 # -- direct runner (the measurement docs/paper-reading.md quotes) -----------------------------------
 
-def _cases(data_dir: Path, which: set[str]) -> list[tuple[str, object]]:
+def _cases(data_dir: Path, which: set[str]) -> list[tuple[str, Callable[[], list[np.ndarray]]]]:
     """(label, loader) of each sequence present: a loader returns the list of (N, 3) frames."""
     from dpcbench.bench.datasets import load_dataset
 
@@ -185,7 +186,7 @@ def run_direct(data_dir: Path, which: set[str], rows: list[str], holes: list[tup
             damage = get_generator("region", **holes_params).damage(frames, seed)
             truths = [frames[f][damage.removed[f]] for f in range(len(frames))]
             spacing = [point_spacing(f) for f in frames]
-            runs = [("none", "none", {})]
+            runs: list[tuple[str, str, dict]] = [("none", "none", {})]
             if with_lozes:
                 runs.append(("none", "lozes-pde", {}))
             for method in methods:

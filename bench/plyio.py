@@ -211,24 +211,24 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         else:
             points = _stack(vertex, xyz, np.int16 if compact and all(_small_integers(vertex[n]) for n in xyz)
                             else _float_type(vertex, xyz, compact))
-        read_colors, colors = colors, None
+        read: np.ndarray | None = None  # the colours, None when absent or not asked for
         for rgb in (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
-            if not read_colors:
+            if not colors:
                 break
             if rows is not None and set(rgb) <= names:
-                colors = rows.stack(rgb, np.float64)
-                if colors.size and colors.max() <= 1.0 and vertex[rgb[0]].dtype.kind == "f":
-                    colors = colors * 255.0
-                colors = np.clip(np.rint(colors), 0, 255).astype(np.uint8)  # uint8 input: the same values
+                read = rows.stack(rgb, np.float64)
+                if read.size and read.max() <= 1.0 and vertex[rgb[0]].dtype.kind == "f":
+                    read = read * 255.0
+                read = np.clip(np.rint(read), 0, 255).astype(np.uint8)  # uint8 input: the same values
                 break
             if set(rgb) <= names and all(vertex[c].dtype == np.uint8 for c in rgb):
-                colors = _stack(vertex, rgb, np.uint8)  # already what the conversion below would give
+                read = _stack(vertex, rgb, np.uint8)  # already what the conversion below would give
                 break
             if set(rgb) <= names:
                 raw = _stack(vertex, rgb, np.float64)
                 if raw.size and raw.max() <= 1.0 and vertex[rgb[0]].dtype.kind == "f":
                     raw = raw * 255.0  # float colours in [0, 1]
-                colors = np.clip(np.rint(raw), 0, 255).astype(np.uint8)
+                read = np.clip(np.rint(raw), 0, 255).astype(np.uint8)
                 break
         if rows is None:
             normals = (_stack(vertex, ("nx", "ny", "nz"), _float_type(vertex, ("nx", "ny", "nz"), compact))
@@ -242,7 +242,7 @@ def read_ply(path: str | os.PathLike, *, check: bool = True, colors: bool = True
         ) from None
     _check_declared_size(data, path)
     del data, vertex  # the parsed file (~4x the points' size): free before the caller's next allocation
-    cloud = PointCloud(points, colors, normals, _precision(stored, points))
+    cloud = PointCloud(points, read, normals, _precision(stored, points))
     if check:
         check_cloud(cloud, str(path))
     return cloud

@@ -89,11 +89,12 @@ class RunRecord:
     @classmethod
     def from_row(cls, row) -> RunRecord:
         """The record of a row of the table: a sequence in `COLUMNS` order or a mapping by column."""
-        values = dict(row) if hasattr(row, "keys") else dict(zip(COLUMNS, row, strict=True))
+        values: dict[str, Any] = dict(row) if hasattr(row, "keys") else dict(zip(COLUMNS, row, strict=True))
         for name in cls.JSON_COLUMNS:
             text = values.get(name)
             values[name] = json.loads(text) if text else {}
-        return cls(**{name: values.get(name) for name in COLUMNS})
+        kwargs: dict[str, Any] = {name: values.get(name) for name in COLUMNS}
+        return cls(**kwargs)
 
 
 #: the ``runs`` table's columns, in order

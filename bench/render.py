@@ -412,7 +412,8 @@ def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: lis
     width = label_w + n_cols * cell_w + (n_cols - 1) * gap_out + gap_in
     height = head_h + n_rows * H + (n_rows - 1) * gap_row + gap_in
     canvas = np.full((height, width, 3), 255, dtype=np.uint8)
-    frames, zoom_frames = [], []
+    frames = []
+    zoom_frames: list[tuple[int, int, bool | None]] = []  # None: a panel without a hole
     for r in range(n_rows):
         y = head_h + r * (H + gap_row)
         for c in range(n_cols):

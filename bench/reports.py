@@ -147,7 +147,8 @@ def paper_column(df: pd.DataFrame) -> pd.Series:
 
 def _rank_line(table: ComparisonTable, row: str, columns: list[str] | None = None) -> str:
     values = {c: table.mean[(row, c)] for c in (columns or table.columns) if (row, c) in table.mean}
-    order = sorted(values, key=values.get, reverse=table.higher_is_better)
+    assert table.higher_is_better is not None  # the claims rank tables of a metric with a direction
+    order = sorted(values, key=lambda c: values[c], reverse=table.higher_is_better)
     text = order[0] if order else "–"
     for prev, cur in zip(order, order[1:]):  # equal means (to 1e-9 relative) are ties, written "="
         tie = abs(values[cur] - values[prev]) <= 1e-9 * max(abs(values[cur]), abs(values[prev]), 1e-300)
@@ -291,7 +292,7 @@ def ranking_claim(t1: ComparisonTable, t2: ComparisonTable) -> dict:
     for table, _row, a, b, c in reversed_:
         flipped.setdefault(f"{b} > {a}", []).append((table, c))
     for pair, where in flipped.items():
-        per_metric = {}
+        per_metric: dict[tuple[str, str], list[float]] = {}
         for table, c in where:
             unit = " dB" if table.metric.startswith("gpsnr") else (f" x{1 / table.scale:.0e}" if table.scale != 1 else "")
             per_metric.setdefault((_METRIC_NAMES.get(table.metric, table.metric), unit), []).append(
@@ -314,7 +315,9 @@ def gains_claim(t1: ComparisonTable, standins: bool) -> dict:
     bootstrap 95% interval (`bench.stats.mean_difference_interval`). On the paper's sequences the
     claim is reproduced when the interval reaches the paper's value (holds it or lies above it), not
     reproduced when it lies below; on stand-ins a dB figure depends on the data: not testable."""
-    parts, why, verdicts = [], [], []
+    parts: list[str] = []
+    why: list[str] = []
+    verdicts: list[bool | None] = []  # None: the interval is undefined (too few pairs)
     for col, claimed in paper.HEADLINE_GAIN_DB.items():
         d = [t1.observations[(r, "Proposed")][k] - t1.observations[(r, col)][k] for r in t1.rows
              if (r, "Proposed") in t1.observations and (r, col) in t1.observations

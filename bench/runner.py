@@ -25,7 +25,7 @@ from dpcbench.bench.records import RunRecord, run_record
 class RunSummary:
     """What a sweep did: run ids per outcome ("done" now, "cached" before, "failed" now or before)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.done: list[str] = []
         self.cached: list[str] = []
         self.failed: list[str] = []

@@ -165,7 +165,8 @@ def check_regions_frames(holes_json: str | os.PathLike, seq: Sequence, label: st
     if not isinstance(record, dict):
         return
     names = [Path(f).name for f in seq.files]
-    entries = record.get("frames") if isinstance(record.get("frames"), list) else []
+    frames = record.get("frames")
+    entries = frames if isinstance(frames, list) else []
     damaged = [e.get("file") for e in entries if isinstance(e, dict)]
     for made_for in (damaged, record.get("input_files")):
         if not names or not isinstance(made_for, list) or not made_for or not all(isinstance(m, str) for m in made_for):

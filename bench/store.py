@@ -313,7 +313,7 @@ class ResultsStore:
                                  [(e, run_id) for e in experiments if e])
 
     def record_run(self, run_id: str, record: RunRecord | dict, results: list[dict],
-                   experiments: list[str] = ()) -> None:
+                   experiments: list[str] | tuple[str, ...] = ()) -> None:
         """Store a finished run and all its results in one transaction (replacing earlier rows).
 
         record:  a `bench.records.RunRecord`, or a dict of run facts (its fields but run_id, status and
@@ -322,7 +322,8 @@ class ResultsStore:
         """
         self._write(run_id, record, "done", None, results, list(experiments))
 
-    def record_failure(self, run_id: str, record: RunRecord | dict, error: str, experiments: list[str] = ()) -> None:
+    def record_failure(self, run_id: str, record: RunRecord | dict, error: str,
+                       experiments: list[str] | tuple[str, ...] = ()) -> None:
         """Mark a run failed with its message (stale results of that id are dropped)."""
         self._write(run_id, record, "failed", str(error), [], list(experiments))
 

@@ -153,7 +153,7 @@ class ComparisonTable:
         if not present or self.higher_is_better is None:
             return None
         pick = max if self.higher_is_better else min
-        return pick(present, key=present.get)
+        return pick(present, key=present.__getitem__)
 
     def verdict(self, row: str) -> stats.RowVerdict:
         """`bench.stats.row_verdict` of the row's columns, over their (frame, seed) pairs."""

@@ -61,6 +61,7 @@ def run(frames: list[np.ndarray], holes: dict, seed: int) -> list[dict]:
         return out
 
     method = get_method("temporal-graph", variant="paper")
+    assert isinstance(method, tg.TemporalGraph)  # the registry's "temporal-graph"
     configured = method._configured()
     original_frame = configured._inpaint_frame
 
@@ -70,7 +71,8 @@ def run(frames: list[np.ndarray], holes: dict, seed: int) -> list[dict]:
             current["frame"] += 1
         return original_frame(points, *args, **kwargs)
 
-    configured._inpaint_frame = frame_hook
+    # the hook shadows the method on this one instance: setattr, as mypy refuses assigning to a method
+    setattr(configured, "_inpaint_frame", frame_hook)  # noqa: B010
     tg.inter_source, tg.temporal_links, tg.select_new_points = inter, links, select
     try:
         proposed = configured._inpaint_sequence([f.copy() for f in damage.frames], damage.regions)

@@ -154,9 +154,12 @@ def run(args) -> int:
     out = guard.file(args.out, "--out", suffixes=(".html", ".htm")) if args.out else None
     if args.save_history:
         save_history(Path(args.save_history), args.store, args.experiment, guard)
-        if out is None:
-            return 0
-    history = dashboard.read_history(history_dir) if history_dir is not None else []  # bad input fails first
+    if out is None:  # --save-history alone
+        return 0
+    # (table, meta, source): a history file's path, or "summary<i>" for a --summary file
+    history: list[tuple[pd.DataFrame, dict, Path | str]] = []
+    if history_dir is not None:
+        history = list(dashboard.read_history(history_dir))  # bad input fails first
     if args.summary and not args.store:
         results, runs = pd.DataFrame(columns=RESULT_COLUMNS), None
     else:

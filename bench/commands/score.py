@@ -77,12 +77,14 @@ def run(args) -> int:
     peak, bit_depth = _peak(args, reference)
     regions, empty = _regions(args, reference)
     names, colour_note = _with_colour_metrics(args, reference, result) if colours else (args.metrics, "not asked")
-    ref_colours = res_colours = None
+    ref_colours: abc.Sequence | None = None  # lists of per-frame arrays, or their `_HandOver`
+    res_colours: abc.Sequence | None = None
     if any(n.startswith("cpsnr_") for n in names or []):
         ref_colours, res_colours = [f.colors for f in reference.frames], [f.colors for f in result.frames]
-    normals = [f.normals for f in reference.frames]
+    normals: abc.Sequence = [f.normals for f in reference.frames]
     given_normals = any(n is not None for n in normals)
-    ref_points, res_points = reference.points, result.points
+    ref_points: abc.Sequence = reference.points
+    res_points: abc.Sequence = result.points
     if not any(METRICS[n].level == "sequence" for n in (args.metrics or [])):
         # every frame is used once: hand each over to the metrics and forget it here, so that a scored
         # frame's coordinates are freed as soon as its pair holds what it needs (on the integer grid:

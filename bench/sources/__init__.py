@@ -25,8 +25,9 @@ kind of source is one file here with a `SequenceSource` subclass, plus its rule 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, overload
 
 import numpy as np
 
@@ -61,7 +62,14 @@ def refuse_params(what: str, params: dict) -> None:
                         "`dpcbench list datasets` names them")
 
 
-def frame_indices(frames, available: int | None, label: str) -> list[int] | None:
+@overload
+def frame_indices(frames: int | np.integer | Iterable[int], available: int | None, label: str) -> list[int]: ...
+@overload
+def frame_indices(frames: None, available: int, label: str) -> list[int]: ...
+@overload
+def frame_indices(frames: None, available: None, label: str) -> None: ...
+def frame_indices(frames: int | np.integer | Iterable[int] | None, available: int | None,
+                  label: str) -> list[int] | None:
     """frames (None | count | iterable of indices) -> sorted-as-given list of indices (None = all)."""
     if frames is None:
         return None if available is None else list(range(available))

@@ -55,7 +55,7 @@ def rest_mesh() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     path = bunny_path()
     if not os.path.isfile(path):
         raise ValueError(f"the bunny mesh is missing from the pymeshlab install ({path}); reinstall pymeshlab")
-    mesh = o3d.io.read_triangle_mesh(path)
+    mesh = o3d.io.read_triangle_mesh(path)  # type: ignore[arg-type]  # open3d's stub omits str, which it takes
     mesh.compute_vertex_normals()
     v = np.asarray(mesh.vertices, dtype=np.float64)
     lo, hi = v.min(0), v.max(0)

@@ -55,7 +55,8 @@ def store_cached(key: str, generator: str, arrays: dict[str, np.ndarray]) -> Pat
     path = cache_path(key, generator)
     try:
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, key=np.array(key), **arrays)
+            # numpy's stub lets **kwds reach its `allow_pickle: bool`; these keys are array names
+            np.savez(fh, key=np.array(key), **arrays)  # type: ignore[arg-type]
     except OSError:
         return None
     return path

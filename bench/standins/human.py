@@ -184,8 +184,8 @@ def forward_kinematics(local: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarr
     """World positions (metres) and world rotations of every joint for local rotations ``local``."""
     pos: dict[str, np.ndarray] = {}
     rot: dict[str, np.ndarray] = {}
-    for name, (parent, rest) in JOINTS.items():  # parents are listed before children
-        rest = np.asarray(rest, dtype=np.float64)
+    for name, (parent, rest_m) in JOINTS.items():  # parents are listed before children
+        rest = np.asarray(rest_m, dtype=np.float64)
         if parent is None:
             pos[name] = rest.copy()
             rot[name] = local.get(name, np.eye(3))
@@ -212,7 +212,8 @@ def build_body(motion: str, t: float, phase: float, scale: float, origin: np.nda
                  for j, r in ((f"ankle_{side}", 0.042), (f"toe_{side}", 0.034)))
     shift = offset - np.array([0.0, lowest, 0.0])
     pos = {j: origin + scale * (p + shift) for j, p in pos_m.items()}
-    primitives, materials = [], []
+    primitives: list[RoundCone | Ellipsoid] = []
+    materials = []
     for part in PARTS:
         if part[0] == "cone":
             _, a, b, ra, rb, material = part

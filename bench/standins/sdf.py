@@ -179,7 +179,7 @@ class SmoothUnion:
             d = prim.distance(p[idx])
             cur = field[idx]
             first = np.isinf(cur)  # no primitive near yet: the union is this primitive
-            if gradient:
+            if grad is not None:  # set exactly when `gradient`
                 g = prim.gradient(p[idx])
                 cur_g = grad[idx]
                 h = smooth_min_weight(cur[~first], d[~first], self.k)[:, None]

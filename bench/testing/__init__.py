@@ -343,7 +343,7 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
             name = method  # a registered name must be the class's `name`; an import path names none
         method = method_class(method)
     cls = method
-    label = name or getattr(cls, "name", "") or getattr(cls, "__name__", repr(cls))
+    label = str(name or getattr(cls, "name", "") or getattr(cls, "__name__", repr(cls)))
     unknown = [c for c in checks if c not in CHECKS]
     if unknown:
         raise ValueError(f"unknown check(s) {unknown}; known: {', '.join(CHECKS)}")
