@@ -13,6 +13,9 @@ Schema (version `SCHEMA_VERSION`)::
     experiment_runs(experiment TEXT, run_id TEXT)      -- a run may belong to several experiments
     results(run_id, frame INTEGER, metric, scope, peak, value REAL)
         PRIMARY KEY (run_id, frame, metric, scope, peak)  -- frame = -1 for sequence-level values
+    run_claims(run_id TEXT PRIMARY KEY, token, host, pid INTEGER, started, claimed_at REAL)
+        -- runs a sweep is computing now (`bench.claims`); created by any writable open, not versioned:
+        -- a store without it reads the same, and older dpcbench ignore it
 
 ``wall_time_s`` and ``cpu_time_s`` cover the same span of the run (`bench.worker`): wall-clock seconds
 and CPU seconds (user + system, all threads of the worker process and its waited-for children). On a
@@ -32,6 +35,8 @@ Write discipline (what makes a killed run harmless and a rerun idempotent):
   any earlier rows of that run id: the store holds either all of a run's rows or none, and a rerun
   replaces rather than duplicates. A run killed before `record_run` leaves no trace.
 - `record_failure` writes the 'failed' status and message (and drops stale results) in one transaction.
+- Both drop the run's claim in that transaction; `claim_runs` claims in one ``BEGIN IMMEDIATE``
+  transaction, so two sweeps claiming at once get disjoint runs.
 """
 
 from __future__ import annotations
@@ -40,11 +45,13 @@ import dataclasses
 import math
 import os
 import sqlite3
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
 
+from dpcbench.bench.claims import ClaimHolder
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.records import COLUMNS as RECORD_COLUMNS
 from dpcbench.bench.records import RunRecord, now_iso  # noqa: F401 - now_iso re-exported
@@ -92,6 +99,14 @@ CREATE TABLE IF NOT EXISTS results (
 CREATE INDEX IF NOT EXISTS results_run ON results (run_id);
 """
 
+_CLAIMS_SCHEMA = """
+CREATE TABLE IF NOT EXISTS run_claims (
+    run_id TEXT PRIMARY KEY,
+    token TEXT NOT NULL, host TEXT NOT NULL, pid INTEGER NOT NULL, started TEXT NOT NULL,
+    claimed_at REAL NOT NULL
+);
+"""
+
 
 def default_store_path() -> Path:
     """``$DPCBENCH_STORE``, else ``$XDG_CACHE_HOME/dpcbench/results.sqlite`` (``~/.cache/...``)."""
@@ -132,6 +147,18 @@ def _corrupt_message(path: Path, err: Exception) -> str:
         f"read from it; move it aside (mv {path} {path}.bad) and rerun `dpcbench run`, which rebuilds the results "
         "from the run folders' stored frames, or pass another --store PATH"
     )
+
+
+@dataclasses.dataclass
+class Claimed:
+    """What `ResultsStore.claim_runs` made of a list of run ids, each in one of three."""
+
+    #: claimed now for the caller, to compute
+    mine: list[str] = dataclasses.field(default_factory=list)
+    #: held by another live sweep: run id -> its holder
+    held: dict[str, ClaimHolder] = dataclasses.field(default_factory=dict)
+    #: stored and kept: run id -> 'done' | 'failed'
+    stored: dict[str, str] = dataclasses.field(default_factory=dict)
 
 
 class ResultsStore:
@@ -240,7 +267,7 @@ class ResultsStore:
                     raise UserError(f"{self.path}: the file is empty, not a results store; run `dpcbench run` first")
                 conn.execute("PRAGMA journal_mode = WAL")
                 with conn:
-                    conn.executescript(_SCHEMA)
+                    conn.executescript(_SCHEMA + _CLAIMS_SCHEMA)
                     conn.execute("INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,))
                 return
             if "schema_version" not in tables or not {"runs", "results"} <= tables:
@@ -262,6 +289,8 @@ class ResultsStore:
                 conn.execute("PRAGMA journal_mode = WAL")
                 if self.schema_version < SCHEMA_VERSION:
                     self._migrate(conn)
+                if "run_claims" not in tables:
+                    conn.executescript(_CLAIMS_SCHEMA)
 
     def _migrate(self, conn: sqlite3.Connection) -> None:
         """Bring an older store to `SCHEMA_VERSION` in one transaction; a second driver migrating at
@@ -305,6 +334,7 @@ class ResultsStore:
         with self._conn() as conn:
             with conn:  # one transaction: all of it or nothing
                 conn.execute("DELETE FROM results WHERE run_id = ?", (run_id,))
+                conn.execute("DELETE FROM run_claims WHERE run_id = ?", (run_id,))
                 conn.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_RUN_TABLE_COLUMNS)}) "
                              f"VALUES ({', '.join('?' * len(_RUN_TABLE_COLUMNS))})",
                              self._record(run_id, record, status, error).to_row())
@@ -333,6 +363,55 @@ class ResultsStore:
             with conn:
                 conn.executemany("INSERT OR IGNORE INTO experiment_runs VALUES (?, ?)",
                                  [(experiment, r) for r in run_ids])
+
+    def claim_runs(self, run_ids: list[str], holder: ClaimHolder, *, redo_done: bool = False,
+                   redo_failed: bool = False) -> Claimed:
+        """Sort ``run_ids`` in one write transaction (so two sweeps doing this at once get disjoint
+        runs) into those stored (kept as they are, unless ``redo_done`` / ``redo_failed`` asks for
+        them again), those another live sweep holds, and the rest, which are now claimed for
+        ``holder`` (claims of dead holders are taken over)."""
+        if self.readonly:
+            raise UserError(f"{self.path}: opened read-only")
+        now = time.time()
+        out = Claimed()
+        with self._conn() as conn:
+            conn.execute("BEGIN IMMEDIATE")  # the write lock first: no other sweep claims in between
+            try:
+                statuses = dict(conn.execute("SELECT run_id, status FROM runs").fetchall())
+                claims = {r[0]: (ClaimHolder(*r[1:5]), r[5]) for r in conn.execute(
+                    "SELECT run_id, token, host, pid, started, claimed_at FROM run_claims")}
+                for run_id in dict.fromkeys(run_ids):
+                    status = statuses.get(run_id)
+                    if status is not None and not (redo_done if status == "done" else redo_failed):
+                        out.stored[run_id] = status
+                        continue
+                    other, claimed_at = claims.get(run_id, (None, 0.0))
+                    if other is not None and other.token != holder.token and other.is_alive(claimed_at, now):
+                        out.held[run_id] = other
+                    else:
+                        out.mine.append(run_id)
+                conn.executemany("INSERT OR REPLACE INTO run_claims VALUES (?, ?, ?, ?, ?, ?)",
+                                 [(r, holder.token, holder.host, holder.pid, holder.started, now) for r in out.mine])
+                conn.execute("COMMIT")
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+        return out
+
+    def release_claims(self, holder: ClaimHolder) -> None:
+        """Drop every claim ``holder`` still has (its sweep ends; runs it did not record go back)."""
+        with self._conn() as conn:
+            with conn:
+                conn.execute("DELETE FROM run_claims WHERE token = ?", (holder.token,))
+
+    def claims(self) -> dict[str, ClaimHolder]:
+        """run id -> holder of every claim in the store, live or not."""
+        with self._conn() as conn:
+            tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            if "run_claims" not in tables:
+                return {}
+            rows = conn.execute("SELECT run_id, token, host, pid, started FROM run_claims").fetchall()
+        return {r[0]: ClaimHolder(*r[1:]) for r in rows}
 
     def delete_runs(self, run_ids: list[str]) -> None:
         with self._conn() as conn:

@@ -192,6 +192,69 @@ def test_kill_9_mid_sweep_then_rerun_loses_and_duplicates_nothing(env):
     assert not list(runs_dir.glob(".tmp-*"))  # the killed run's temporary folder was cleaned
 
 
+def test_two_sweeps_on_one_store_compute_each_run_once(env):
+    """A second sweep of the same experiment, started while the first computes, computes nothing:
+    it waits for the first's runs and returns them as cached; each run is stored once."""
+    import threading
+
+    tmp, store = env["tmp"], env["store"]
+    flag = tmp / "hang.flag"
+    flag.write_text("hang")
+    cfg = _cfg(env["seq"], [{"name": "test-identity"}, {"name": "test-hang", "params": {"flag": str(flag)}}])
+    config = _write_toml(tmp / "exp.toml", cfg)
+    cmd = [sys.executable, "-m", "tests.runner_fixtures", "run", str(config), "--store", str(store.path),
+           "--executor", "serial", "--quiet"]
+    first = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    specs = parse_config(cfg).expand()
+    deadline = time.time() + 60
+    while time.time() < deadline and len(store.claims()) < 2:  # the first sweep has claimed both runs
+        time.sleep(0.1)
+    assert {h.pid for h in store.claims().values()} == {first.pid}
+    second: dict = {}
+    thread = threading.Thread(target=lambda: second.update(summary=run_experiment(
+        specs, ResultsStore(store.path), executor="serial", quiet=True, poll_s=0.1)))
+    thread.start()
+    time.sleep(1.5)
+    assert thread.is_alive()  # waiting on the hanging run the first sweep holds
+    flag.unlink()
+    thread.join(timeout=120)
+    out = first.communicate(timeout=120)[0]
+    assert first.returncode == 0 and "2 run(s) done, 0 cached, 0 failed" in out, out
+    summary = second["summary"]
+    assert not summary.done and sorted(summary.cached) == sorted(s.run_id for s in specs)
+    assert len(store.runs_frame()) == 2 and store.claims() == {}
+
+
+def test_a_sweep_takes_over_the_runs_of_a_sweep_that_died(env):
+    """Runs claimed by a sweep whose process is gone (kill -9) are computed by the next sweep, also
+    when the holder dies while the next sweep is waiting for it."""
+    import threading
+
+    from dpcbench.bench.claims import ClaimHolder, process_start_time
+
+    specs = parse_config(_cfg(env["seq"], [{"name": "test-identity", "params": {"shift": [0.0, 0.01]}}])).expand()
+    holder_proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    try:
+        holder = ClaimHolder(token="other", host=__import__("socket").gethostname(), pid=holder_proc.pid,
+                             started=process_start_time(holder_proc.pid))
+        env["store"].claim_runs([specs[0].run_id], holder)
+        result: dict = {}
+        thread = threading.Thread(target=lambda: result.update(summary=run_experiment(
+            specs, env["store"], executor="serial", quiet=True, poll_s=0.1)))
+        thread.start()
+        deadline = time.time() + 60
+        while time.time() < deadline and specs[1].run_id not in env["store"].statuses():
+            time.sleep(0.1)
+        time.sleep(0.5)
+        assert thread.is_alive() and specs[0].run_id not in env["store"].statuses()  # not computed: held
+    finally:
+        holder_proc.kill()
+        holder_proc.wait()
+    thread.join(timeout=120)
+    assert sorted(result["summary"].done) == sorted(s.run_id for s in specs)
+    assert env["store"].claims() == {}
+
+
 def test_dask_local_cluster_matches_serial(env, tmp_path):
     distributed = pytest.importorskip(
         "distributed", reason="optional dependency: the dask executor needs `pip install 'dpcbench[dask]'`")
