@@ -19,8 +19,25 @@ def shared_dir() -> Path:
     return SHARED
 
 
+SLOW_LIST = REPO / "tests" / "slow_tests.txt"
+
+
+def slow_tests() -> set[str]:
+    """Node ids listed in tests/slow_tests.txt (its rule and how to regenerate it: tests/slow_list.py)."""
+    if not SLOW_LIST.is_file():
+        return set()
+    lines = (line.strip() for line in SLOW_LIST.read_text().splitlines())
+    return {line for line in lines if line and not line.startswith("#")}
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m selects on the marks
 def pytest_collection_modifyitems(config, items):
-    """Benchmarks (tests using the `benchmark` fixture) run only with --benchmark-only."""
+    """Mark the tests of tests/slow_tests.txt ``slow``; benchmarks (tests using the `benchmark`
+    fixture) run only with --benchmark-only."""
+    slow = slow_tests()
+    for item in items:
+        if item.nodeid in slow:
+            item.add_marker(pytest.mark.slow)
     if config.getoption("benchmark_only", default=False):
         return
     skip = pytest.mark.skip(reason="benchmark: run with `pytest tests/benchmarks --benchmark-only`")
