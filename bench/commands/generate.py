@@ -34,6 +34,7 @@ def run(args) -> int:
     from dpcbench.bench.outputs import Outputs
     from dpcbench.bench.params import parse_params
     from dpcbench.bench.sequences import save_sequence, sequence_file_names
+    from dpcbench.bench.sources.embedded import check_frames_fit
 
     name = args.name.lower()
     mesh = name in MESHES or (not Path(args.name).is_file() and list_mesh_files(args.name) is not None)
@@ -47,6 +48,9 @@ def run(args) -> int:
     guard = Outputs(args.overwrite)
     if name in EMBEDDED:
         count = args.frames if args.frames is not None else EMBEDDED[name].default_frames
+        if count > 1:  # frame 0 (generated or cached) sizes the memory the whole count needs
+            first = load_dataset(name, frames=1, cache=not args.no_cache, name_only=True, progress=False, **params)
+            check_frames_fit(name, count, first.frames[0])
         guard.folder(args.out, "--out", sequence_file_names(name, count), sequence=True)
         seq = load_dataset(name, frames=args.frames, cache=not args.no_cache, name_only=True, **params)
     else:

@@ -34,6 +34,40 @@ class EmbeddedDataset:
         return {n: p.default for n, p in sig.parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY}
 
 
+def available_memory_bytes() -> int | None:
+    """Memory this machine can give without swapping: ``MemAvailable`` of /proc/meminfo, else the free
+    physical pages (``os.sysconf``); None where neither is known."""
+    import os
+
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_frames_fit(label: str, count: int, frame: PointCloud, available: int | None = None) -> None:
+    """UserError when ``count`` frames like ``frame`` would take more than half the available memory.
+    Why this bound: a sequence is held in memory whole (methods see every frame; `generate` writes the
+    frames at once), so a count past it can only end in swapping or the out-of-memory killer, hours on."""
+    available = available_memory_bytes() if available is None else available
+    if not available:
+        return
+    per_frame = sum(a.nbytes for a in (frame.points, frame.colors, frame.normals) if a is not None)
+    need = count * per_frame
+    if need > available / 2:
+        fits = max(1, int(available / 2 // max(per_frame, 1)))
+        raise UserError(f"{label}: {count} frames of {per_frame / 2**20:.1f} MB each need {need / 2**30:.1f} GB in "
+                        f"memory (a sequence is held whole), more than half of the {available / 2**30:.1f} GB "
+                        f"available; ask for at most {fits} frames")
+
+
 class EmbeddedSource(SequenceSource):
     """An `EmbeddedDataset`'s frames, generated (or read from the cache). ``params``: the generator's
     keyword parameters, plus ``cache`` (default True: read and write the on-disk cache)."""
@@ -93,6 +127,8 @@ def generate_embedded(info: EmbeddedDataset, frames=None, *, cache: bool = True,
                 store_cached(key, name, arrays)
         out.append(PointCloud(arrays["points"].astype(np.float64), arrays["colors"],
                               arrays["normals"].astype(np.float64)))
+        if len(out) == 1:
+            check_frames_fit(name, len(indices), out[0])
     bit_depth = full.get("bit_depth")
     meta = {"generator": name, "version": module.GENERATOR_VERSION, "params": full, "frame_indices": indices,
             "description": info.description}
