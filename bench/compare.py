@@ -79,7 +79,8 @@ RUN_KEY = ["sequence", "holes", "holes_params", "seed", "method", "method_params
 RESOURCE_METRICS = tuple(_registry.RESOURCE_METRICS)
 #: used when the tolerances file does not name a metric. PSNR in dB; ratios as factors (1.10 = 10 %).
 DEFAULT_TOLERANCES = {
-    "gpsnr_d1": 0.1, "gpsnr_d2": 0.1, "fscore": 0.01,
+    "gpsnr_d1": 0.1, "gpsnr_d2": 0.1, "fscore": 0.01, "cpsnr_y": 0.1, "cpsnr_u": 0.1, "cpsnr_v": 0.1,
+    "cpsnr_rgb": 0.1,
     "nshd": 1.10, "hausdorff": 1.10, "chamfer": 1.10, "temporal_consistency": 1.10,
     "time_s": 1.5, "cpu_time_s": 1.5, "peak_mem_mb": 1.5,
 }

@@ -7,6 +7,8 @@ METRIC_NAMES = {
     "gpsnr_d1": "GPSNR D1", "gpsnr_d2": "GPSNR D2", "nshd": "NSHD", "hausdorff": "Hausdorff",
     "chamfer": "Chamfer", "fscore": "F-score", "temporal_consistency": "temporal consistency",
     "time_s": "time per frame", "cpu_time_s": "CPU time per frame", "peak_mem_mb": "peak memory",
+    "cpsnr_y": "colour PSNR Y", "cpsnr_u": "colour PSNR Cb", "cpsnr_v": "colour PSNR Cr",
+    "cpsnr_r": "colour PSNR R", "cpsnr_g": "colour PSNR G", "cpsnr_b": "colour PSNR B", "cpsnr_rgb": "colour PSNR RGB",
 }
 #: units written after a metric's name (the others are ratios or the data's own length units)
 SHOWN_UNITS = ("dB", "s", "MB")

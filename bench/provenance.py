@@ -5,7 +5,8 @@
 - A **run folder** ``RUNS_DIR/<inpaint_key>/`` holds what one (data, holes, method) produced:
 
       damaged/frame_0000.ply ...    the damaged input frames (float32 PLY, colours when the data has them)
-      inpainted/frame_0000.ply ...  the method's output frames
+      inpainted/frame_0000.ply ...  the method's output frames (with colours when the damaged frames have them:
+                                    `methods._colour`'s fill "auto", as `dpcbench inpaint` gives by default)
       holes.json                    the hole regions (`holes.regions.regions_to_json`) and removed fractions
       detected.json                 the detected regions, when the protocol detects them
       manifest.json                 the run's identity and timings (see `bench.worker.produce_frames`)
@@ -114,10 +115,12 @@ def _json_default(value):
 
 
 def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors: list | None,
-                     inpainted: list[np.ndarray], holes: dict, detected: dict | None, manifest: dict) -> None:
+                     inpainted: list[np.ndarray], holes: dict, detected: dict | None, manifest: dict,
+                     inpainted_colors: list | None = None) -> None:
     """Write a run folder (layout in the module doc) atomically, replacing one of that name.
 
-    damaged / inpainted: the (N_f, 3) frames; damaged_colors: their (N_f, 3) uint8 colours or None;
+    damaged / inpainted: the (N_f, 3) frames; damaged_colors / inpainted_colors: their (N_f, 3) uint8 colours
+    or None;
     holes / detected: `holes.regions.regions_to_json` documents; manifest: the run's facts (JSON).
     """
     from dpcbench.bench.atomic import atomic_folder
@@ -130,7 +133,8 @@ def write_run_folder(run_dir: Path, *, damaged: list[np.ndarray], damaged_colors
         for i, (frame, result) in enumerate(zip(damaged, inpainted)):
             colors = None if damaged_colors is None else damaged_colors[i]
             write_ply(tmp / "damaged" / f"frame_{i:04d}.ply", PointCloud(frame, colors, precision=precision))
-            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result, precision=precision))
+            result_colors = None if inpainted_colors is None else inpainted_colors[i]
+            write_ply(tmp / "inpainted" / f"frame_{i:04d}.ply", PointCloud(result, result_colors, precision=precision))
         (tmp / "holes.json").write_text(json.dumps(holes, indent=1, default=_json_default))
         if detected is not None:
             (tmp / "detected.json").write_text(json.dumps(detected, indent=1, default=_json_default))
@@ -183,8 +187,8 @@ def verify_run_folder(run_dir: Path, manifest: dict) -> None:
 
 
 def read_run_folder(run_dir: Path) -> dict:
-    """The damaged and inpainted frames ((N,3) arrays), regions and manifest of a run folder, after
-    `verify_run_folder`."""
+    """The damaged and inpainted frames ((N,3) arrays), the inpainted frames' colours (None unless every frame
+    has them), regions and manifest of a run folder, after `verify_run_folder`."""
     from dpcbench.bench.plyio import read_ply
     from dpcbench.bench.sequences import natural_key
     from dpcbench.holes.regions import regions_from_json
@@ -193,12 +197,15 @@ def read_run_folder(run_dir: Path) -> dict:
     manifest = json.loads((run_dir / "manifest.json").read_text())
     verify_run_folder(run_dir, manifest)
 
-    def frames(sub):
+    def clouds(sub):
         files = sorted((run_dir / sub).glob("*.ply"), key=lambda p: natural_key(p.name))
-        return [read_ply(f).points for f in files]
+        return [read_ply(f) for f in files]
 
+    inpainted = clouds("inpainted")
+    colours = [c.colors for c in inpainted]
     detected = run_dir / "detected.json"
-    return {"damaged": frames("damaged"), "inpainted": frames("inpainted"),
+    return {"damaged": [c.points for c in clouds("damaged")], "inpainted": [c.points for c in inpainted],
+            "inpainted_colors": colours if inpainted and all(c is not None for c in colours) else None,
             "regions": regions_from_json(run_dir / "holes.json"),
             "detected": regions_from_json(detected) if detected.is_file() else None,
             "manifest": manifest}

@@ -62,6 +62,7 @@ import numpy as np
 from dpcbench.bench.atomic import atomic_write_text
 from dpcbench.bench.config import RunSpec
 from dpcbench.bench.datasets import load_run_sequence
+from dpcbench.bench.errors import UserError
 from dpcbench.bench.provenance import (
     d2_normals_source,
     environment,
@@ -114,26 +115,32 @@ def process_cpu_s() -> float:
 
 
 # -- producing the frames ----------------------------------------------------------------------
-def _inpaint_timed(method, frames: list[np.ndarray], regions) -> tuple[list[np.ndarray], list[dict], dict]:
-    """Run the method; per-frame timing for frame-independent methods, one timing otherwise."""
+def _inpaint_timed(method, frames: list[np.ndarray], regions) -> tuple[list[np.ndarray], list | None, list[dict], dict]:
+    """Run the method (`inpaint_with_sources`: ``inpaint``'s output and the source of each copied point, which the
+    colour fill needs); per-frame timing for frame-independent methods, one timing otherwise.
+
+    Returns (outputs, sources or None, per-frame timings, total timing)."""
     per_frame: list[dict] = []
     if not getattr(method, "uses_neighbour_frames", False):
-        out = []
+        out, sources = [], []
         for i, frame in enumerate(frames):
             _reset_peak_rss()
             c0, t0 = process_cpu_s(), time.perf_counter()
-            result = method.inpaint([frame], None if regions is None else [regions[i]])
+            result, source = method.inpaint_with_sources([frame], None if regions is None else [regions[i]])
             per_frame.append({"frame": i, "time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0,
                               "peak_mem_mb": peak_rss_mb()})
             out.append(result[0])
+            # a one-frame call's source frame 0 is frame i of the sequence
+            sources.append(None if source is None or source[0] is None
+                           else (np.where(source[0][0] >= 0, i, -1), source[0][1]))
         total = {"time_s": sum(p["time_s"] for p in per_frame), "cpu_time_s": sum(p["cpu_time_s"] for p in per_frame),
                  "peak_mem_mb": max(p["peak_mem_mb"] for p in per_frame)}
-        return out, per_frame, total
+        return out, (sources if any(s is not None for s in sources) else None), per_frame, total
     _reset_peak_rss()
     c0, t0 = process_cpu_s(), time.perf_counter()
-    out = method.inpaint(frames, regions)
+    out, sources = method.inpaint_with_sources(frames, regions)
     total = {"time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0, "peak_mem_mb": peak_rss_mb()}
-    return list(out), per_frame, total
+    return list(out), sources, per_frame, total
 
 
 def _check_output(out: list, frames: list, name: str) -> list[np.ndarray]:
@@ -170,8 +177,17 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
     else:
         regions = None
     method = import_entry(spec.method["entry"])(**spec.method["params"])
-    inpainted, per_frame, total = _inpaint_timed(method, damage.frames, regions)
+    inpainted, sources, per_frame, total = _inpaint_timed(method, damage.frames, regions)
     inpainted = _check_output(inpainted, damage.frames, spec.method["name"])
+    inpainted_colors = None
+    if damage.colors is not None:
+        # the method's colours as `dpcbench inpaint` gives them by default (fill "auto"): kept points keep
+        # theirs, copied points their source's, the rest a harmonic fill from the rim (`methods._colour`)
+        from dpcbench.methods._colour import colour_outputs
+
+        t0 = time.perf_counter()
+        inpainted_colors = colour_outputs(damage.frames, damage.colors, inpainted, sources, "auto")
+        total = {**total, "colour_time_s": time.perf_counter() - t0}
 
     holes = regions_to_json(damage.regions, generator=spec.holes["generator"], params=spec.holes["params"],
                             seed=spec.holes["seed"],
@@ -183,7 +199,8 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
                 # every parameter as the method resolved it (a variant's switches included)
                 "method_params_resolved": method.get_params()}
     # --force, or another worker finished the same frames first: the folder is replaced
-    write_run_folder(run_dir, damaged=damage.frames, damaged_colors=damage.colors, inpainted=inpainted, holes=holes,
+    write_run_folder(run_dir, damaged=damage.frames, damaged_colors=damage.colors, inpainted=inpainted,
+                     inpainted_colors=inpainted_colors, holes=holes,
                      detected=None if detected is None else regions_to_json(detected, detector="dpcbench.holes.detection"),
                      manifest=manifest)
 
@@ -203,21 +220,27 @@ def _uses_peak(name: str) -> bool:
     return metric is not None and metric.uses_peak
 
 
-def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list) -> list[dict]:
+def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list,
+              inpainted_colors: list | None = None) -> list[dict]:
     """Every metric per frame and scope (and peak for PSNRs), plus temporal consistency at frame -1.
 
     PSNRs are as `metrics.score_pair` returns them (capped at its ``max_psnr``, 200 dB by default,
     when a result equals the reference). D2 uses the ground truth's own normals when its frames carry
-    them (`d2_normals_source`), else normals estimated by PCA of 12 neighbours."""
+    them (`d2_normals_source`), else normals estimated by PCA of 12 neighbours. The colour metrics
+    (``cpsnr_*``) score the result's colours (``inpainted_colors``) against the ground truth's; on a
+    sequence without colours they are left out (no row: a report says the sequence has none)."""
     import dpcbench.metrics as metrics_pkg
 
     cfg = spec.metrics
-    names = cfg["names"]
+    coloured = inpainted_colors is not None and all(c is not None for c in truth.colors)
+    names = [n for n in cfg["names"] if coloured or not n.startswith("cpsnr_")]
     peak_names = [n for n in names if _uses_peak(n)]
     rows: list[dict] = []
     for f, (cloud, result) in enumerate(zip(truth.frames, inpainted)):
         # one CloudPair per frame: its KD-trees and neighbour queries serve every scope and peak
-        pair = metrics_pkg.make_pair(cloud.points, result, cloud.normals)
+        pair = metrics_pkg.make_pair(cloud.points, result, cloud.normals,
+                                     reference_colours=cloud.colors if coloured else None,
+                                     result_colours=inpainted_colors[f] if coloured else None)
         for scope in cfg["scopes"]:
             frame_regions = regions[f] if scope == "holes" else None
             if scope == "holes" and not frame_regions:
@@ -254,8 +277,9 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     created = now_iso()
     run_dir = Path(runs_dir) / spec.inpaint_key
     truth = load_run_sequence(spec.sequence)
-    if force or not is_complete_run_folder(run_dir) or not _has_checksums(run_dir):
-        produce_frames(spec, truth, run_dir)  # a folder without checksums (an older dpcbench) is made anew
+    if force or not is_complete_run_folder(run_dir) or not _has_checksums(run_dir) or _lacks_colours(run_dir, truth):
+        # a folder without checksums, or without the colours of coloured data (an older dpcbench), is made anew
+        produce_frames(spec, truth, run_dir)
         reused = False
     else:
         reused = True
@@ -269,7 +293,8 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
     # without removed points (the data's own holes) there is no ground truth apart from the input
     # itself: no quality scores
     removes_points = import_entry(spec.holes["entry"]).removes_points
-    results = score_run(spec, truth, folder["inpainted"], folder["regions"]) if removes_points else []
+    results = (score_run(spec, truth, folder["inpainted"], folder["regions"], folder["inpainted_colors"])
+               if removes_points else [])
     manifest = folder["manifest"]
     # cpu_time_s only where the run folder measured it (folders written before it was added lack it)
     for entry in [*manifest["per_frame"], {"frame": -1, **manifest["total"]}]:
@@ -286,6 +311,20 @@ def execute_run(spec: RunSpec, runs_dir: str | os.PathLike, *, force: bool = Fal
                         cpu_time_s=process_cpu_s() - c0, peak_mem_mb=manifest["total"]["peak_mem_mb"], env=env,
                         created_at=created, finished_at=now_iso(), output_dir=str(run_dir))
     return {"run_id": spec.run_id, "status": "done", "record": record.facts(), "results": results}
+
+
+def _lacks_colours(run_dir: Path, truth) -> bool:
+    """Whether the sequence has colours but the run folder's inpainted frames do not (written before runs
+    coloured their output)."""
+    if not all(c is not None for c in truth.colors):
+        return False
+    from dpcbench.bench.plyio import read_ply
+
+    first = run_dir / "inpainted" / "frame_0000.ply"
+    try:
+        return read_ply(first).colors is None
+    except (OSError, ValueError, UserError):
+        return False  # a damaged folder: `read_run_folder`'s checksums say so
 
 
 def _has_checksums(run_dir: Path) -> bool:

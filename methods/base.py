@@ -29,6 +29,7 @@ from typing import ClassVar
 import numpy as np
 
 from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods.progress import frame_done
 from dpcbench.metrics.errors import UserError
 from dpcbench.metrics.params import Parameterized
 from dpcbench.metrics.points import as_points, is_point_cloud_object
@@ -102,8 +103,9 @@ class PerFrameMethod(InpaintingMethod):
             frame_regions = None if regions is None else regions[i]
             if frame_regions is not None and len(frame_regions) == 0:
                 out.append(frame.copy())
-                continue
-            out.append(np.asarray(self.inpaint_frame(frame, frame_regions), dtype=np.float64))
+            else:
+                out.append(np.asarray(self.inpaint_frame(frame, frame_regions), dtype=np.float64))
+            frame_done(i + 1, len(frames))
         return out
 
     def inpaint_frame(self, points: np.ndarray, regions: Sequence[HoleRegion] | None) -> np.ndarray:

@@ -110,6 +110,7 @@ from dpcbench.methods._cubes import (
 from dpcbench.methods._graph import TemporalLinks, solve_cube, spatial_laplacian, temporal_links
 from dpcbench.methods._registration import RigidFit, align_best
 from dpcbench.methods.base import InpaintingMethod, Regions
+from dpcbench.methods.progress import frame_done
 from dpcbench.metrics.errors import UserError
 from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 
@@ -721,6 +722,7 @@ class _CubeGraphInpainting(InpaintingMethod):
             if not regions[f]:
                 outputs.append(frame.copy())
                 output_tree = None  # same points as the input: its tree serves
+                frame_done(f + 1, len(frames))
                 continue
             neighbours: list[NeighbourFrame] = []
             if beta > 0:
@@ -733,6 +735,7 @@ class _CubeGraphInpainting(InpaintingMethod):
             outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], tuple(neighbours), unit, voxelized,
                                                link_distance, slot))
             output_tree = cKDTree(outputs[f]) if beta > 0 and f + 1 < len(frames) and regions[f + 1] else None
+            frame_done(f + 1, len(frames))
         return outputs
 
     def _link_distance(self, frame: np.ndarray, tree: cKDTree, unit: float, integer: bool) -> float:

@@ -5,7 +5,10 @@ folder / glob / file of PLY frames (typically the output folder of `dpcbench dam
 ``--regions`` the method gets the hole regions of every frame (the default protocol); without it,
 the blind protocol: the method finds the missing data itself (methods that cannot say so).
 
-DIR receives the inpainted frames ``<name>_0000.ply ...`` (binary PLY; when the input has colours,
+DIR receives the inpainted frames ``<name>_0000.ply ...`` (binary PLY; when the input has normals, every
+output point carries one: a kept point its input normal, a new point a PCA normal of the output oriented like
+its nearest input point's (`methods._normals`), so renders of the input, the result and the ground truth are
+shaded alike; when the input has colours,
 every output point carries one: the method's colours, `InpaintingMethod.inpaint_with_colours`, with the
 fill chosen by ``--colour``: captured points keep theirs, new points take their source point's colour
 where the method reports one (temporal-copy), else a harmonic interpolation from the hole's rim;
@@ -90,22 +93,46 @@ def run(args) -> int:
     names = sequence_file_names(seq.name, len(seq)) + ["inpaint.json"]
     guard = Outputs(args.overwrite, inputs=[args.input, args.regions])
     out = guard.folder(args.out, "--out", names, sequence=True)
-    coloured = all(frame.colors is not None for frame in seq.frames)
     started = time.perf_counter()
-    if coloured:
-        results, colours = method.inpaint_with_colours(seq.points, [f.colors for f in seq.frames], regions,
-                                                       fill=args.colour)
-    else:
-        results, colours = method.inpaint(seq.points, regions), [None] * len(seq)
+    results, colours = _inpaint_with_progress(method, seq, regions, args.colour)
     seconds = time.perf_counter() - started
-    frames = [PointCloud(np.asarray(points, dtype=np.float64), cols, precision=frame.precision)
-              for frame, points, cols in zip(seq.frames, results, colours)]
+    normals = _carried_normals(seq, results)
+    frames = [PointCloud(np.asarray(points, dtype=np.float64), cols, nrm, precision=frame.precision)
+              for frame, points, cols, nrm in zip(seq.frames, results, colours, normals)]
     with guard.staged(out) as stage:  # the frames and inpaint.json appear together, or not at all
         files = save_sequence(Sequence(seq.name, frames, seq.bit_depth, meta=dict(seq.meta)), stage)
         _write_record(args, method, regions, seconds, files, results, seq, stage)
     added = sum(len(p) for p in results) - sum(len(f.points) for f in seq.frames)
     print(f"{args.method}: {len(files)} frames -> {out} ({added:+d} points, {seconds:.1f} s)")
     return 0
+
+
+def _inpaint_with_progress(method, seq, regions, colour_fill: str) -> tuple[list, list]:
+    """(points, colours or Nones) per frame: the method's output, with a per-frame progress bar on stderr
+    fed by the method (`methods.progress`; a method that reports nothing shows the bar at 0 until it ends)."""
+    from dpcbench.bench.progress import progress_bar
+    from dpcbench.methods.progress import report_frames_to
+
+    with progress_bar(total=len(seq), desc=f"{method.name or type(method).__name__}", unit="frame") as bar:
+        def advance(done: int, total: int) -> None:
+            bar.update(max(0, min(done, len(seq)) - bar.n))
+
+        with report_frames_to(advance):
+            if all(frame.colors is not None for frame in seq.frames):
+                return method.inpaint_with_colours(seq.points, [f.colors for f in seq.frames], regions,
+                                                   fill=colour_fill)
+            return method.inpaint(seq.points, regions), [None] * len(seq)
+
+
+def _carried_normals(seq, results) -> list:
+    """Per frame the output's normals when every input frame carries normals (`methods._normals`: the
+    input's for kept points, estimated and oriented for new ones), else None."""
+    from dpcbench.methods._normals import output_normals
+
+    if not all(frame.normals is not None for frame in seq.frames):
+        return [None] * len(seq)
+    return [output_normals(frame.points, frame.normals, points)
+            for frame, points in zip(seq.frames, results)]
 
 
 def _write_record(args, method, regions, seconds, files, results, seq, stage) -> None:

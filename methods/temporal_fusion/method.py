@@ -12,6 +12,7 @@ from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._geometry import detect_regions, sampling_step
 from dpcbench.methods._spatial_fill import far_from
 from dpcbench.methods.base import InpaintingMethod, Regions
+from dpcbench.methods.progress import frame_done
 from dpcbench.methods.temporal_fusion.align import align_sources
 from dpcbench.methods.temporal_fusion.back_fill import back_fill
 from dpcbench.methods.temporal_fusion.config import FusionConfig
@@ -208,10 +209,11 @@ class TemporalFusion(InpaintingMethod):
             if not regions[f]:
                 outputs.append(frame.copy())
                 previous_fill = np.zeros((0, 3))
-                continue
-            fills[f] = fill_frame(cfg, seq, f, previous_fill)
-            added, previous_fill = fills[f].added, fills[f].reusable
-            outputs.append(np.vstack([frame, added]) if len(added) else frame.copy())
+            else:
+                fills[f] = fill_frame(cfg, seq, f, previous_fill)
+                added, previous_fill = fills[f].added, fills[f].reusable
+                outputs.append(np.vstack([frame, added]) if len(added) else frame.copy())
+            frame_done(f + 1, len(frames))  # the back-fill after the last frame is short
         if cfg.reuse_next:
             _back_fill_all(cfg, seq, frames, outputs, fills, trees)
         return outputs
