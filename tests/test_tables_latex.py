@@ -215,7 +215,18 @@ def _store(path):
     return store
 
 
-def test_labels_rename_methods_in_the_reports_tables(tmp_path):
+def test_labels_rename_methods_in_the_reports_tables(tmp_path, monkeypatch):
+    import matplotlib.figure
+
+    legends: list[list[str]] = []  # the labels of every figure legend the report draws
+    draw_legend = matplotlib.figure.Figure.legend
+
+    def recording_legend(fig, *args, **kwargs):
+        legend = draw_legend(fig, *args, **kwargs)
+        legends.append([text.get_text() for text in legend.get_texts()])
+        return legend
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "legend", recording_legend)
     store = _store(tmp_path / "s.sqlite")
     config = tmp_path / "exp.toml"
     config.write_text('[experiment]\nname = "exp"\n\n[labels]\n"temporal-fusion (ours)" = "Ours & co_"\n'
@@ -229,6 +240,7 @@ def test_labels_rename_methods_in_the_reports_tables(tmp_path):
     assert r"Sequence & MeshLab & Ours \& co\_ \\" in tex and "temporal-fusion" not in tex
     assert "Ours & co_" in csv_text and "temporal-fusion" not in csv_text
     assert "MeshLab" in (out / "REPORT.md").read_text()
+    assert len(legends) >= 2 and all(set(labels) == {"Ours & co_", "MeshLab"} for labels in legends), legends
     structure(tex)
     # without --labels the report keeps the labels of the runs
     report = write_comparison_report(store.results_frame("exp"), store.runs_frame("exp"), tmp_path / "plain",
