@@ -72,7 +72,8 @@ def short_labels(labels: list[str], limit: int) -> dict[str, str]:
 
 
 def _text_pt(text: str, char_pt: float = TEXT_CHAR_PT) -> float:
-    return len(text) * char_pt
+    """Estimated width of ``text``: ``char_pt`` a character, capitals 1.5 times that (cmr8 "M" is 7.3 pt)."""
+    return sum(1.5 if ch.isupper() else 1.0 for ch in text) * char_pt
 
 
 #: the layouts tried, in order, with the width each must fit: our cells on one line (``mean±h``) or

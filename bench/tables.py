@@ -10,8 +10,8 @@ every other column beyond its interval (Wilcoxon signed-rank, Holm-corrected, an
 interval), `TIED_MARK` every column not distinguishable from the best; a row with too few pairs for
 any claim has no bold and the caption says why. `FLOOR_MARK` marks a cell worse than the floor
 (`FLOOR_METHOD`, the damaged input left as it is). Every value of a table has the same number of
-decimals. The paper's published values, when given, are printed as extra rows "<sequence> (paper)"
-with their own best in bold. The conventions (metric, peak, scope, scale, n, the test) are printed
+decimals, the paper's published values too: when given, they are printed as extra rows
+"<sequence> (paper)" with their own best in bold (the CSV keeps them as printed). The conventions (metric, peak, scope, scale, n, the test) are printed
 under every table. Labels are escaped for each format (`md_escape`, `latex_escape`, `csv_safe`).
 """
 
