@@ -24,7 +24,7 @@ if TYPE_CHECKING:  # pragma: no cover
 SINGLE_COLUMN_IN = 3.5
 TEXT_WIDTH_IN = 7.14
 PT_PER_IN = 72.27
-#: the widest glyphs per character (pt) of the tabular's text (\footnotesize, 8 pt in a 10 pt class:
+#: the width per character (pt) of the tabular's text (\footnotesize, 8 pt in a 10 pt class:
 #: cmr8 digits are 4.25 pt) and of the interval (\scriptsize, 7 pt: cmr7 digits about 4 pt), and
 #: \tabcolsep as this table sets it; an estimate from characters, a little above the typeset width
 TEXT_CHAR_PT = 4.3
@@ -49,7 +49,7 @@ def _shortened(label: str, limit: int) -> str:
 def short_labels(labels: list[str], limit: int) -> dict[str, str]:
     """label -> a unique short label, in the order given: a label of at most ``limit`` characters
     stays as it is; a longer one is `_shortened`; shortened labels that come out equal to each
-    other or to a kept label are numbered (``temporal-gr.1``, ``temporal-gr.2``)."""
+    other or to a kept label are numbered (``temporal-g.1``, ``temporal-g.2``)."""
     labels = list(dict.fromkeys(labels))
     out = {label: label for label in labels if len(label) <= limit}
     taken = set(out)
