@@ -45,6 +45,10 @@ grids), and the metrics with their options::
     region_margin = 0.0                          # grows the regions for scope "holes"
     temporal_consistency = true
 
+    [labels]                        # optional: names for your paper, used by `dpcbench report --labels`
+    "temporal-fusion (ours)" = "Ours"            # method label as the report shows it = name to show
+    "temporal-graph (beta=0.25)" = "TG, beta 1/4"
+
 Every list in ``params`` (of sequences, holes and methods) is an axis of a grid; the runs are the
 cartesian product sequences x holes (params x seeds) x methods (params).
 
@@ -52,7 +56,7 @@ Run ids. ``inpaint_key = H(sequence spec, data fingerprint, holes spec + seed + 
 method spec + method version, protocol [+ detector version])`` names the inpainted frames on disk;
 ``run_id = H(inpaint_key, metrics spec + metric versions)``. H is the first 16 hex digits of the
 SHA-256 of canonical JSON (sorted keys, floats that are whole numbers written as ints, so 1 and 1.0
-give the same id). Labels, descriptions and the data role (``data_role``, ``holds_out``) are
+give the same id). Labels ([labels] too), descriptions and the data role (``data_role``, ``holds_out``) are
 presentation only and never change an id. The data
 fingerprint is the dataset's name and parameters (embedded data, generated deterministically) or
 the name, size and modification time of every frame file (folders).
@@ -71,6 +75,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import json
 import math
 import os
 import sys
@@ -89,7 +94,7 @@ else:  # pragma: no cover - Python 3.10
 DEFAULT_TIMEOUT_S = 3600.0
 SCOPES = ("frame", "holes")
 
-_TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics"}
+_TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics", "labels"}
 _EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection", "data_role", "holds_out",
                    "pin_isa"}
 #: values of experiment.data_role: data a method was tuned on, and data it never saw
@@ -372,6 +377,9 @@ class ExperimentConfig:
     holes: list[dict] = field(default_factory=list)
     methods: list[dict] = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
+    #: [labels]: method label -> the name `dpcbench report --labels` shows for it (presentation: not
+    #: part of any run, never hashed)
+    labels: dict[str, str] = field(default_factory=dict)
     source: str = "<config>"
     #: messages for the optional sequences whose data was not found (filled by `expand`)
     skipped: list[str] = field(default_factory=list)
@@ -443,7 +451,45 @@ def parse_config(data: dict, source: str = "<config>", base_dir: str | os.PathLi
     cfg.holes = _parse_holes(_table_list(data, "holes"))
     cfg.methods = _parse_methods(_table_list(data, "methods"))
     cfg.metrics = _parse_metrics(data.get("metrics", {}))
+    cfg.labels = parse_labels(data.get("labels", {}))
     return cfg
+
+
+def parse_labels(table) -> dict[str, str]:
+    """The [labels] table: method label as the report shows it (``"temporal-fusion (ours)"``, a
+    [[methods]] label, or a name with its distinguishing parameters) -> the name to show instead in
+    the tables (Markdown, LaTeX, CSV) and figure legends of `dpcbench report --labels`. Each value is
+    a non-empty string, and no two labels get the same name (their columns would merge)."""
+    if not isinstance(table, dict):
+        raise ConfigError('labels: expected a [labels] table of "method label" = "name in the paper" pairs')
+    renamed: dict[str, str] = {}
+    for label, name in table.items():
+        where = f"labels.{json.dumps(label, ensure_ascii=False)}"
+        if not isinstance(name, str) or not name.strip():
+            raise ConfigError(f"{where}: expected a non-empty string, the name to show for this method, got {name!r}")
+        if name in renamed:
+            raise ConfigError(f"{where}: {json.dumps(renamed[name], ensure_ascii=False)} is renamed {name!r} too; "
+                              "give each method its own name")
+        renamed[name] = label
+    return dict(table)
+
+
+def load_labels(path: str | os.PathLike) -> dict[str, str]:
+    """The validated [labels] table of a TOML file (an experiment config; only [labels] is read, so
+    that a report can be written where the config's data is not at hand)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such config file")
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: not valid TOML ({err}); fix the syntax at that line") from err
+    if "labels" not in data:
+        raise ConfigError(f'{path}: no [labels] table; add one with "method label" = "name in the paper" lines')
+    try:
+        return parse_labels(data["labels"])
+    except ConfigError as err:
+        raise ConfigError(f"{path}: {err}") from err
 
 
 def _parse_experiment(exp, source: str) -> ExperimentConfig:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from dpcbench.bench import figures, paper, stats
 from dpcbench.bench.compare import newest_runs, with_cells
+from dpcbench.bench.errors import UserError
 from dpcbench.bench.tables import (
     ComparisonTable,
     comparison_table,
@@ -68,14 +69,16 @@ def _pick_peak(df: pd.DataFrame, metric: str, preferred: str = "intrinsic") -> s
 
 def write_comparison_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path, *, title: str,
                             metrics: list[str] | None = None, scopes: list[str] | None = None,
-                            store_path=None) -> Path:
+                            store_path=None, display_names: dict[str, str] | None = None) -> Path:
     """Tables + bar charts + per-frame curves + REPORT.md for every metric/scope in ``df`` (the
     newest run of each cell: runs of older code versions in the store are left out), with a
-    provenance line (every run read from the store at ``store_path``)."""
+    provenance line (every run read from the store at ``store_path``); ``display_names``: method
+    label -> the name the tables and figures show instead (a config's [labels], `rename_methods`)."""
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     df = _label_rows_and_methods(newest_runs(with_cells(df, runs)), runs)
+    df["method"] = rename_methods(df["method"], display_names or {})
     skip = {"time_s", "cpu_time_s", "peak_mem_mb", "removed_fraction"}
     metrics = metrics or [m for m in dict.fromkeys(df["metric"])
                           if m not in skip and not m.startswith(("temporal", "cpsnr_"))]  # colour: its own section
@@ -124,6 +127,23 @@ def _label_rows_and_methods(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFram
     df["method"] = method_labels(df, given=given_labels(runs, "method"))
     df["method_params"] = "{}"
     return df
+
+
+def rename_methods(labels: pd.Series, display_names: dict[str, str]) -> pd.Series:
+    """``labels`` (the methods' labels) with each one named in ``display_names`` replaced by its name
+    there; a `UserError` for a name in ``display_names`` that is no label of these runs, or for a new
+    name that another method (not renamed) already carries (their columns would merge)."""
+    present = list(dict.fromkeys(labels))
+    unknown = [label for label in display_names if label not in present]
+    if unknown:
+        raise UserError(f"labels: no method labelled {unknown[0]!r} in these runs; the methods' labels are: "
+                        f"{', '.join(repr(p) for p in present)}")
+    kept = {label for label in present if label not in display_names}
+    clash = [(label, name) for label, name in display_names.items() if name in kept]
+    if clash:
+        raise UserError(f"labels: {clash[0][0]!r} is renamed {clash[0][1]!r}, the label of another method; "
+                        "choose a name no other method has")
+    return labels.map(lambda label: display_names.get(label, label))
 
 
 def hole_rows(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:

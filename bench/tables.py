@@ -10,8 +10,8 @@ every other column beyond its interval (Wilcoxon signed-rank, Holm-corrected, an
 interval), `TIED_MARK` every column not distinguishable from the best; a row with too few pairs for
 any claim has no bold and the caption says why. `FLOOR_MARK` marks a cell worse than the floor
 (`FLOOR_METHOD`, the damaged input left as it is). Every value of a table has the same number of
-decimals. The paper's published values, when given, are printed as extra rows "<sequence> (paper)"
-with their own best in bold. The conventions (metric, peak, scope, scale, n, the test) are printed
+decimals, the paper's published values too: when given, they are printed as extra rows
+"<sequence> (paper)" with their own best in bold (the CSV keeps them as printed). The conventions (metric, peak, scope, scale, n, the test) are printed
 under every table. Labels are escaped for each format (`md_escape`, `latex_escape`, `csv_safe`).
 """
 
@@ -102,12 +102,13 @@ def md_escape(text) -> str:
 _LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
           "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "±": r"$\pm$", "–": "--", "—": "---",
           "·": r"$\cdot$", "×": r"$\times$", "≈": r"$\approx$", "<": r"\textless{}", ">": r"\textgreater{}",
-          TIED_MARK: r"$^{\dagger}$", FLOOR_MARK: r"$^{\nabla}$", "\n": " ", "\r": " "}
+          "[": "{[}", "]": "{]}", TIED_MARK: r"$^{\dagger}$", FLOOR_MARK: r"$^{\nabla}$", "\n": " ", "\r": " "}
 
 
 def latex_escape(text) -> str:
-    """Text for LaTeX: its special characters (``\\ & % $ # _ { } ~ ^``) escaped, ``±·×≈–—`` and the
-    cell marks as LaTeX, line breaks as spaces."""
+    """Text for LaTeX: its special characters (``\\ & % $ # _ { } ~ ^``) escaped, ``[`` and ``]`` braced
+    (so that a cell starting with one is not taken for the optional argument of the ``\\\\`` or
+    ``\\midrule`` before it), ``±·×≈–—`` and the cell marks as LaTeX, line breaks as spaces."""
     return "".join(_LATEX.get(ch, ch) for ch in str(text))
 
 
@@ -227,15 +228,22 @@ class ComparisonTable:
                                                                             f" = {n}") for f, s, n in sorted(sizes)]
         return "n = " + " or ".join(text)
 
-    def conventions(self) -> str:
+    def conventions(self, latex: bool = False) -> str:
+        """The table's conventions in words, for the Markdown table (cells ``mean [low, high]``, the
+        paper's rows marked "(paper)") or with ``latex`` for `latex` (``mean ± half-width``, the
+        paper's rows in italics)."""
         peak = f", PSNR peak {self.peak}" if self.peak else ""
         scale = f", in units of {1 / self.scale:.0e}".replace("e-0", "e-") if self.scale != 1 else ""
         direction = {True: "higher is better", False: "lower is better", None: "no better direction"}[
             self.higher_is_better]
         text = (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
                 f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}. "
-                f"Cells: mean [95% interval of the mean, Student t] over {self.sample_size()} per cell "
-                "(all frames of all seeds).")
+                + ("Cells: mean ± half-width of the 95% interval of the mean (Student t, symmetric)" if latex
+                   else "Cells: mean [95% interval of the mean, Student t]")
+                + f" over {self.sample_size()} per cell (all frames of all seeds).")
+        if self.paper:
+            text += (f" Rows {'in italics' if latex else 'marked (paper)'}: the paper's published values, rounded to "
+                     f"the table's {self._digits()} decimals (the CSV keeps them as printed).")
         if self.higher_is_better is not None and self.observations:
             text += (f" Bold: the row's best, beyond every other column ({stats.TEST_NAME}; a column is worse "
                      f"when its interval excludes 0 and its adjusted p <= {stats.ALPHA}); {TIED_MARK}: tied-best, "
@@ -260,31 +268,18 @@ class ComparisonTable:
                 cells.append((f"**{text}**" if bold else text) + suffix)
             out.append(f"| {md_escape(row)} | " + " | ".join(cells) + " |")
         for row, values, best in self._paper_rows():
-            cells = [("–" if c not in values else (f"**{values[c]:.4f}**" if c == best else f"{values[c]:.4f}"))
+            cells = [("–" if c not in values else (f"**{self._fmt(values[c])}**" if c == best else self._fmt(values[c])))
                      for c in self.columns]
             out.append(f"| *{md_escape(row)} (paper)* | " + " | ".join(cells) + " |")
         out += ["", f"_{self.conventions()}_"] + [f"_{note}_" for note in self.notes if note]
         return "\n".join(out) + "\n"
 
     def latex(self) -> str:
-        esc = latex_escape
-        out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{esc(self.title)}}}",
-               r"\begin{tabular}{l" + "c" * len(self.columns) + "}", r"\hline",
-               "Sequence & " + " & ".join(esc(c) for c in self.columns) + r" \\", r"\hline"]
-        for row in self.rows:
-            cells = []
-            for c in self.columns:
-                bold, suffix = self.marks(row, c)
-                text = esc(self.cell_text(row, c))
-                cells.append((r"\textbf{" + text + "}" if bold else text) + esc(suffix))
-            out.append(esc(row) + " & " + " & ".join(cells) + r" \\")
-        for row, values, best in self._paper_rows():
-            cells = ["--" if c not in values else (rf"\textbf{{{values[c]:.4f}}}" if c == best else f"{values[c]:.4f}")
-                     for c in self.columns]
-            out.append(rf"\textit{{{esc(row)} (paper)}} & " + " & ".join(cells) + r" \\")
-        out += [r"\hline", r"\end{tabular}", "", r"\smallskip", r"{\footnotesize " + esc(self.conventions())
-                + "".join(" " + esc(n) for n in self.notes if n) + "}", r"\end{table}"]
-        return "\n".join(out) + "\n"
+        """The table as a LaTeX float for a two-column paper (booktabs rules, short labels with a key,
+        ``table`` or ``table*`` by its estimated width): `bench.latex_tables.comparison_latex`."""
+        from dpcbench.bench.latex_tables import comparison_latex
+
+        return comparison_latex(self)
 
     def csv(self) -> str:
         """One line per cell: mean, std, the 95% interval, n, the verdict (`bench.stats`), whether it is

@@ -69,14 +69,17 @@ def test_table_cells_best_and_formats(tmp_path):
     # Proposed is 5 dB above the next on every pair: best beyond every interval, in bold
     assert ("| Human (stand-in) | – | 11.00 [10.33, 11.67] | 16.00 [15.33, 16.67] | 21.00 [20.33, 21.67] | "
             "**26.00 [25.33, 26.67]** |") in md
-    assert "| *Loot (paper)* | – | 16.4451 | 27.3715 | 40.1546 | **47.5648** |" in md
+    # the paper's rows with the table's decimals (2 for GPSNR; the CSV keeps the 4 the paper printed)
+    assert "| *Loot (paper)* | – | 16.45 | 27.37 | 40.15 | **47.56** |" in md
     assert "peak intrinsic" in md and "scope `frame`" in md and "STAND-IN" in md
     assert "n = 3 frames x 3 seeds = 9" in md and "Wilcoxon signed-rank" in md and "Holm" in md
     md2 = t2.markdown()
     assert "**2.0000 [1.3343, 2.6657]**" in md2  # Proposed: (4-3) * (f+1) x1e-7 -> mean 2 in units of 1e-7
     assert "in units of 1e-7" in md2
     tex = t1.latex()
-    assert r"\textbf{26.00 [25.33, 26.67]}" in tex and r"\textit{Longdress (paper)}" in tex
+    # LaTeX: the symmetric interval as ± its half-width, the paper's rows in italics, 2 decimals too
+    assert r"\textbf{26.00}{\scriptsize$\pm$0.67}" in tex
+    assert r"\textit{Loot} & -- & 16.45 & 27.37 & 40.15 & \textbf{47.56} & " in tex
     rows = list(csv.DictReader(io.StringIO(t1.csv())))
     ours = {(r["sequence"], r["method"]): r for r in rows if r["source"] == "ours"}
     assert float(ours[("Bunny (stand-in)", "Hu")]["mean"]) == pytest.approx(22.0)

@@ -20,6 +20,9 @@ def register(subparsers) -> None:
     p.add_argument("--experiment", default=None, help="experiment name (default: the only one, else required)")
     p.add_argument("--metrics", default=None, help="comma-separated metrics (default: all stored)")
     p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--labels", default=None, metavar="CONFIG",
+                   help="experiment config (TOML) whose [labels] table renames methods in the tables and figures "
+                        '("method label" = "name in the paper")')
     p.add_argument("--overwrite", action="store_true",
                    help="replace existing files in the output folder that dpcbench did not write")
     p.set_defaults(func=main)
@@ -45,6 +48,11 @@ def main(args) -> int:
     from dpcbench.bench.reports import write_comparison_report
     from dpcbench.bench.store import ResultsStore
 
+    display_names = None
+    if args.labels:
+        from dpcbench.bench.config import load_labels
+
+        display_names = load_labels(args.labels)  # before the store is read: a bad table fails at once
     store = ResultsStore(resolve_store(args.results), readonly=True, verify=True)
     experiments = store.experiments()
     experiment = args.experiment
@@ -70,6 +78,6 @@ def main(args) -> int:
     out = guard.folder(args.out, "--out")
     with guard.staged(out) as staged:  # written aside, moved in once no file of the user's would be replaced
         report = write_comparison_report(df, runs, staged, title=f"Method comparison: experiment {experiment}",
-                                         metrics=metrics, store_path=store.path)
+                                         metrics=metrics, store_path=store.path, display_names=display_names)
     print(f"report: {out / Path(report).relative_to(staged)}")
     return 0
