@@ -495,7 +495,7 @@ def _draw_labels_and_key(fig, layout: _Layout, row_tops: list[float], row_labels
                  fontsize=FIGURE_TEXT_PT, linespacing=1.0, color="black" if kind == "body" else ZOOM_COLOUR)
     red = tint_highlight(np.full((1, 3), 200, np.uint8), np.ones(1, bool))[0] / 255.0
     handles = [Patch(facecolor=red, edgecolor="none", label="points inside a hole region (the fill)"),
-               Patch(facecolor="none", edgecolor=ZOOM_COLOUR, label="zoom area k, magnified in the row 'hole k'")]
+               Patch(fill=False, edgecolor=ZOOM_COLOUR, label="zoom area k, magnified in the row 'hole k'")]
     fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=2, frameon=False,
                fontsize=FIGURE_TEXT_PT, handlelength=1.4)
 
