@@ -278,6 +278,21 @@ def _done_folders(store, specs) -> dict:
 #: frames shown in the subjective figures: each adds a row of bodies and a zoom row per hole, and the
 #: figure is printed a page wide (two frames of a few holes fill about a page's height)
 FIGURE_FRAMES = 2
+#: a frame after the first is shown only while the zoom rows stay within this many (a row is about
+#: 0.75 in at 7.2 in wide: 8 rows and two rows of bodies are about a page)
+MAX_ZOOM_ROWS = 8
+
+
+def shown_frames(candidates: list[int], hole_counts: list[int]) -> list[int]:
+    """The frames of a subjective figure: the first of ``candidates``, then the next ones while the
+    holes of the frames shown (``hole_counts``, per candidate) stay within `MAX_ZOOM_ROWS`."""
+    shown, rows = [], 0
+    for frame, count in zip(candidates, hole_counts):
+        if shown and rows + count > MAX_ZOOM_ROWS:
+            break
+        shown.append(frame)
+        rows += count
+    return shown
 
 
 def figure_columns(done: dict, frames_of) -> tuple[list[tuple[str, list]], list, list[str]]:
@@ -322,8 +337,9 @@ def _figure4(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     truth = load_run_sequence(spec0.sequence)
     content0 = read_run_folder(folder0)
     n = len(truth.frames)
-    shown = sorted(set(np.linspace(0, n - 1, min(FIGURE_FRAMES, n)).round().astype(int).tolist()))
     regions = content0["regions"]
+    candidates = sorted(set(np.linspace(0, n - 1, min(FIGURE_FRAMES, n)).round().astype(int).tolist()))
+    shown = shown_frames(candidates, [len(regions[f]) for f in candidates])
     methods, colours, missing = figure_columns(done, lambda folder: [read_run_folder(folder)["inpainted"][f]
                                                                      for f in shown])
     columns = [("Ground truth", [truth.frames[f].points for f in shown]),
@@ -355,7 +371,8 @@ def _figure3(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
     truth = load_run_sequence(spec0.sequence)
     content0 = read_run_folder(folder0)
     detected = content0["detected"] or [[] for _ in content0["damaged"]]
-    shown = list(range(min(FIGURE_FRAMES, len(content0["damaged"]))))
+    candidates = list(range(min(FIGURE_FRAMES, len(content0["damaged"]))))
+    shown = shown_frames(candidates, [len(detected[f]) for f in candidates])
     if protocol.standins:
         columns = [("Ground truth", [truth.frames[f].points for f in shown]),
                    ("Acquisition holes", [content0["damaged"][f] for f in shown])]

@@ -490,7 +490,8 @@ def _draw_labels_and_key(fig, layout: _Layout, row_tops: list[float], row_labels
                  color=column_colours[c] or "black", linespacing=1.0)
     for (kind, f, k), top in zip(layout.rows, row_tops):
         h = layout.body_in if kind == "body" else layout.panel_in
-        text = row_labels[f] if kind == "body" else f"{row_labels[f]}\nhole {k + 1}"
+        holes = sum(1 for kind_, f_, _ in layout.rows if kind_ == "zoom" and f_ == f)
+        text = (row_labels[f] + ("" if holes else "\n(no hole)")) if kind == "body" else f"{row_labels[f]}\nhole {k + 1}"
         fig.text(0.5 * layout.label_in / W, 1.0 - (top + h / 2) / H, text, rotation=90, ha="center", va="center",
                  fontsize=FIGURE_TEXT_PT, linespacing=1.0, color="black" if kind == "body" else ZOOM_COLOUR)
     red = tint_highlight(np.full((1, 3), 200, np.uint8), np.ones(1, bool))[0] / 255.0

@@ -191,3 +191,12 @@ def test_figure_columns_follow_the_table_in_palette_colours():
     assert colours[0] == palette.METHOD_COLOURS["meshlab"]
     proposed, tuned = colours[2], colours[3]
     assert proposed == palette.METHOD_COLOURS["temporal-graph"] and tuned == palette.shade(proposed, 0.35)
+
+
+def test_shown_frames_keep_the_zoom_rows_within_a_page():
+    from dpcbench.bench import paper
+
+    assert paper.shown_frames([0, 9], [3, 3]) == [0, 9]
+    assert paper.shown_frames([0, 9], [6, 6]) == [0]  # 12 zoom rows: only the first frame
+    assert paper.shown_frames([0, 9], [paper.MAX_ZOOM_ROWS + 4, 0]) == [0]  # the first is always shown
+    assert paper.shown_frames([0, 1], [0, paper.MAX_ZOOM_ROWS]) == [0, 1]
