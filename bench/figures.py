@@ -226,10 +226,33 @@ def facing_view(points: np.ndarray, center: np.ndarray) -> tuple[float, float]:
     the direction from the cloud's centroid to ``center`` (y is up; elevation clipped to ±60°: a
     hole on the crown or the shoulders faces the viewer (at ±30° the crown hole of Fig. 3 was seen
     edge-on) and the figure stays recognisable)."""
-    d = np.asarray(center, float) - points.mean(axis=0)
+    return view_along(np.asarray(center, float) - points.mean(axis=0), max_elevation=60.0)
+
+
+def view_along(direction: np.ndarray, max_elevation: float = 90.0) -> tuple[float, float]:
+    """(azimuth, elevation) of a `bench.render` view whose viewer sits in ``direction`` (3,) from
+    what it looks at (y is up; elevation clipped to +-``max_elevation`` degrees)."""
+    d = np.asarray(direction, float)
     azimuth = -float(np.degrees(np.arctan2(d[0], d[2])))
-    elevation = float(np.clip(np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))), -60.0, 60.0))
+    elevation = float(np.clip(np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))), -max_elevation, max_elevation))
     return (azimuth, elevation)
+
+
+def hole_view(points: np.ndarray, region) -> tuple[float, float]:
+    """(azimuth, elevation) that looks straight into a hole region: along the normal of the surface
+    around it (the least principal axis of the points of ``points`` within 1.5 bounding radii of its
+    centre), on the side away from the cloud's centroid. `facing_view` (the centroid's direction)
+    sees a hole on the side of a limb edge-on; the local normal does not. `facing_view` when fewer
+    than 10 points are that near."""
+    points = np.asarray(points, float)
+    centre = np.asarray(region.center, float)
+    near = points[np.linalg.norm(points - centre, axis=1) <= 1.5 * region.bounding_radius]
+    if len(near) < 10:
+        return facing_view(points, centre)
+    normal = np.linalg.eigh(np.cov(near.T))[1][:, 0]
+    if normal @ (centre - points.mean(axis=0)) < 0:
+        normal = -normal
+    return view_along(normal)
 
 
 def flattest_region(points: np.ndarray, regions: list) -> int:
@@ -264,7 +287,7 @@ def subjective_grid(columns: list[tuple[str, list[np.ndarray]]], frame_labels: l
     """A paper-style subjective figure (Fig. 3/4): one column per (label, frames) entry (ground truth,
     with holes, then every method), in the order given, titled in ``column_colours`` (None: black);
     per frame a row of whole bodies shaded by normals, then one zoom row per hole region of that
-    frame: the hole magnified in every column, seen from outside the body (`facing_view`)
+    frame: the hole magnified in every column, seen straight on from outside the body (`hole_view`)
     (`bench.render.render_zoom_grid`). Returns its `bench.render.ComparisonFigure`.
 
     hole_regions:          per frame, its hole regions: each one outlined, numbered and magnified,
@@ -296,7 +319,7 @@ def subjective_grid(columns: list[tuple[str, list[np.ndarray]]], frame_labels: l
         f = next((f for f in range(n_frames) if hole_regions[f]), None)
         view = "front" if f is None else facing_view(
             grid[f][0], hole_regions[f][flattest_region(grid[f][0], hole_regions[f])].center)
-    zooms = [[Zoom(np.asarray(z.center, float), facing_view(grid[f][0], z.center)) for z in hole_regions[f]]
+    zooms = [[Zoom(np.asarray(z.center, float), hole_view(grid[f][0], z)) for z in hole_regions[f]]
              for f in range(n_frames)]
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)

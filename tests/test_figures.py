@@ -164,9 +164,9 @@ def test_subjective_grid_columns_zooms_size_and_colours(tmp_path, monkeypatch):
     assert fig.zoom_rows == [(0, 0), (0, 1), (1, 0)]  # every hole of every frame
     assert len(drawn) == len(columns) * (2 + 3)
     # drawn row by row (body f=0, its 2 zooms, body f=1, its zoom), 5 panels a row; each zoom row's
-    # panels centred on its hole, seen from the hole's outside (`facing_view`)
+    # panels centred on its hole, seen straight on from the hole's outside (`hole_view`)
     for (f, r), position in zip(fig.zoom_rows, (1, 2, 4)):
-        rotation = render.view_rotation(figures.facing_view(base, regions[f][r].center))
+        rotation = render.view_rotation(figures.hole_view(base, regions[f][r]))
         for d_rotation, centre, _ in drawn[5 * position:5 * position + 5]:
             np.testing.assert_allclose(d_rotation, rotation, atol=1e-12)
             np.testing.assert_allclose(centre, (rotation @ regions[f][r].center)[:2], atol=1e-9)
@@ -200,3 +200,23 @@ def test_shown_frames_keep_the_zoom_rows_within_a_page():
     assert paper.shown_frames([0, 9], [6, 6]) == [0]  # 12 zoom rows: only the first frame
     assert paper.shown_frames([0, 9], [paper.MAX_ZOOM_ROWS + 4, 0]) == [0]  # the first is always shown
     assert paper.shown_frames([0, 1], [0, paper.MAX_ZOOM_ROWS]) == [0, 1]
+
+
+def test_hole_view_looks_into_a_hole_on_the_side_of_a_limb():
+    """A limb (a cylinder along y) beside a large torso (a plane far in +x): a hole on the limb's -z side
+    is seen edge-on from the centroid's direction (`facing_view`), straight on along its normal by `hole_view`."""
+    from dpcbench.bench.render import view_rotation
+    from dpcbench.holes.regions import HoleRegion
+
+    rng = np.random.default_rng(2)
+    angle, height = rng.uniform(0, 2 * np.pi, 3000), rng.uniform(0, 40, 3000)
+    limb = np.c_[3 * np.cos(angle), height, 3 * np.sin(angle)]
+    torso = np.c_[np.full(6000, 50.0), rng.uniform(0, 40, 6000), rng.uniform(-20, 20, 6000)]
+    body = np.vstack([limb, torso])
+    hole = HoleRegion.ball([0.0, 20.0, -3.0], 1.5)
+    towards_viewer = view_rotation(figures.hole_view(body, hole)) @ [0.0, 0.0, -1.0]
+    assert towards_viewer[2] > 0.95  # the hole's outward normal (-z) points at the viewer
+    edge_on = view_rotation(figures.facing_view(body, hole.center)) @ [0.0, 0.0, -1.0]
+    assert edge_on[2] < 0.5
+    sparse = HoleRegion.ball([0.0, 100.0, 0.0], 1.0)  # no point near: the centroid's direction
+    assert figures.hole_view(body, sparse) == figures.facing_view(body, sparse.center)
