@@ -1,6 +1,6 @@
 """Figures for reports (matplotlib, Agg backend, PNG): bar charts of comparison tables, per-frame
 curves, and the paper-style subjective figures (Fig. 3: real/detected holes; Fig. 4: synthetic holes),
-which draw point clouds through `bench.render.render_clouds`.
+which draw point clouds through `bench.render.render_zoom_grid`.
 """
 
 from __future__ import annotations
@@ -98,11 +98,15 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
         handles, labels = axes[0][0].get_legend_handles_labels()
         fig.suptitle(table.title + (f"\n{subtitle}" if subtitle else ""))
         fig.tight_layout()
-        legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, frameon=False)
+        # a legend only of labelled artists: one without any draws an empty box (and, called without
+        # handles, warns "No artists with labels found")
+        legend = None
+        if handles:
+            legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, frameon=False)
         key = tick_labels(table.rows)[1]
         if key:  # the rows' full names under the legend, for the short tick labels
             fig.canvas.draw()
-            bottom = legend.get_window_extent().transformed(fig.transFigure.inverted()).y0
+            bottom = 0.0 if legend is None else legend.get_window_extent().transformed(fig.transFigure.inverted()).y0
             fig.text(0.02, bottom - 0.02, "\n".join(_wrap(line, 130) for line in key), ha="left", va="top",
                      fontsize=MIN_TEXT_PT)
         return save_figure(fig, out_png)
@@ -222,10 +226,33 @@ def facing_view(points: np.ndarray, center: np.ndarray) -> tuple[float, float]:
     the direction from the cloud's centroid to ``center`` (y is up; elevation clipped to ±60°: a
     hole on the crown or the shoulders faces the viewer (at ±30° the crown hole of Fig. 3 was seen
     edge-on) and the figure stays recognisable)."""
-    d = np.asarray(center, float) - points.mean(axis=0)
+    return view_along(np.asarray(center, float) - points.mean(axis=0), max_elevation=60.0)
+
+
+def view_along(direction: np.ndarray, max_elevation: float = 90.0) -> tuple[float, float]:
+    """(azimuth, elevation) of a `bench.render` view whose viewer sits in ``direction`` (3,) from
+    what it looks at (y is up; elevation clipped to +-``max_elevation`` degrees)."""
+    d = np.asarray(direction, float)
     azimuth = -float(np.degrees(np.arctan2(d[0], d[2])))
-    elevation = float(np.clip(np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))), -60.0, 60.0))
+    elevation = float(np.clip(np.degrees(np.arctan2(d[1], np.hypot(d[0], d[2]))), -max_elevation, max_elevation))
     return (azimuth, elevation)
+
+
+def hole_view(points: np.ndarray, region) -> tuple[float, float]:
+    """(azimuth, elevation) that looks straight into a hole region: along the normal of the surface
+    around it (the least principal axis of the points of ``points`` within 1.5 bounding radii of its
+    centre), on the side away from the cloud's centroid. `facing_view` (the centroid's direction)
+    sees a hole on the side of a limb edge-on; the local normal does not. `facing_view` when fewer
+    than 10 points are that near."""
+    points = np.asarray(points, float)
+    centre = np.asarray(region.center, float)
+    near = points[np.linalg.norm(points - centre, axis=1) <= 1.5 * region.bounding_radius]
+    if len(near) < 10:
+        return facing_view(points, centre)
+    normal = np.linalg.eigh(np.cov(near.T))[1][:, 0]
+    if normal @ (centre - points.mean(axis=0)) < 0:
+        normal = -normal
+    return view_along(normal)
 
 
 def flattest_region(points: np.ndarray, regions: list) -> int:
@@ -253,46 +280,49 @@ def zoom_box(regions: list, pad: float = 1.3) -> tuple:
     return tuple(lo) + tuple(hi)
 
 
-def subjective_grid(rows: list[tuple[str, list[np.ndarray]]], frame_labels: list[str], out_png: str | Path, *,
-                    zoom_regions: list | None = None, highlight_regions: list[list] | None = None,
-                    view=None, title: str = "", highlight_from_row: int = 2, panel_height: int = 260) -> Path:
-    """A paper-style subjective figure (Fig. 3/4), laid out like the paper's: one row per (label,
-    frames) entry (ground truth, with holes, each method), one column per frame; each cell is the
-    whole frame, shaded by normals, with the hole's area outlined in orange, and beside it that area
-    magnified (`bench.render.render_zoom_grid`).
+def subjective_grid(columns: list[tuple[str, list[np.ndarray]]], frame_labels: list[str], out_png: str | Path, *,
+                    hole_regions: list[list] | None = None, column_colours: list | None = None,
+                    highlight_from_column: int = 2, view=None, title: str = "",
+                    width_in: float = DOUBLE_COLUMN_IN):
+    """A paper-style subjective figure (Fig. 3/4): one column per (label, frames) entry (ground truth,
+    with holes, then every method), in the order given, titled in ``column_colours`` (None: black);
+    per frame a row of whole bodies shaded by normals, then one zoom row per hole region of that
+    frame: the hole magnified in every column, seen straight on from outside the body (`hole_view`)
+    (`bench.render.render_zoom_grid`). Returns its `bench.render.ComparisonFigure`.
 
-    zoom_regions:      per column (frame), the hole region to magnify, or None (no hole there); every
-                       column is magnified equally: a square of side 2 x 2 x the largest region's
-                       bounding radius (at least 16 point spacings), centred on each column's region.
-    highlight_regions: per column, regions whose points are tinted red (the filled area) in every
-                       row from ``highlight_from_row`` on (default 2: not in the ground truth and
-                       the damaged input).
-    view:              None = facing the first zoom region from outside the body (`facing_view`).
+    hole_regions:          per frame, its hole regions: each one outlined, numbered and magnified,
+                           and its points tinted red in the columns from ``highlight_from_column``
+                           on (default 2: not in the ground truth nor the damaged input). One
+                           magnification for every zoom: a square of side 2 x 2 x the largest region's
+                           bounding radius (at least 16 point spacings of the first column's first frame).
+    view:                  of the body rows; None = facing the flattest hole of the first frame that
+                           has one (`flattest_region`).
+    Printed ``width_in`` wide (PNG at `PRINT_DPI` and PDF), text at `MIN_TEXT_PT` or more.
     """
-    from dpcbench.bench.render import render_zoom_grid
+    from dpcbench.bench.render import Zoom, render_zoom_grid
     from dpcbench.holes.regions import union_mask
 
-    grid, highlight = [], []
-    for r, (_label, frames) in enumerate(rows):
-        grid.append([np.asarray(f, float) for f in frames])
-        marks = []
-        for c, pts in enumerate(frames):
-            regs = highlight_regions[c] if highlight_regions is not None and r >= highlight_from_row else None
-            marks.append(union_mask(regs, np.asarray(pts, float)) if regs else None)
-        highlight.append(marks)
-    n_cols = len(frame_labels)
-    zoom_regions = list(zoom_regions) if zoom_regions is not None else [None] * n_cols
-    if len(zoom_regions) != n_cols:
-        raise ValueError(f"zoom_regions: give one region (or None) per column ({n_cols}), got {len(zoom_regions)}")
-    present = [z for z in zoom_regions if z is not None]
+    n_frames = len(frame_labels)
+    if not columns or any(len(frames) != n_frames for _, frames in columns):
+        raise ValueError(f"columns: give (label, frames) entries with one frame per frame label ({n_frames})")
+    hole_regions = [list(r or []) for r in hole_regions] if hole_regions is not None else [[] for _ in range(n_frames)]
+    if len(hole_regions) != n_frames:
+        raise ValueError(f"hole_regions: give one list of regions per frame ({n_frames}), got {len(hole_regions)}")
+    grid = [[np.asarray(frames[f], float) for _, frames in columns] for f in range(n_frames)]
+    highlight = [[union_mask(hole_regions[f], grid[f][c]) if hole_regions[f] and c >= highlight_from_column
+                  else None for c in range(len(columns))] for f in range(n_frames)]
     first = grid[0][0]
     spacing = median_neighbour_distance(first, sample=None) if len(first) > 1 else 1.0
+    present = [z for regions in hole_regions for z in regions]
     half = max([2.0 * z.bounding_radius for z in present] + [8.0 * spacing])
     if view is None:
-        view = facing_view(first, present[0].center) if present else "front"
+        f = next((f for f in range(n_frames) if hole_regions[f]), None)
+        view = "front" if f is None else facing_view(
+            grid[f][0], hole_regions[f][flattest_region(grid[f][0], hole_regions[f])].center)
+    zooms = [[Zoom(np.asarray(z.center, float), hole_view(grid[f][0], z)) for z in hole_regions[f]]
+             for f in range(n_frames)]
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
-    return render_zoom_grid(grid, out, row_labels=[label for label, _ in rows], column_labels=list(frame_labels),
-                            zooms=[None if z is None else z.center for z in zoom_regions], zoom_half=half,
-                            highlight=highlight, view=view, shading="normal", panel_height=panel_height,
-                            title=title or None)
+    return render_zoom_grid(grid, out, column_labels=[label for label, _ in columns], row_labels=list(frame_labels),
+                            zooms=zooms, zoom_half=half, highlight=highlight, view=view, shading="normal",
+                            column_colours=column_colours, width_in=width_in, dpi=PRINT_DPI, title=title or None)

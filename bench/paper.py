@@ -7,6 +7,8 @@ The paper's own facts (sequences, column labels, published Tables 1-2, headline 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from dpcbench.bench.canonical import sorted_json
 from dpcbench.bench.errors import UserError
 from dpcbench.bench.paper_facts import (  # noqa: F401  (re-exported: bench.paper.TABLE1_GPSNR etc. are public)
@@ -273,103 +275,133 @@ def _done_folders(store, specs) -> dict:
     return out
 
 
-def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
-    """Fig. 4-like (synthetic holes) and Fig. 3-like (detected real holes) subjective figures.
+#: frames shown in the subjective figures: each adds a row of bodies and a zoom row per hole, and the
+#: figure is printed a page wide (two frames of a few holes fill about a page's height)
+FIGURE_FRAMES = 2
+#: a frame after the first is shown only while the zoom rows stay within this many (a row is about
+#: 0.75 in at 7.2 in wide: 8 rows and two rows of bodies are about a page)
+MAX_ZOOM_ROWS = 8
 
-    Returns figure stem -> a caption for REPORT.md. A figure whose runs did not finish is skipped,
-    and the caption says so."""
-    from pathlib import Path
 
+def shown_frames(candidates: list[int], hole_counts: list[int]) -> list[int]:
+    """The frames of a subjective figure: the first of ``candidates``, then the next ones while the
+    holes of the frames shown (``hole_counts``, per candidate) stay within `MAX_ZOOM_ROWS`."""
+    shown, rows = [], 0
+    for frame, count in zip(candidates, hole_counts):
+        if shown and rows + count > MAX_ZOOM_ROWS:
+            break
+        shown.append(frame)
+        rows += count
+    return shown
+
+
+def figure_columns(done: dict, frames_of) -> tuple[list[tuple[str, list]], list, list[str]]:
+    """The method columns of a subjective figure: every non-floor column of `TABLE_COLUMNS` (the
+    paper's, ours, the references) whose run is in ``done`` (column label -> (spec, folder)), in
+    that order (the floor is the damaged input, already a column); ``frames_of(folder)`` gives a
+    run's shown frames. Returns (columns, their palette colours, the labels missing from ``done``)."""
+    from dpcbench.bench import palette
+
+    colours = palette.configuration_colours((label, name) for name, label, _, _ in TABLE_COLUMNS)
+    columns, column_colours, missing = [], [], []
+    for _, label, _, role in TABLE_COLUMNS:
+        if role == "floor":
+            continue
+        if label not in done:
+            missing.append(label)
+            continue
+        columns.append((label, frames_of(done[label][1])))
+        column_colours.append(colours[label])
+    return columns, column_colours, missing
+
+
+def _figure4(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
+    """Fig. 4-like: the first synthetic sequence with its first temporally coherent hole
+    configuration when there is one (its holes follow the surface through the frames shown), else
+    the first; the first and last frames; every hole of each magnified."""
     import numpy as np
 
     from dpcbench.bench.datasets import load_run_sequence
-    from dpcbench.bench.figures import flattest_region, subjective_grid
+    from dpcbench.bench.figures import subjective_grid
     from dpcbench.bench.provenance import read_run_folder
 
-    fig_dir = Path(fig_dir)
-    notes = {}
-
-    # Fig. 4: the first sequence of the synthetic runs, with its first temporally coherent hole
-    # configuration when there is one (the magnified hole then follows the surface through the
-    # frames, as in the paper's figure; independent holes are elsewhere in every frame)
     first_seq = protocol.synthetic[0].sequence_label if protocol.synthetic else None
     on_first = [s.holes for s in protocol.synthetic if s.sequence_label == first_seq]
     first_holes = next((h for h in on_first if h["params"].get("coherent")), on_first[0] if on_first else None)
-    seed = first_holes["seed"] if first_holes else None
     specs = [s for s in protocol.synthetic if s.sequence_label == first_seq and s.holes == first_holes]
     done = _done_folders(store, specs)
-    if done:
-        assert first_holes is not None  # done's specs are runs with first_holes
-        spec0, folder0 = next(iter(done.values()))
-        truth = load_run_sequence(spec0.sequence)
-        content0 = read_run_folder(folder0)
-        n = len(truth.frames)
-        shown = sorted(set(np.linspace(0, n - 1, min(4, n)).round().astype(int).tolist()))
-        regions = content0["regions"]
-        # the flattest hole of the first frame shown (a hole in an open surface reads as a hole from one
-        # view), followed over the frames: the same index for coherent holes (the generator keeps the
-        # order), else the nearest region of each frame
-        first = None
-        if regions[shown[0]]:
-            first = regions[shown[0]][flattest_region(truth.frames[shown[0]].points, regions[shown[0]])]
-        anchor = None if first is None else first.center
-        zoom = [None if anchor is None or not regions[f] else
-                min(regions[f], key=lambda r: float(np.linalg.norm(r.center - anchor))) for f in shown]
-        rows = [("Ground truth", [truth.frames[f].points for f in shown]),
-                ("With holes", [content0["damaged"][f] for f in shown])]
-        for _, label, _ in PAPER_METHODS:
-            if label in done:
-                rows.append((label, [read_run_folder(done[label][1])["inpainted"][f] for f in shown]))
-        subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig4_synthetic_holes.png", zoom_regions=zoom,
-                        highlight_regions=[regions[f] for f in shown],
-                        title=f"Synthetic holes ({first_holes.get('label') or first_holes['generator']}), {first_seq}")
-        missing = [label for _, label, _ in PAPER_METHODS if label not in done]
-        notes["fig4_synthetic_holes"] = (
-            f"Like the paper's Fig. 4: {first_seq}, {first_holes.get('label') or first_holes['generator']}, seed {seed}; rows ground truth, with holes, then each of the paper's methods in its paper configuration; "
-            f"columns frames {shown}; each panel's orange square (the flattest hole of the first frame, followed over the frames) is "
-            "magnified beside it; points inside the hole regions are tinted red in the method rows." + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))
+    if not done:
+        return {}
+    assert first_holes is not None  # done's specs are runs with first_holes
+    spec0, folder0 = next(iter(done.values()))
+    truth = load_run_sequence(spec0.sequence)
+    content0 = read_run_folder(folder0)
+    n = len(truth.frames)
+    regions = content0["regions"]
+    candidates = sorted(set(np.linspace(0, n - 1, min(FIGURE_FRAMES, n)).round().astype(int).tolist()))
+    shown = shown_frames(candidates, [len(regions[f]) for f in candidates])
+    methods, colours, missing = figure_columns(done, lambda folder: [read_run_folder(folder)["inpainted"][f]
+                                                                     for f in shown])
+    columns = [("Ground truth", [truth.frames[f].points for f in shown]),
+               ("With holes", [content0["damaged"][f] for f in shown])] + methods
+    holes = first_holes.get("label") or first_holes["generator"]
+    subjective_grid(columns, [f"f={f}" for f in shown], Path(fig_dir) / "fig4_synthetic_holes.png",
+                    hole_regions=[regions[f] for f in shown], column_colours=[None, None] + colours,
+                    title=f"Synthetic holes ({holes}), {first_seq}")
+    counts = [len(regions[f]) for f in shown]
+    return {"fig4_synthetic_holes": (
+        f"Like the paper's Fig. 4: {first_seq}, {holes}, seed {first_holes['seed']}; columns ground truth, with holes, "
+        "then every column of the tables that ran (the paper's four in the paper configuration, ours, the "
+        f"reference), titled in the methods' colours; rows frames {shown}, each followed by one magnified row "
+        f"per hole of that frame ({counts} holes), the hole's orange square numbered on the bodies; points "
+        "inside the hole regions are tinted red in the method columns (the key under the figure)."
+        + (f" Missing (run failed): {', '.join(missing)}." if missing else ""))}
 
-    # Fig. 3: detected holes on consecutive frames
+
+def _figure3(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
+    """Fig. 3-like: detected holes on the first consecutive frames, every detection magnified."""
+    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.figures import subjective_grid
+    from dpcbench.bench.provenance import read_run_folder
+
     done = _done_folders(store, protocol.real)
-    if done:
-        spec0, folder0 = next(iter(done.values()))
-        truth = load_run_sequence(spec0.sequence)
-        content0 = read_run_folder(folder0)
-        detected = content0["detected"] or [[] for _ in content0["damaged"]]
-        shown = list(range(len(content0["damaged"])))
-        # detections are not tracked over frames: follow the flattest one of the first frame with a
-        # detection (see flattest_region) through each frame's nearest detection within 5% of the
-        # bounding-box diagonal
-        first = next((detected[f][flattest_region(content0["damaged"][f], detected[f])] for f in shown
-                      if detected[f]), None)
-        zoom = [None] * len(shown)
-        if first is not None:
-            pts = content0["damaged"][0]
-            reach = 0.05 * float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-            for k, f in enumerate(shown):
-                near = [d for d in detected[f] if np.linalg.norm(d.center - first.center) <= reach]
-                if near:
-                    zoom[k] = min(near, key=lambda d: np.linalg.norm(d.center - first.center))
-        if protocol.standins:
-            rows = [("Ground truth", [truth.frames[f].points for f in shown]),
-                    ("Acquisition holes", content0["damaged"])]
-        else:
-            rows = [("Captured", content0["damaged"]), ("Captured (detected holes)", content0["damaged"])]
-        for _, label, _ in PAPER_METHODS:
-            if label in done:
-                rows.append((label, read_run_folder(done[label][1])["inpainted"]))
-        subjective_grid(rows, [f"f={f}" for f in shown], fig_dir / "fig3_real_holes.png", zoom_regions=zoom,
-                        highlight_regions=[detected[f] for f in shown],
-                        title=f"Detected holes, {spec0.sequence_label}")
-        counts = [len(d) for d in detected]
-        source = ("acquisition holes simulated by the occlusion generator (a capture rig's blind spots), whose "
-                  "ground truth is known: these runs are scored too (table 'real_holes_gpsnr')"
-                  if protocol.standins else "the sequence's own capture holes (no ground truth: not scored)")
-        notes["fig3_real_holes"] = (
-            f"Like the paper's Fig. 3: {source}. The methods get the regions found by "
-            f"`holes.detection.detect_holes` ({counts} regions per frame), not the true ones; consecutive "
-            "frames show temporal coherence; the orange square (the flattest detected hole, followed over the frames) "
-            "is magnified beside each panel; points inside the detected regions are tinted red."
-            + (" No hole was detected in these frames, so every method returned them unchanged: the "
-               "detector's parameters (holes.detection) decide what this figure can show." if not any(counts) else ""))
-    return notes
+    if not done:
+        return {}
+    spec0, folder0 = next(iter(done.values()))
+    truth = load_run_sequence(spec0.sequence)
+    content0 = read_run_folder(folder0)
+    detected = content0["detected"] or [[] for _ in content0["damaged"]]
+    candidates = list(range(min(FIGURE_FRAMES, len(content0["damaged"]))))
+    shown = shown_frames(candidates, [len(detected[f]) for f in candidates])
+    if protocol.standins:
+        columns = [("Ground truth", [truth.frames[f].points for f in shown]),
+                   ("Acquisition holes", [content0["damaged"][f] for f in shown])]
+    else:
+        columns = [("Captured", [content0["damaged"][f] for f in shown]),
+                   ("Captured (detected holes)", [content0["damaged"][f] for f in shown])]
+    methods, colours, missing = figure_columns(done, lambda folder: [read_run_folder(folder)["inpainted"][f]
+                                                                     for f in shown])
+    subjective_grid(columns + methods, [f"f={f}" for f in shown], Path(fig_dir) / "fig3_real_holes.png",
+                    hole_regions=[detected[f] for f in shown], column_colours=[None, None] + colours,
+                    title=f"Detected holes, {spec0.sequence_label}")
+    counts = [len(d) for d in detected]
+    source = ("acquisition holes simulated by the occlusion generator (a capture rig's blind spots), whose "
+              "ground truth is known: these runs are scored too (table 'real_holes_gpsnr')"
+              if protocol.standins else "the sequence's own capture holes (no ground truth: not scored)")
+    return {"fig3_real_holes": (
+        f"Like the paper's Fig. 3: {source}. The methods get the regions found by "
+        f"`holes.detection.detect_holes` ({counts} regions per frame), not the true ones; columns as in Fig. 4 "
+        f"(every column of the tables that ran); rows the consecutive frames {shown}, each followed by one "
+        "magnified row per detected hole (its orange square numbered on the bodies); points inside the "
+        "detected regions are tinted red in the method columns."
+        + (f" Missing (run failed): {', '.join(missing)}." if missing else "")
+        + (" No hole was detected in these frames, so every method returned them unchanged: the "
+           "detector's parameters (holes.detection) decide what this figure can show." if not any(counts) else ""))}
+
+
+def paper_figures(protocol: PaperProtocol, store, fig_dir) -> dict[str, str]:
+    """Fig. 4-like (synthetic holes) and Fig. 3-like (detected real holes) subjective figures
+    (`_figure4`, `_figure3`), PNG and PDF.
+
+    Returns figure stem -> a caption for REPORT.md. A figure whose runs did not finish is skipped."""
+    return {**_figure4(protocol, store, fig_dir), **_figure3(protocol, store, fig_dir)}

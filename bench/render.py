@@ -1,7 +1,8 @@
 """Figures of point clouds: frames side by side (rows x columns), orthographic views rasterized with
 numpy (a z-buffer over splatted points, so 1M points take about a second; matplotlib's scatter would
 take minutes), shaded by colour or by normals, with an optional magnified zoom box and highlighted
-points.
+points; and the paper-style comparison figure (`render_zoom_grid`: configurations as columns,
+frames as rows, every hole magnified in a row of its own, with a key).
 
 Projection: the cloud is rotated by ``view_rotation(view)`` (camera looks along -z after rotation;
 screen x = rotated x, screen y = rotated y, nearer = larger rotated z). Every panel of a figure uses
@@ -10,6 +11,7 @@ the same scale and the same bounds, so motion and sizes compare across panels.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -157,9 +159,8 @@ def zoom_box(zoom) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _auto_radius(points: np.ndarray, scale: float, sample: int = 50_000) -> int:
-    """Splat radius (pixels) that closes the gaps between neighbouring points: half the median
-    nearest-neighbour spacing in pixels, rounded up, within 0..6.
+def point_spacing(points: np.ndarray, sample: int = 50_000) -> float:
+    """Median nearest-neighbour spacing of ``points`` (N, 3); 0 for fewer than 2 points.
 
     On large clouds the spacing is measured on a fixed random subset of ``sample`` points (seed 0)
     and divided by sqrt(N / sample): on a surface, thinning by k spreads points by sqrt(k). That
@@ -169,11 +170,89 @@ def _auto_radius(points: np.ndarray, scale: float, sample: int = 50_000) -> int:
 
     n = len(points)
     if n < 2:
-        return 2
+        return 0.0
     subset = probe(points, sample, seed=0)
-    # the spacing of the subset itself (its own tree), rescaled to the whole cloud
-    spacing = median_neighbour_distance(subset, sample=None) / np.sqrt(n / len(subset)) * scale
-    return int(min(6, max(0, np.ceil(0.5 * spacing))))
+    return float(median_neighbour_distance(subset, sample=None) / np.sqrt(n / len(subset)))
+
+
+def splat_size(spacing: float, pixels_per_unit: float, *, cover: float = 0.5, limit: int = 6,
+               minimum: int = 0) -> int:
+    """Splat radius (pixels) that closes the gaps between neighbouring points ``spacing`` apart at
+    ``pixels_per_unit``: ``cover`` x the spacing in pixels, rounded up, within ``minimum``..``limit``.
+    0.5 closes the gaps along a grid's rows, 0.7 also its diagonal ones (sqrt(2)/2 spacing). A figure
+    computes it once, from its reference cloud, and draws every panel of one scale with it: a radius
+    per panel makes a sparse output (fewer points, larger splats) look magnified."""
+    if not np.isfinite(spacing) or spacing <= 0:
+        return int(min(limit, max(minimum, 2)))  # a single point: any visible dot
+    return int(min(limit, max(minimum, np.ceil(cover * spacing * pixels_per_unit))))
+
+
+def _checked_panels(grid, colors_g, highlight_g, shading: str, rotation: np.ndarray) -> list[list[tuple]]:
+    """render_clouds' panels as rows of (points, colours (N, 3) uint8), highlights painted; refuses
+    bad shapes and non-finite points with the panel's position."""
+    panels = []
+    for r, cloud_row in enumerate(grid):
+        row = []
+        for c, cloud in enumerate(cloud_row):
+            pts, own_colors, normals = _unpack(cloud)
+            if pts.ndim != 2 or pts.shape[1] != 3:
+                raise UserError(f"panel ({r}, {c}): points must be an (N, 3) array, got shape {pts.shape}")
+            if not np.isfinite(pts).all():
+                raise UserError(f"panel ({r}, {c}): the cloud has NaN or infinite coordinates")
+            col = colors_g[r][c] if colors_g[r][c] is not None else own_colors
+            if col is not None and np.shape(col) != pts.shape:
+                raise UserError(f"panel ({r}, {c}): colours have shape {np.shape(col)}, points {pts.shape}")
+            col = panel_colours(pts, col, normals, shading, rotation)
+            mask = highlight_g[r][c]
+            if mask is not None:
+                mask = np.asarray(mask, dtype=bool)
+                if mask.shape != (len(pts),):
+                    raise UserError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
+                col[mask] = HIGHLIGHT_COLOR
+            row.append((pts, col))
+        panels.append(row)
+    return panels
+
+
+def screen_bounds(clouds, rotation: np.ndarray, margin: float = 0.03) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) screen-space (view-rotated x, y) corners around every non-empty cloud of ``clouds``
+    ((N, 3) arrays), grown by ``margin`` x the larger side: the one frame every panel of a figure shares."""
+    screen = [rotate(p, rotation)[:, :2] for p in clouds if len(p)]
+    if not screen:
+        raise UserError("nothing to render: every cloud is empty")
+    lo = np.min([s.min(0) for s in screen], axis=0)
+    hi = np.max([s.max(0) for s in screen], axis=0)
+    pad = margin * max(hi - lo) + 1e-9
+    return lo - pad, hi + pad
+
+
+def _box_on_screen(box, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Screen (lo, hi) of a 3D box's 8 corners projected."""
+    corners = rotate(np.array([[x, y, z] for x in (box[0][0], box[1][0]) for y in (box[0][1], box[1][1])
+                               for z in (box[0][2], box[1][2])]), rotation)
+    return corners[:, :2].min(0), corners[:, :2].max(0)
+
+
+def _draw_box_zoom(ax, zoom_ax, pts, col, box, rotation, frame, zoom_height: int, point_size, spacing: float):
+    """render_clouds' zoom: the box's outline on the full view ``ax`` (``frame`` = (lo, hi, scale))
+    and the points inside the box, magnified, on ``zoom_ax``."""
+    from matplotlib.patches import Rectangle
+
+    lo, hi, scale = frame
+    blo, bhi = _box_on_screen(box, rotation)
+    ax.add_patch(Rectangle(((blo[0] - lo[0]) * scale, (hi[1] - bhi[1]) * scale), (bhi[0] - blo[0]) * scale,
+                           (bhi[1] - blo[1]) * scale, fill=False, edgecolor="orange", linewidth=1.2))
+    inside = np.all((pts >= box[0]) & (pts <= box[1]), axis=1)
+    zw = max(16, int(round(zoom_height * (bhi[0] - blo[0]) / max(bhi[1] - blo[1], 1e-12))))
+    zscale = min((zw - 1) / max(bhi[0] - blo[0], 1e-12), (zoom_height - 1) / max(bhi[1] - blo[1], 1e-12))
+    radius = point_size if point_size is not None else splat_size(spacing, zscale)
+    zoom_ax.imshow(rasterize(pts[inside], col[inside], rotation, (blo, bhi), zw, zoom_height, radius),
+                   interpolation="nearest")
+    zoom_ax.set_xticks([])
+    zoom_ax.set_yticks([])
+    for spine in zoom_ax.spines.values():
+        spine.set_edgecolor("orange")
+    zoom_ax.set_title("zoom", fontsize=8, color="darkorange")
 
 
 def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highlight=None, view="front",
@@ -190,7 +269,8 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
                 inside the box) in a row under each row of panels.
     highlight:  per-panel boolean masks (N,) of points to paint red (e.g. the filled points), or None.
     view:       a name in VIEWS or (azimuth, elevation) degrees.
-    point_size: splat radius in pixels; None = from the point spacing.
+    point_size: splat radius in pixels; None = `splat_size` of the first non-empty panel's point
+                spacing, the same for every panel (and one for every zoom).
     shading:    "auto" (colours when present, else normals), "color", "normal" (grey Lambert shading
                 of the normals), or "shaded" (colours times the Lambert intensity, to see the geometry
                 of coloured clouds); normals are estimated with open3d when the cloud has none.
@@ -200,7 +280,6 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     matplotlib.use("Agg")
     matplotlib.rcParams["text.parse_math"] = False  # labels are user text, never TeX
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
 
     from dpcbench.bench.progress import progress_bar
 
@@ -215,91 +294,36 @@ def render_clouds(clouds, out_png, titles=None, colors=None, zoom=None, highligh
     if any(len(r) != n_cols for r in grid):
         raise UserError("every row of clouds must have the same number of panels")
     titles_g = _as_grid(titles, nested, n_rows, n_cols, "titles")
-    colors_g = _as_grid(colors, nested, n_rows, n_cols, "colors")
-    highlight_g = _as_grid(highlight, nested, n_rows, n_cols, "highlight")
     rotation = view_rotation(view)
+    panels = _checked_panels(grid, _as_grid(colors, nested, n_rows, n_cols, "colors"),
+                             _as_grid(highlight, nested, n_rows, n_cols, "highlight"), shading, rotation)
 
-    panels = []
-    for r in range(n_rows):
-        row = []
-        for c in range(n_cols):
-            pts, own_colors, normals = _unpack(grid[r][c])
-            if pts.ndim != 2 or pts.shape[1] != 3:
-                raise UserError(f"panel ({r}, {c}): points must be an (N, 3) array, got shape {pts.shape}")
-            if not np.isfinite(pts).all():
-                raise UserError(f"panel ({r}, {c}): the cloud has NaN or infinite coordinates")
-            col = colors_g[r][c] if colors_g[r][c] is not None else own_colors
-            if col is not None and np.shape(col) != pts.shape:
-                raise UserError(f"panel ({r}, {c}): colours have shape {np.shape(col)}, points {pts.shape}")
-            col = panel_colours(pts, col, normals, shading, rotation)
-            if col.shape != pts.shape:
-                raise UserError(f"panel ({r}, {c}): colours have shape {col.shape}, points {pts.shape}")
-            mask = highlight_g[r][c]
-            if mask is not None:
-                mask = np.asarray(mask, dtype=bool)
-                if mask.shape != (len(pts),):
-                    raise UserError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
-                col[mask] = HIGHLIGHT_COLOR
-            row.append((pts, col))
-        panels.append(row)
-
-    # common screen bounds over all panels, with a 3% margin
-    screen = [rotate(p, rotation) for row in panels for p, _ in row if len(p)]
-    if not screen:
-        raise UserError("nothing to render: every cloud is empty")
-    lo = np.min([s[:, :2].min(0) for s in screen], axis=0)
-    hi = np.max([s[:, :2].max(0) for s in screen], axis=0)
-    pad = 0.03 * max(hi - lo) + 1e-9
-    lo, hi = lo - pad, hi + pad
+    lo, hi = screen_bounds([p for row in panels for p, _ in row], rotation)
     height = int(panel_height)
     width = max(16, int(round(height * (hi[0] - lo[0]) / (hi[1] - lo[1]))))
     scale = min((width - 1) / (hi[0] - lo[0]), (height - 1) / (hi[1] - lo[1]))
+    spacing = point_spacing(next(p for row in panels for p, _ in row if len(p)))
+    radius = point_size if point_size is not None else splat_size(spacing, scale)
 
     box = zoom_box(zoom) if zoom is not None else None
     zh = int(zoom_height or height // 2)
-    rows_out = n_rows * (2 if box is not None else 1)
-    row_heights = []
-    for _ in range(n_rows):
-        row_heights.append(height)
-        if box is not None:
-            row_heights.append(zh)
-    fig_w = n_cols * width / dpi
-    fig_h = sum(row_heights) / dpi + 0.35 * rows_out + (0.4 if suptitle else 0.0)
-    fig, axes = plt.subplots(rows_out, n_cols, figsize=(fig_w + 0.2 * n_cols, fig_h), squeeze=False,
-                             gridspec_kw={"height_ratios": row_heights})
+    per_row = 2 if box is not None else 1
+    row_heights = [h for _ in range(n_rows) for h in ([height, zh] if box is not None else [height])]
+    fig_h = sum(row_heights) / dpi + 0.35 * n_rows * per_row + (0.4 if suptitle else 0.0)
+    fig, axes = plt.subplots(n_rows * per_row, n_cols, figsize=(n_cols * width / dpi + 0.2 * n_cols, fig_h),
+                             squeeze=False, gridspec_kw={"height_ratios": row_heights})
 
     cells = [(r, c) for r in range(n_rows) for c in range(n_cols)]
     large = sum(len(panels[r][c][0]) for r, c in cells) > 2_000_000  # about 2 s of rasterizing
     for r, c in progress_bar(cells, desc="rendering", unit="panel", quiet=None if large else True):
         pts, col = panels[r][c]
-        radius = point_size if point_size is not None else _auto_radius(pts, scale)
-        ax = axes[r * (2 if box is not None else 1)][c]
+        ax = axes[r * per_row][c]
         ax.imshow(rasterize(pts, col, rotation, (lo, hi), width, height, radius), interpolation="nearest")
         ax.set_axis_off()
         if titles_g[r][c]:
             ax.set_title(str(titles_g[r][c]), fontsize=9)
-        if box is None:
-            continue
-        # the zoom box's screen rectangle (its 8 corners projected) on the full view
-        corners = rotate(np.array([[x, y, z] for x in (box[0][0], box[1][0]) for y in (box[0][1], box[1][1])
-                                   for z in (box[0][2], box[1][2])]), rotation)
-        blo, bhi = corners[:, :2].min(0), corners[:, :2].max(0)
-        ax.add_patch(Rectangle(((blo[0] - lo[0]) * scale, (hi[1] - bhi[1]) * scale), (bhi[0] - blo[0]) * scale,
-                               (bhi[1] - blo[1]) * scale, fill=False, edgecolor="orange", linewidth=1.2))
-        inside = np.all((pts >= box[0]) & (pts <= box[1]), axis=1)
-        zoom_ax = axes[r * 2 + 1][c]
-        zw = max(16, int(round(zh * (bhi[0] - blo[0]) / max(bhi[1] - blo[1], 1e-12))))
-        zscale = min((zw - 1) / max(bhi[0] - blo[0], 1e-12), (zh - 1) / max(bhi[1] - blo[1], 1e-12))
-        zradius = point_size
-        if zradius is None:
-            zradius = _auto_radius(pts[inside], zscale) if inside.sum() > 1 else 2
-        zoom_ax.imshow(rasterize(pts[inside], col[inside], rotation, (blo, bhi), zw, zh, zradius),
-                       interpolation="nearest")
-        zoom_ax.set_xticks([])
-        zoom_ax.set_yticks([])
-        for spine in zoom_ax.spines.values():
-            spine.set_edgecolor("orange")
-        zoom_ax.set_title("zoom", fontsize=8, color="darkorange")
+        if box is not None:
+            _draw_box_zoom(ax, axes[r * 2 + 1][c], pts, col, box, rotation, (lo, hi, scale), zh, point_size, spacing)
     if suptitle:
         fig.suptitle(suptitle)
     # tight_layout ignores the suptitle: keep the top 0.4 inch (reserved in fig_h) for it
@@ -323,149 +347,261 @@ def tint_highlight(colors: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def _zoom_radius(points: np.ndarray, scale: float, limit: int) -> int:
-    """Splat radius (pixels) for a magnified crop: 0.7 x the point spacing in pixels, rounded up
-    (so that disks also close the diagonal gaps of a voxel grid, sqrt(2)/2 spacing), within
-    1..``limit`` (the zoom magnifies far beyond `_auto_radius`'s cap of 6)."""
-    if len(points) < 2:
-        return max(1, min(limit, 3))
-    return int(min(limit, max(1, np.ceil(0.7 * median_neighbour_distance(points, sample=None) * scale))))
+#: the colour of the zoom areas' outlines and of the zoom panels' frames
+ZOOM_COLOUR = "darkorange"
+#: the smallest text of a comparison figure at its print width (points)
+FIGURE_TEXT_PT = 7.0
 
 
-def render_zoom_grid(grid, out_png, *, row_labels: list[str], column_labels: list[str], zooms: list,
+@dataclass(frozen=True)
+class Zoom:
+    """One magnified area of a comparison figure: the 3D ``centre`` of a hole, seen from ``view``
+    (a VIEWS name or (azimuth, elevation); None: the figure's own view)."""
+
+    centre: np.ndarray
+    view: object = None
+
+
+@dataclass(frozen=True)
+class ComparisonFigure:
+    """What `render_zoom_grid` wrote and drew with: the PNG and the PDF beside it, the one splat
+    radius (pixels at ``dpi``) of every body panel and the one of every zoom panel, the size in
+    inches, the column labels in order and, top to bottom, the (frame row, zoom index) of each zoom row."""
+
+    png: Path
+    pdf: Path
+    body_splat: int
+    zoom_splat: int
+    size_in: tuple[float, float]
+    dpi: int
+    columns: list[str]
+    zoom_rows: list[tuple[int, int]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Inches of a comparison figure: label margin, column pitch, panel width, body and zoom row
+    heights, header (title and column labels) and key heights, gap; ``rows``: (kind, frame, zoom) top to bottom."""
+
+    label_in: float
+    pitch_in: float
+    panel_in: float
+    body_in: float
+    head_in: float
+    key_in: float
+    gap_in: float
+    rows: list[tuple[str, int, int]]
+    label_lines: list[str]
+
+    @property
+    def height_in(self) -> float:
+        rows = sum((self.body_in if kind == "body" else self.panel_in) + self.gap_in for kind, _, _ in self.rows)
+        return self.head_in + rows + self.key_in
+
+
+def _wrap_label(text: str, chars: int) -> str:
+    import textwrap
+
+    # at spaces, or after a hyphen ("temporal-" / "graph"); a word is never cut elsewhere
+    return "\n".join(textwrap.wrap(str(text), max(4, chars), break_long_words=False)) or str(text)
+
+
+def _layout(n_cols: int, zooms: list[list], aspect: float, column_labels: list[str], width_in: float,
+            title: str | None) -> _Layout:
+    """The inch layout of `render_zoom_grid`: columns share ``width_in`` less the row-label margin;
+    column labels wrap to the column's width at `FIGURE_TEXT_PT` (about 0.6 em a character: DejaVu Sans)."""
+    label_in, gap_in = 0.36, 0.03
+    pitch_in = (width_in - label_in) / n_cols
+    panel_in = pitch_in - gap_in
+    chars = int(pitch_in * 72.0 / (0.6 * FIGURE_TEXT_PT))
+    lines = [_wrap_label(label, chars) for label in column_labels]
+    line_in = 1.2 * FIGURE_TEXT_PT / 72.0
+    head_in = (0.25 if title else 0.0) + max(text.count("\n") + 1 for text in lines) * line_in + 0.05
+    rows = []
+    for f, frame_zooms in enumerate(zooms):
+        rows.append(("body", f, -1))
+        rows.extend(("zoom", f, k) for k in range(len(frame_zooms)))
+    return _Layout(label_in, pitch_in, panel_in, panel_in * aspect, head_in, 0.3, gap_in, rows, lines)
+
+
+def _comparison_panels(grid, highlight, shading: str) -> list[list[tuple]]:
+    """Rows of (points, own colours or None, normals or None, highlight mask or None); normals
+    estimated once here when the shading needs them (every zoom re-shades from its own view)."""
+    highlight_g = _as_grid(highlight, True, len(grid), len(grid[0]), "highlight")
+    panels = []
+    for r, cloud_row in enumerate(grid):
+        row = []
+        for c, cloud in enumerate(cloud_row):
+            pts, own_colors, normals = _unpack(cloud)
+            if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.isfinite(pts).all():
+                raise UserError(f"panel ({r}, {c}): points must be a non-empty finite (N, 3) array, got {pts.shape}")
+            if normals is None and len(pts) >= 3 and (shading in ("normal", "shaded") or own_colors is None):
+                normals = estimate_normals(pts, SHADING_NORMAL_NEIGHBOURS)
+            mask = highlight_g[r][c]
+            if mask is not None:
+                mask = np.asarray(mask, dtype=bool)
+                if mask.shape != (len(pts),):
+                    raise UserError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
+            row.append((pts, own_colors, normals, mask))
+        panels.append(row)
+    return panels
+
+
+def _panel_image(panel, shading: str, rotation, bounds, width: int, height: int, radius: int,
+                 depth_window: tuple[float, float] | None = None) -> np.ndarray:
+    """One panel rasterized from ``rotation``: shaded from that view, highlight tinted; with
+    ``depth_window`` (centre depth, half depth) only the points within it and inside ``bounds``."""
+    pts, own_colors, normals, mask = panel
+    if depth_window is not None:
+        v = rotate(pts, rotation)
+        lo, hi = bounds
+        keep = (np.all((v[:, :2] >= lo) & (v[:, :2] <= hi), axis=1)
+                & (np.abs(v[:, 2] - depth_window[0]) <= depth_window[1]))
+        pts = pts[keep]
+        own_colors = None if own_colors is None else np.asarray(own_colors)[keep]
+        normals = None if normals is None else np.asarray(normals)[keep]
+        mask = None if mask is None else mask[keep]
+    col = panel_colours(pts, own_colors, normals, shading, rotation)
+    col = tint_highlight(col, mask) if mask is not None else col
+    return rasterize(pts, col, rotation, bounds, width, height, radius)
+
+
+def _add_image_axes(fig, x_in: float, top_in: float, w_in: float, h_in: float, image):
+    """An axes at (``x_in``, ``top_in`` from the top) of ``w_in`` x ``h_in`` inches showing ``image``."""
+    W, H = fig.get_size_inches()
+    ax = fig.add_axes((x_in / W, 1.0 - (top_in + h_in) / H, w_in / W, h_in / H))
+    ax.imshow(image, interpolation="nearest", aspect="auto")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    return ax
+
+
+def _draw_labels_and_key(fig, layout: _Layout, row_tops: list[float], row_labels: list[str],
+                         column_colours: list, title: str | None) -> None:
+    """Title, column labels (in the columns' colours), row labels (vertical, at the left) and the key
+    (the red tint and the orange zoom area), all at `FIGURE_TEXT_PT` or more."""
+    from matplotlib.patches import Patch
+
+    W, H = fig.get_size_inches()
+    if title:
+        fig.text(0.5, 1.0 - 0.12 / H, title, ha="center", va="center", fontsize=FIGURE_TEXT_PT + 1)
+    for c, text in enumerate(layout.label_lines):
+        x = layout.label_in + c * layout.pitch_in + layout.panel_in / 2
+        fig.text(x / W, 1.0 - (layout.head_in - 0.03) / H, text, ha="center", va="bottom", fontsize=FIGURE_TEXT_PT,
+                 color=column_colours[c] or "black", linespacing=1.0)
+    for (kind, f, k), top in zip(layout.rows, row_tops):
+        h = layout.body_in if kind == "body" else layout.panel_in
+        holes = sum(1 for kind_, f_, _ in layout.rows if kind_ == "zoom" and f_ == f)
+        text = (row_labels[f] + ("" if holes else "\n(no hole)")) if kind == "body" else f"{row_labels[f]}\nhole {k + 1}"
+        fig.text(0.5 * layout.label_in / W, 1.0 - (top + h / 2) / H, text, rotation=90, ha="center", va="center",
+                 fontsize=FIGURE_TEXT_PT, linespacing=1.0, color="black" if kind == "body" else ZOOM_COLOUR)
+    red = tint_highlight(np.full((1, 3), 200, np.uint8), np.ones(1, bool))[0] / 255.0
+    handles = [Patch(facecolor=red, edgecolor="none", label="points inside a hole region (the fill)"),
+               Patch(fill=False, edgecolor=ZOOM_COLOUR, label="zoom area k, magnified in the row 'hole k'")]
+    fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=2, frameon=False,
+               fontsize=FIGURE_TEXT_PT, handlelength=1.4)
+
+
+def _zoom_outline(ax, zoom: Zoom, rotation, frame, half: float, number: int) -> None:
+    """The orange square of ``zoom`` on a body panel (``frame`` = (lo, hi, pixels per unit)) and its number."""
+    from matplotlib.patches import Rectangle
+
+    lo, hi, scale = frame
+    c = rotate(np.asarray(zoom.centre, float).reshape(1, 3), rotation)[0]
+    x0, y0, side = (c[0] - half - lo[0]) * scale, (hi[1] - c[1] - half) * scale, 2 * half * scale
+    ax.add_patch(Rectangle((x0, y0), side, side, fill=False, edgecolor=ZOOM_COLOUR, linewidth=0.8))
+    ax.text(x0 + side, y0, str(number), color=ZOOM_COLOUR, fontsize=FIGURE_TEXT_PT, ha="left", va="bottom")
+
+
+def _save_png_and_pdf(fig, out_png, dpi: int) -> tuple[Path, Path]:
+    """``fig`` as PNG at ``dpi`` (exactly its size in inches x dpi: no tight bounding box) and PDF beside it."""
+    out = Path(out_png)
+    pdf = out.with_suffix(".pdf")
+    with atomic_path(out, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=dpi, facecolor="white")
+    with atomic_path(pdf, suffix=".pdf") as tmp:
+        fig.savefig(tmp, dpi=dpi, facecolor="white")
+    return out, pdf
+
+
+def render_zoom_grid(grid, out_png, *, column_labels: list[str], row_labels: list[str], zooms: list[list],
                      zoom_half: float | None = None, highlight=None, view="front", shading: str = "normal",
-                     panel_height: int = 260, dpi: int = 100, title: str | None = None) -> Path:
-    """A paper-style subjective figure: rows (e.g. ground truth, damaged, each method) x columns
-    (frames); each cell shows the whole cloud with the zoom area outlined in orange and, beside it,
-    that area magnified (a square panel as tall as the cloud's).
+                     column_colours: list | None = None, reference: tuple[int, int] = (0, 0),
+                     width_in: float = 7.2, dpi: int = 300, title: str | None = None) -> ComparisonFigure:
+    """A paper-style comparison figure (Fig. 3/4): one column per configuration (e.g. ground truth,
+    damaged input, each method); per frame (a row of ``grid``) a row of whole bodies with every zoom
+    area outlined in orange and numbered, then one row per zoom area: that area magnified in every
+    column, seen from the zoom's own view. Written as PNG (``dpi``) and PDF, ``width_in`` wide.
 
-    grid:          rows of clouds ((N, 3) arrays or PointClouds), all rows of the same length.
-    row_labels:    one per row, written vertically at the left; column_labels: one per column, on top.
-    zooms:         per column, the 3D centre (3,) of its zoom area, or None (that column's zoom
-                   panel says "no hole"); every column is magnified equally.
-    zoom_half:     half the side of the zoom square, in coordinate units (default: 12 x the median
-                   point spacing of the first row's first cloud).
-    highlight:     per panel (nested like ``grid``) boolean masks of points to tint red, or None.
-    The zoom shows the points whose screen position lies in the square and whose depth is within
-    2 ``zoom_half`` of the centre's: surfaces far in front of or behind the hole (another limb, the
-    back of the body) do not cover it. Every panel uses the same view and scale; every zoom the same
-    magnification. Each cell is ``panel_height`` pixels tall and (1 + the clouds' width / height) x
-    ``panel_height`` wide; 260 (the default) prints a 3-frame figure at about 380 dpi a column wide.
+    grid:           rows (frames) of clouds ((N, 3) arrays or PointClouds), every row as long.
+    column_labels:  one per column, on top (in ``column_colours``' colours, None = black);
+                    row_labels: one per frame, written vertically at the left.
+    zooms:          per frame, a list of `Zoom` (or 3D centres); every hole gets its own zoom row.
+    zoom_half:      half the side of every zoom square, in coordinate units (default: 12 x the
+                    reference cloud's point spacing): one magnification for the whole figure.
+    highlight:      per panel (nested like ``grid``) boolean masks of points to tint red, or None.
+    reference:      (row, column) of the cloud whose point spacing sets the splat sizes (the ground
+                    truth): one radius for every body panel and one for every zoom (`splat_size`).
+    A zoom shows the points whose screen position lies in its square and whose depth is within
+    2 ``zoom_half`` of its centre's: surfaces far in front of or behind the hole (another limb, the
+    back of the body) do not cover it.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     matplotlib.rcParams["text.parse_math"] = False  # labels are user text, never TeX
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
 
     rows = [list(r) for r in grid]
     n_rows, n_cols = len(rows), len(rows[0]) if rows else 0
     if n_rows == 0 or n_cols == 0 or any(len(r) != n_cols for r in rows):
-        raise ValueError("grid: give rows of clouds, every row with the same (non-zero) number of panels")
-    if len(row_labels) != n_rows or len(column_labels) != n_cols or len(zooms) != n_cols:
-        raise ValueError(f"give {n_rows} row labels, {n_cols} column labels and {n_cols} zoom centres "
-                         f"(got {len(row_labels)}, {len(column_labels)}, {len(zooms)})")
+        raise UserError("grid: give rows of clouds, every row with the same (non-zero) number of panels")
+    if len(row_labels) != n_rows or len(column_labels) != n_cols or len(zooms) != n_rows:
+        raise UserError(f"give {n_rows} row labels, {n_cols} column labels and {n_rows} lists of zooms "
+                        f"(got {len(row_labels)}, {len(column_labels)}, {len(zooms)})")
+    if column_colours is not None and len(column_colours) != n_cols:
+        raise UserError(f"column_colours: give one colour (or None) per column ({n_cols}), got {len(column_colours)}")
     if shading not in SHADINGS:
-        raise ValueError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
-    highlight_g = _as_grid(highlight, True, n_rows, n_cols, "highlight")
+        raise UserError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
+    zooms = [[z if isinstance(z, Zoom) else Zoom(np.asarray(z, float)) for z in frame] for frame in zooms]
+    panels = _comparison_panels(rows, highlight, shading)
     rotation = view_rotation(view)
-    panels = []
-    for r in range(n_rows):
-        row = []
-        for c in range(n_cols):
-            pts, own_colors, normals = _unpack(rows[r][c])
-            if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.isfinite(pts).all():
-                raise ValueError(f"panel ({r}, {c}): points must be a non-empty finite (N, 3) array, got {pts.shape}")
-            col = panel_colours(pts, own_colors, normals, shading, rotation)
-            mask = highlight_g[r][c]
-            if mask is not None:
-                mask = np.asarray(mask, dtype=bool)
-                if mask.shape != (len(pts),):
-                    raise ValueError(f"panel ({r}, {c}): highlight mask has shape {mask.shape}, expected ({len(pts)},)")
-                col = tint_highlight(col, mask)
-            row.append((pts, col, rotate(pts, rotation)))
-        panels.append(row)
-
-    lo = np.min([v[:, :2].min(0) for row in panels for _, _, v in row], axis=0)
-    hi = np.max([v[:, :2].max(0) for row in panels for _, _, v in row], axis=0)
-    pad = 0.03 * max(hi - lo) + 1e-9
-    lo, hi = lo - pad, hi + pad
-    H = int(panel_height)
-    W = max(16, int(round(H * (hi[0] - lo[0]) / (hi[1] - lo[1]))))
-    scale = min((W - 1) / (hi[0] - lo[0]), (H - 1) / (hi[1] - lo[1]))
-    if zoom_half is None:
-        first = panels[0][0][0]
-        spacing = median_neighbour_distance(first, sample=None) if len(first) > 1 else 1.0
-        zoom_half = 12.0 * spacing
-    zoom_half = float(zoom_half)
+    lo, hi = screen_bounds([p[0] for row in panels for p in row], rotation)
+    layout = _layout(n_cols, zooms, (hi[1] - lo[1]) / (hi[0] - lo[0]), column_labels, width_in, title)
+    pw, bh = max(16, int(round(layout.panel_in * dpi))), max(16, int(round(layout.body_in * dpi)))
+    scale = min((pw - 1) / (hi[0] - lo[0]), (bh - 1) / (hi[1] - lo[1]))
+    spacing = point_spacing(panels[reference[0]][reference[1]][0])
+    zoom_half = float(zoom_half if zoom_half is not None else 12.0 * (spacing or 1.0))
     if not zoom_half > 0:
-        raise ValueError(f"zoom_half must be positive, got {zoom_half}")
-    Z = H  # square zoom panels as tall as the clouds
-    zscale = (Z - 1) / (2 * zoom_half)
+        raise UserError(f"zoom_half must be positive, got {zoom_half}")
+    body_splat = splat_size(spacing, scale)
+    zoom_splat = splat_size(spacing, (pw - 1) / (2 * zoom_half), cover=0.7, limit=max(2, pw // 12), minimum=1)
 
-    # canvas layout in pixels: row labels | (cloud, zoom) per column | ...; column labels on top
-    label_w = int(0.3 * H)  # room for a two-line row label
-    head_h = int(0.2 * H) + (int(0.2 * H) if title else 0)
-    gap_in, gap_out, gap_row = max(2, H // 60), max(6, H // 12), max(4, H // 25)
-    cell_w = W + gap_in + Z
-    width = label_w + n_cols * cell_w + (n_cols - 1) * gap_out + gap_in
-    height = head_h + n_rows * H + (n_rows - 1) * gap_row + gap_in
-    canvas = np.full((height, width, 3), 255, dtype=np.uint8)
-    frames = []
-    zoom_frames: list[tuple[int, int, bool | None]] = []  # None: a panel without a hole
-    for r in range(n_rows):
-        y = head_h + r * (H + gap_row)
+    fig = plt.figure(figsize=(width_in, layout.height_in))
+    top, tops = layout.head_in, []
+    for kind, f, k in layout.rows:
+        tops.append(top)
         for c in range(n_cols):
-            x = label_w + c * (cell_w + gap_out)
-            pts, col, v = panels[r][c]
-            canvas[y:y + H, x:x + W] = rasterize(pts, col, rotation, (lo, hi), W, H, _auto_radius(pts, scale))
-            zx = x + W + gap_in
-            centre = zooms[c]
-            if centre is None:
-                canvas[y:y + Z, zx:zx + Z] = 238
-                zoom_frames.append((zx, y, None))
+            x = layout.label_in + c * layout.pitch_in
+            if kind == "body":
+                image = _panel_image(panels[f][c], shading, rotation, (lo, hi), pw, bh, body_splat)
+                ax = _add_image_axes(fig, x, top, layout.panel_in, layout.body_in, image)
+                ax.set_axis_off()
+                for j, zoom in enumerate(zooms[f]):
+                    _zoom_outline(ax, zoom, rotation, (lo, hi, scale), zoom_half, j + 1)
                 continue
-            cz = rotate(np.asarray(centre, dtype=np.float64).reshape(1, 3), rotation)[0]
-            zlo, zhi = cz[:2] - zoom_half, cz[:2] + zoom_half
-            inside = ((v[:, 0] >= zlo[0]) & (v[:, 0] <= zhi[0]) & (v[:, 1] >= zlo[1]) & (v[:, 1] <= zhi[1])
-                      & (np.abs(v[:, 2] - cz[2]) <= 2 * zoom_half))
-            crop = pts[inside]
-            radius = _zoom_radius(crop, zscale, max(2, Z // 12))
-            canvas[y:y + Z, zx:zx + Z] = rasterize(crop, col[inside], rotation, (zlo, zhi), Z, Z, radius)
-            frames.append((x + (zlo[0] - lo[0]) * scale, y + (hi[1] - zhi[1]) * scale, 2 * zoom_half * scale))
-            zoom_frames.append((zx, y, True))
-
-    fig = plt.figure(figsize=(width / dpi, height / dpi), dpi=dpi)
-    ax = fig.add_axes((0, 0, 1, 1))
-    ax.imshow(canvas, interpolation="nearest")
-    ax.set_xlim(-0.5, width - 0.5)
-    ax.set_ylim(height - 0.5, -0.5)
-    ax.set_axis_off()
-    # text about an eighth of a panel tall: about 7 pt when a 3-frame figure is printed a column wide
-    font = 0.125 * H * 72.0 / dpi
-    line = max(1.0, H / 130.0)
-    for x0, y0, side in frames:
-        ax.add_patch(Rectangle((x0, y0), side, side, fill=False, edgecolor="darkorange", linewidth=line))
-    for zx, y, has in zoom_frames:
-        ax.add_patch(Rectangle((zx, y), Z - 1, Z - 1, fill=False, edgecolor="darkorange", linewidth=1.5 * line))
-        if has is None:
-            ax.text(zx + Z / 2, y + Z / 2, "no hole", ha="center", va="center", fontsize=0.8 * font, color="0.4")
-    for r, label in enumerate(row_labels):
-        words = str(label).split()
-        if len(words) > 1 and len(str(label)) * 0.6 * 0.125 * H > 0.95 * H:  # too long for the row: two lines
-            half = max(1, len(words) // 2)
-            label = " ".join(words[:half]) + "\n" + " ".join(words[half:])
-        ax.text(label_w * 0.5, head_h + r * (H + gap_row) + H / 2, label, rotation=90, ha="center", va="center",
-                fontsize=font, linespacing=1.0)
-    title_h = int(0.2 * H) if title else 0
-    for c, label in enumerate(column_labels):
-        x = label_w + c * (cell_w + gap_out)
-        ax.text(x + cell_w / 2, title_h + 0.1 * H, label, ha="center", va="center", fontsize=font)
-    if title:
-        ax.text(width / 2, 0.1 * H, title, ha="center", va="center", fontsize=font)
-    out = Path(out_png)
-    with atomic_path(out, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=dpi, facecolor="white")
+            zoom = zooms[f][k]
+            zoom_rotation = rotation if zoom.view is None else view_rotation(zoom.view)
+            centre = rotate(np.asarray(zoom.centre, float).reshape(1, 3), zoom_rotation)[0]
+            bounds = (centre[:2] - zoom_half, centre[:2] + zoom_half)
+            image = _panel_image(panels[f][c], shading, zoom_rotation, bounds, pw, pw, zoom_splat,
+                                 depth_window=(centre[2], 2 * zoom_half))
+            ax = _add_image_axes(fig, x, top, layout.panel_in, layout.panel_in, image)
+            for spine in ax.spines.values():
+                spine.set_edgecolor(ZOOM_COLOUR)
+        top += (layout.body_in if kind == "body" else layout.panel_in) + layout.gap_in
+    _draw_labels_and_key(fig, layout, tops, row_labels, list(column_colours or [None] * n_cols), title)
+    png, pdf = _save_png_and_pdf(fig, out_png, dpi)
     plt.close(fig)
-    return out
+    return ComparisonFigure(png, pdf, body_splat, zoom_splat, (float(width_in), layout.height_in), int(dpi),
+                            list(column_labels), [(f, k) for kind, f, k in layout.rows if kind == "zoom"])

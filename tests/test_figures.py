@@ -102,3 +102,121 @@ def test_long_row_names_become_letters_with_a_key():
     assert figures.tick_labels(["human", "bunny"]) == (["human", "bunny"], [])
     ticks, key = figures.tick_labels(["Bunny (stand-in) · coherent holes", "human"])
     assert ticks == ["A", "B"] and key == ["A: Bunny (stand-in) · coherent holes", "B: human"]
+
+
+def test_bar_chart_draws_without_warnings(tmp_path):
+    """Every warning an error: a legend only of labelled artists (an unlabelled one warned "No artists
+    with labels found"), for a table with methods and for one with only the floor column."""
+    import warnings
+
+    from dpcbench.bench.tables import comparison_table
+
+    for methods in (("none", "temporal-graph", "fu-nonlocal"), ("none",)):
+        df = _frames(sequences=("human",), methods=methods)
+        df["seed"] = 0
+        table = comparison_table(df, "nshd", column_of=lambda sel: sel["method"], scale=1e7, decimals=None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert figures.bar_chart(table, tmp_path / f"{len(methods)}.png").exists()
+
+
+def _sphere_with_holes(n=1500):
+    """A unit sphere of ``n`` points; frame 0 has a hole on the front and one on top, frame 1 one on the front."""
+    from dpcbench.holes.regions import HoleRegion
+
+    rng = np.random.default_rng(0)
+    base = rng.normal(size=(n, 3))
+    base /= np.linalg.norm(base, axis=1, keepdims=True)
+    front, top = HoleRegion.ball([0.0, 0.0, 1.0], 0.3), HoleRegion.ball([0.0, 1.0, 0.0], 0.25)
+    regions = [[front, top], [front]]
+    damaged = [base[~(front.contains(base) | top.contains(base))], base[~front.contains(base)]]
+    return base, damaged, regions
+
+
+def test_subjective_grid_columns_zooms_size_and_colours(tmp_path, monkeypatch):
+    """k methods give k + 2 columns (ground truth, damaged, the methods, in that order, titled in the
+    palette's colours); every hole region of every frame gets a zoom row, centred on that hole as seen
+    from outside the body; 7.2 in wide at 300 dpi exactly, PDF beside it."""
+    import matplotlib.figure
+
+    from dpcbench.bench import render
+
+    base, damaged, regions = _sphere_with_holes()
+    methods = ["Meshlab", "Proposed", "temporal-fusion (ours)"]
+    colours = [palette.METHOD_COLOURS[name] for name in ("meshlab", "temporal-graph", "temporal-fusion")]
+    columns = [("Ground truth", [base, base]), ("With holes", damaged)] + [(m, [base, base]) for m in methods]
+    drawn, texts = [], {}
+    original, text = render.rasterize, matplotlib.figure.Figure.text
+
+    def rasterize(points, colors, rotation, bounds, *args, **kwargs):
+        drawn.append((np.array(rotation), (bounds[0] + bounds[1]) / 2, len(points)))
+        return original(points, colors, rotation, bounds, *args, **kwargs)
+
+    def record_text(self, x, y, s, *args, **kwargs):
+        texts[s] = kwargs.get("color")
+        return text(self, x, y, s, *args, **kwargs)
+
+    monkeypatch.setattr(render, "rasterize", rasterize)
+    monkeypatch.setattr(matplotlib.figure.Figure, "text", record_text)
+    fig = figures.subjective_grid(columns, ["f=0", "f=1"], tmp_path / "fig.png", hole_regions=regions,
+                                  column_colours=[None, None] + colours, title="test")
+    assert fig.columns == ["Ground truth", "With holes"] + methods  # k + 2 columns, in order
+    assert fig.zoom_rows == [(0, 0), (0, 1), (1, 0)]  # every hole of every frame
+    assert len(drawn) == len(columns) * (2 + 3)
+    # drawn row by row (body f=0, its 2 zooms, body f=1, its zoom), 5 panels a row; each zoom row's
+    # panels centred on its hole, seen straight on from the hole's outside (`hole_view`)
+    for (f, r), position in zip(fig.zoom_rows, (1, 2, 4)):
+        rotation = render.view_rotation(figures.hole_view(base, regions[f][r]))
+        for d_rotation, centre, _ in drawn[5 * position:5 * position + 5]:
+            np.testing.assert_allclose(d_rotation, rotation, atol=1e-12)
+            np.testing.assert_allclose(centre, (rotation @ regions[f][r].center)[:2], atol=1e-9)
+    assert texts["Meshlab"].lower() == colours[0].lower() and texts["Ground truth"] == "black"
+    image = matplotlib.image.imread(fig.png)
+    assert image.shape[1] == 7.2 * 300 and image.shape[0] == round(fig.size_in[1] * 300)
+    assert fig.pdf.exists() and fig.pdf.read_bytes()[:5] == b"%PDF-"
+    with pytest.raises(ValueError, match="one list of regions per frame"):
+        figures.subjective_grid(columns, ["f=0", "f=1"], tmp_path / "x.png", hole_regions=regions[:1])
+
+
+def test_figure_columns_follow_the_table_in_palette_colours():
+    """Every non-floor column of the tables that ran, in TABLE_COLUMNS' order, in its palette colour
+    (the tuned temporal-graph a darker shade of Proposed's); the missing ones named."""
+    from dpcbench.bench import paper
+
+    labels = [label for _, label, _, role in paper.TABLE_COLUMNS if role != "floor"]
+    done = {label: (None, f"folder of {label}") for label in reversed(labels) if label != "Lozes"}
+    columns, colours, missing = paper.figure_columns(done, lambda folder: [folder])
+    assert [label for label, _ in columns] == [label for label in labels if label != "Lozes"]
+    assert columns[0][1] == ["folder of Meshlab"] and missing == ["Lozes"]
+    assert colours[0] == palette.METHOD_COLOURS["meshlab"]
+    proposed, tuned = colours[2], colours[3]
+    assert proposed == palette.METHOD_COLOURS["temporal-graph"] and tuned == palette.shade(proposed, 0.35)
+
+
+def test_shown_frames_keep_the_zoom_rows_within_a_page():
+    from dpcbench.bench import paper
+
+    assert paper.shown_frames([0, 9], [3, 3]) == [0, 9]
+    assert paper.shown_frames([0, 9], [6, 6]) == [0]  # 12 zoom rows: only the first frame
+    assert paper.shown_frames([0, 9], [paper.MAX_ZOOM_ROWS + 4, 0]) == [0]  # the first is always shown
+    assert paper.shown_frames([0, 1], [0, paper.MAX_ZOOM_ROWS]) == [0, 1]
+
+
+def test_hole_view_looks_into_a_hole_on_the_side_of_a_limb():
+    """A limb (a cylinder along y) beside a large torso (a plane far in +x): a hole on the limb's -z side
+    is seen edge-on from the centroid's direction (`facing_view`), straight on along its normal by `hole_view`."""
+    from dpcbench.bench.render import view_rotation
+    from dpcbench.holes.regions import HoleRegion
+
+    rng = np.random.default_rng(2)
+    angle, height = rng.uniform(0, 2 * np.pi, 3000), rng.uniform(0, 40, 3000)
+    limb = np.c_[3 * np.cos(angle), height, 3 * np.sin(angle)]
+    torso = np.c_[np.full(6000, 50.0), rng.uniform(0, 40, 6000), rng.uniform(-20, 20, 6000)]
+    body = np.vstack([limb, torso])
+    hole = HoleRegion.ball([0.0, 20.0, -3.0], 1.5)
+    towards_viewer = view_rotation(figures.hole_view(body, hole)) @ [0.0, 0.0, -1.0]
+    assert towards_viewer[2] > 0.95  # the hole's outward normal (-z) points at the viewer
+    edge_on = view_rotation(figures.facing_view(body, hole.center)) @ [0.0, 0.0, -1.0]
+    assert edge_on[2] < 0.5
+    sparse = HoleRegion.ball([0.0, 100.0, 0.0], 1.0)  # no point near: the centroid's direction
+    assert figures.hole_view(body, sparse) == figures.facing_view(body, sparse.center)

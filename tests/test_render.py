@@ -126,38 +126,146 @@ def test_render_refuses_bad_panels(tmp_path):
     assert HIGHLIGHT_COLOR[0] > 200
 
 
-def test_zoom_grid_layout_magnification_and_depth_window(tmp_path):
-    """Rows x columns of (cloud, zoom beside it): the hole's tinted fill covers many times more pixels
-    in the zoom than in the cloud panel, a blob far in front of the hole (an occluding limb) hides it
-    in the cloud panel but not in the zoom, and a column without a hole gets a plain "no hole" zoom."""
+def _record_rasterize(monkeypatch):
+    """Capture every rasterize call of bench.render: (points, bounds, width, height, radius)."""
+    from dpcbench.bench import render
+
+    calls = []
+    original = render.rasterize
+
+    def recording(points, colors, rotation, bounds, width, height, radius=1, background=(255, 255, 255)):
+        calls.append((np.array(points), (np.array(bounds[0]), np.array(bounds[1])), width, height, radius))
+        return original(points, colors, rotation, bounds, width, height, radius, background)
+
+    monkeypatch.setattr(render, "rasterize", recording)
+    return calls
+
+
+def test_splat_size_closes_gaps_within_limits():
+    from dpcbench.bench.render import point_spacing, splat_size
+
+    assert splat_size(1.0, 10.0) == 5  # half of 10 pixels between neighbours
+    assert splat_size(1.0, 10.0, cover=0.7, limit=10) == 7 and splat_size(1.0, 10.0, cover=0.7) == 6  # capped
+    assert splat_size(1.0, 0.1) == 1 and splat_size(1.0, 0.01, minimum=0) == 1  # rounded up: never a gap
+    assert splat_size(0.0, 10.0) == 2 and splat_size(0.0, 10.0, limit=1) == 1  # one point: a visible dot
+    grid = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0), [0.0]), -1).reshape(-1, 3) * 2.5
+    assert point_spacing(grid) == pytest.approx(2.5)
+    assert point_spacing(grid[:1]) == 0.0
+
+
+def test_render_clouds_uses_one_splat_size_for_every_panel(monkeypatch, tmp_path):
+    """A panel with a quarter of the points keeps the splat radius of the first panel (its own spacing
+    would give it larger splats and make it look magnified)."""
+    calls = _record_rasterize(monkeypatch)
+    dense = sphere(n=4000, seed=1)
+    render_clouds([dense, dense[::4]], tmp_path / "two.png", panel_height=120)
+    radii = [radius for *_, radius in calls]
+    assert len(radii) == 2 and radii[0] == radii[1] >= 1
+
+
+def _zoom_grid_scene():
+    """Two frames of a sphere (the second with a quarter of the points), a hole on its front and one
+    on its top in frame 0, one on the front in frame 1; the filled column tints the hole points."""
+    full = sphere(n=600, seed=3)
+    front = np.linalg.norm(full - [0.0, 0.0, 50.0], axis=1) < 12
+    top = np.linalg.norm(full - [0.0, 50.0, 0.0], axis=1) < 12
+    grid = [[full, full[~(front | top)], full], [full, full[~front][::4], full[::4]]]
+    highlight = [[None, None, front | top], [None, None, front[::4]]]
+    zooms = [[[0.0, 0.0, 50.0], [0.0, 50.0, 0.0]], [[0.0, 0.0, 50.0]]]
+    return grid, highlight, zooms
+
+
+def test_zoom_grid_columns_zoom_rows_and_one_splat_size(tmp_path, monkeypatch):
+    """Columns are the configurations, each frame a body row and then one zoom row per zoom; every
+    body panel is drawn with one splat radius and every zoom with one (a sparse panel does not get
+    larger splats); exactly ``width_in`` x ``dpi`` pixels wide, PDF beside the PNG."""
     from dpcbench.bench.render import render_zoom_grid
 
-    full = sphere(n=20000, seed=3)
+    calls = _record_rasterize(monkeypatch)
+    grid, highlight, zooms = _zoom_grid_scene()
+    fig = render_zoom_grid(grid, tmp_path / "z.png", column_labels=["truth", "damaged", "filled"],
+                           row_labels=["f=0", "f=1"], zooms=zooms, zoom_half=15.0, highlight=highlight, view="front",
+                           width_in=3.5, dpi=150)
+    assert fig.columns == ["truth", "damaged", "filled"]
+    assert fig.zoom_rows == [(0, 0), (0, 1), (1, 0)]
+    assert len(calls) == 3 * (2 + 3)  # 3 columns x (2 body rows + 3 zoom rows)
+    body = [c for c in calls if c[1][1][0] - c[1][0][0] > 40]  # a body panel shows the whole sphere
+    zoom = [c for c in calls if c[1][1][0] - c[1][0][0] == pytest.approx(30.0)]
+    assert len(body) == 6 and len(zoom) == 9
+    assert {c[4] for c in body} == {fig.body_splat} and {c[4] for c in zoom} == {fig.zoom_splat}
+    assert fig.zoom_splat > fig.body_splat  # magnified: larger splats close the gaps
+    # each zoom row is centred on its own zoom (front hole: screen centre (0, 0); top hole seen from front: (0, 50))
+    centres = [((lo + hi) / 2).round(6).tolist() for _, (lo, hi), *_ in zoom]
+    assert centres == [[0.0, 0.0]] * 3 + [[0.0, 50.0]] * 3 + [[0.0, 0.0]] * 3
+    image = mpimg.imread(fig.png)
+    assert image.shape[1] == 3.5 * 150 and image.shape[0] == round(fig.size_in[1] * 150)  # no tight bounding box
+    assert fig.pdf.read_bytes()[:5] == b"%PDF-"
+
+
+def test_zoom_grid_magnifies_tints_and_windows_depth(tmp_path):
+    """The hole's tinted fill covers many times more pixels in its zoom than in the body panel; a blob
+    far in front of the hole (an occluding limb) hides it on the body but not in the zoom (depth window)."""
+    from dpcbench.bench.render import render_zoom_grid
+
+    full = sphere(n=6000, seed=3)
     hole = np.linalg.norm(full - [0.0, 0.0, 50.0], axis=1) < 10
-    blob = sphere(n=2000, seed=4) * 0.3 + [0.0, 0.0, 95.0]  # 45 units in front of the hole centre, wider
-    with_blob = np.vstack([full, blob])
-    grid = [[full[~hole], full[~hole]], [with_blob, full]]
-    highlight = [[None, None], [np.r_[hole, np.zeros(len(blob), bool)], hole]]
-    H = 200
-    out = render_zoom_grid(grid, tmp_path / "z.png", row_labels=["damaged", "filled"], column_labels=["f=0", "f=1"],
-                           zooms=[np.array([0.0, 0.0, 50.0]), None], zoom_half=15.0, highlight=highlight,
-                           view="front", panel_height=H)
-    img = mpimg.imread(out)[..., :3]
-    assert img.shape[1] > 1.6 * img.shape[0]  # two cells of (cloud, zoom) side by side, two rows
-    label_w, head_h, gap_in, gap_row = int(0.3 * H), int(0.2 * H), 3, 8
-    width = img.shape[1]
-    cell = (width - label_w - gap_in - max(6, H // 12)) // 2  # two cells and one gap between them
-    W = cell - gap_in - H
+    blob = sphere(n=1000, seed=4) * 0.3 + [0.0, 0.0, 95.0]  # 45 units in front of the hole centre, wider
+    grid = [[full[~hole], np.vstack([full, blob]), full]]
+    highlight = [[None, np.r_[hole, np.zeros(len(blob), bool)], hole]]
+    fig = render_zoom_grid(grid, tmp_path / "z.png", column_labels=["damaged", "blob", "filled"], row_labels=["f=0"],
+                           zooms=[[[0.0, 0.0, 50.0]]], zoom_half=15.0, highlight=highlight, view="front", width_in=3.0,
+                           dpi=200)
+    img = mpimg.imread(fig.png)[..., :3]
     red = (img[..., 0] > 0.3) & (img[..., 0] > 2.5 * img[..., 1]) & (img[..., 0] > 2.5 * img[..., 2])
-    row1 = slice(head_h + H + gap_row, head_h + 2 * H + gap_row)
-    cloud_panel = red[row1, label_w:label_w + W]
-    zoom_panel = red[row1, label_w + W + gap_in:label_w + W + gap_in + H]
-    hidden = red[row1, label_w + cell + max(6, H // 12):label_w + cell + max(6, H // 12) + W]  # f=1: no blob
-    assert hidden.sum() > 20  # the fill is visible in a cloud panel without the blob in front
-    assert cloud_panel.sum() < 0.5 * hidden.sum()  # the blob hides (most of) it in the panel it is in
-    assert zoom_panel.sum() > 5 * hidden.sum()  # magnified, and the blob is outside the depth window
-    assert not red[head_h:head_h + H].any()  # the damaged row has nothing tinted
-    no_hole = img[row1, width - gap_in - H + 10:width - gap_in - 10]
-    assert np.mean(np.all(np.abs(no_hole - 238 / 255) < 0.02, axis=-1)) > 0.8
-    with pytest.raises(ValueError, match="zoom centres"):
-        render_zoom_grid(grid, tmp_path / "x.png", row_labels=["a", "b"], column_labels=["f=0", "f=1"], zooms=[None])
+    dpi = 200
+    label, pitch = round(0.36 * dpi), (3.0 - 0.36) / 3 * dpi
+    columns = [red[:, int(label + c * pitch) + 2:int(label + (c + 1) * pitch) - 8] for c in range(3)]
+    # rows: body panels end where the zoom row begins (square, the panel's width, above the key)
+    key = round(0.3 * dpi)
+    zoom_rows = slice(img.shape[0] - key - int(pitch) + 4, img.shape[0] - key - 4)
+    body_rows = slice(0, img.shape[0] - key - int(pitch) - 4)
+    assert not columns[0].any()  # the damaged column has nothing tinted
+    filled_body, filled_zoom = columns[2][body_rows].sum(), columns[2][zoom_rows].sum()
+    assert filled_body > 5 and filled_zoom > 5 * filled_body  # magnified
+    assert columns[1][body_rows].sum() < 0.5 * filled_body  # the blob hides it on the body
+    assert columns[1][zoom_rows].sum() > 0.5 * filled_zoom  # but not in the zoom: outside the depth window
+
+
+def test_zoom_grid_key_and_text_size(tmp_path, monkeypatch):
+    """The figure has a key for the red tint and the orange zoom box, and no text under 7 pt."""
+    import matplotlib.figure
+
+    from dpcbench.bench.render import ZOOM_COLOUR, render_zoom_grid
+
+    sizes, keys = [], []
+    text, legend = matplotlib.figure.Figure.text, matplotlib.figure.Figure.legend
+    monkeypatch.setattr(matplotlib.figure.Figure, "text",
+                        lambda self, *a, **k: sizes.append(k.get("fontsize")) or text(self, *a, **k))
+    monkeypatch.setattr(matplotlib.figure.Figure, "legend",
+                        lambda self, *a, **k: keys.append(k.get("handles")) or legend(self, *a, **k))
+    grid, highlight, zooms = _zoom_grid_scene()
+    render_zoom_grid(grid, tmp_path / "z.png", column_labels=["a long configuration name (ours)", "b", "c"],
+                     row_labels=["f=0", "f=1"], zooms=zooms, highlight=highlight, title="t", dpi=100)
+    assert sizes and min(sizes) >= 7
+    (handles,) = keys
+    tint, box = handles
+    import matplotlib.colors
+
+    assert tint.get_facecolor()[0] > 0.7 and tint.get_facecolor()[1] < 0.2  # red
+    assert tint.get_label() and box.get_label() and not box.get_fill()
+    assert matplotlib.colors.same_color(box.get_edgecolor(), ZOOM_COLOUR)
+
+
+def test_zoom_grid_refuses_bad_input(tmp_path):
+    from dpcbench.bench.render import render_zoom_grid
+
+    grid, highlight, zooms = _zoom_grid_scene()
+    with pytest.raises(ValueError, match="lists of zooms"):
+        render_zoom_grid(grid, tmp_path / "x.png", column_labels=["a", "b", "c"], row_labels=["f=0", "f=1"],
+                         zooms=zooms[:1])
+    with pytest.raises(ValueError, match="column_colours"):
+        render_zoom_grid(grid, tmp_path / "x.png", column_labels=["a", "b", "c"], row_labels=["f=0", "f=1"],
+                         zooms=zooms, column_colours=["red"])
+    with pytest.raises(ValueError, match="highlight mask"):
+        render_zoom_grid(grid, tmp_path / "x.png", column_labels=["a", "b", "c"], row_labels=["f=0", "f=1"],
+                         zooms=zooms, highlight=[[None, None, np.ones(3, bool)], [None, None, None]])

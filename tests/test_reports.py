@@ -212,27 +212,6 @@ def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
         paper.paper_protocol(quick=True, data_dir=tmp_path)
 
 
-def test_subjective_grid_renders(tmp_path):
-    from dpcbench.bench.figures import subjective_grid
-    from dpcbench.holes.regions import HoleRegion
-
-    rng = np.random.default_rng(0)
-    base = rng.normal(size=(500, 3))
-    base /= np.linalg.norm(base, axis=1, keepdims=True)
-    region = HoleRegion.ball(base[0], 0.4)
-    damaged = base[~region.contains(base)]
-    rows = [("Ground truth", [base, base]), ("With holes", [damaged, damaged]), ("Method", [base, base])]
-    out = subjective_grid(rows, ["f=0", "f=1"], tmp_path / "fig.png", zoom_regions=[region, None],
-                          highlight_regions=[[region], [region]], title="test", panel_height=120)
-    import matplotlib.image as mpimg
-
-    img = mpimg.imread(out)
-    # the paper's layout: 3 rows of panels, 2 frame columns of (cloud, zoom) side by side: wider than tall
-    assert img.shape[1] > 1.15 * img.shape[0] and img.shape[0] < 4.5 * 120
-    with pytest.raises(ValueError, match="one region"):
-        subjective_grid(rows, ["f=0", "f=1"], tmp_path / "x.png", zoom_regions=[region])
-
-
 def test_flattest_region_prefers_a_hole_in_an_open_surface():
     """A ball through a thin cylinder (a limb) against one on a plane (a torso): the plane's."""
     from dpcbench.bench.figures import flattest_region
