@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sets up dpcbench on a fresh Debian/Ubuntu machine: the system libraries open3d needs, a virtual
 # environment in .venv, and the package (editable). `./install.sh --dev` adds the test tools,
-# Dask and the headless browser the dashboard test uses.
+# Dask, the headless browser the dashboard test uses and pdflatex (the LaTeX tables test compiles them).
 set -euo pipefail
 cd "$(dirname "$0")"
 dev=0
@@ -9,17 +9,27 @@ dev=0
 
 packages="python3-venv libusb-1.0-0 libgomp1 libgl1 libegl1"
 [ "$dev" = 1 ] && packages="$packages chromium"
-if command -v apt-get >/dev/null 2>&1 && command -v dpkg >/dev/null 2>&1; then
-  missing=""
-  for p in $packages; do
-    dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"
+# pdflatex and booktabs, without their recommends (fonts and docs): the tests compile the LaTeX tables
+tex_packages=""
+[ "$dev" = 1 ] && tex_packages="texlive-latex-base texlive-latex-recommended"
+missing_of() {
+  local out=""
+  for p in "$@"; do
+    dpkg -s "$p" >/dev/null 2>&1 || out="$out $p"
   done
-  if [ -n "$missing" ]; then
+  echo "$out"
+}
+if command -v apt-get >/dev/null 2>&1 && command -v dpkg >/dev/null 2>&1; then
+  missing="$(missing_of $packages)"
+  missing_tex="$(missing_of $tex_packages)"
+  if [ -n "$missing$missing_tex" ]; then
     sudo=""
     [ "$(id -u)" = 0 ] || sudo="sudo"
-    echo "installing system packages:$missing"
+    echo "installing system packages:$missing$missing_tex"
     $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq $missing >/dev/null
+    [ -z "$missing" ] || DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq $missing >/dev/null
+    [ -z "$missing_tex" ] || DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
+      $missing_tex >/dev/null
   fi
 fi
 
