@@ -286,7 +286,8 @@ MAX_ZOOM_ROWS = 8
 def shown_frames(candidates: list[int], hole_counts: list[int]) -> list[int]:
     """The frames of a subjective figure: the first of ``candidates``, then the next ones while the
     holes of the frames shown (``hole_counts``, per candidate) stay within `MAX_ZOOM_ROWS`."""
-    shown, rows = [], 0
+    shown: list[int] = []
+    rows = 0
     for frame, count in zip(candidates, hole_counts):
         if shown and rows + count > MAX_ZOOM_ROWS:
             break

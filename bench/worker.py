@@ -240,7 +240,7 @@ def score_run(spec: RunSpec, truth, inpainted: list[np.ndarray], regions: list,
         # one CloudPair per frame: its KD-trees and neighbour queries serve every scope and peak
         pair = metrics_pkg.make_pair(cloud.points, result, cloud.normals,
                                      reference_colours=cloud.colors if coloured else None,
-                                     result_colours=inpainted_colors[f] if coloured else None)
+                                     result_colours=inpainted_colors[f] if inpainted_colors and coloured else None)
         for scope in cfg["scopes"]:
             frame_regions = regions[f] if scope == "holes" else None
             if scope == "holes" and not frame_regions:
