@@ -101,6 +101,9 @@ SUMMARY_FORMAT = "dpcbench-summary"
 #: the floor of every comparison: the registry method that leaves the damaged input as it is, and its mark
 #: (the same as `bench.tables.FLOOR_METHOD` / `FLOOR_MARK`)
 FLOOR_METHOD, FLOOR_MARK = "none", "▽"
+#: the mark of a cell tied with the row's best (Markdown text; `bench.latex_tables.latex_escape` turns both marks
+#: into LaTeX)
+TIED_MARK = "†"
 
 
 # ---------------------------------------------------------------------------------------------

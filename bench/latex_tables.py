@@ -6,7 +6,7 @@ the paper's in italics, ``\\bottomrule``); each of our cells as the mean and, in
 interval of the Markdown table), on one line or stacked; row and column labels shortened
 (`short_labels`) with a key under the table giving each shortened label in full; the placement and
 layout chosen by the table's estimated width (`placement`). Every label goes through
-`bench.tables.latex_escape`.
+`latex_escape`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,9 @@ import re
 from collections import defaultdict
 from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:  # pragma: no cover
+from dpcbench.bench.compare import FLOOR_MARK, TIED_MARK
+
+if TYPE_CHECKING:  # pragma: no cover  (a type only: tables imports this module)
     from dpcbench.bench.tables import ComparisonTable
 
 #: the widths the placement is judged against: one column and the full text of an IEEEtran
@@ -34,6 +36,19 @@ TABCOLSEP_PT = 4.0
 SHORT_COLUMN_CHARS = 11
 SHORT_ROW_CHARS = 20
 PREAMBLE_COMMENT = r"% needs \usepackage{booktabs} in the preamble (\toprule, \midrule, \bottomrule)"
+
+
+_LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
+          "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "±": r"$\pm$", "–": "--", "—": "---",
+          "·": r"$\cdot$", "×": r"$\times$", "≈": r"$\approx$", "<": r"\textless{}", ">": r"\textgreater{}",
+          "[": "{[}", "]": "{]}", TIED_MARK: r"$^{\dagger}$", FLOOR_MARK: r"$^{\nabla}$", "\n": " ", "\r": " "}
+
+
+def latex_escape(text) -> str:
+    """Text for LaTeX: its special characters (``\\ & % $ # _ { } ~ ^``) escaped, ``[`` and ``]`` braced
+    (so that a cell starting with one is not taken for the optional argument of the ``\\\\`` or
+    ``\\midrule`` before it), ``±·×≈–—`` and the cell marks as LaTeX, line breaks as spaces."""
+    return "".join(_LATEX.get(ch, ch) for ch in str(text))
 
 
 def _shortened(label: str, limit: int) -> str:
@@ -102,8 +117,6 @@ class _LatexTable:
     """The LaTeX of one `ComparisonTable` (one instance per call of `comparison_latex`)."""
 
     def __init__(self, table: ComparisonTable):
-        from dpcbench.bench.tables import latex_escape
-
         self.table, self.esc = table, latex_escape
         self.columns = short_labels(table.columns, SHORT_COLUMN_CHARS)
         self.rows = short_labels(table.rows + list(table.paper or {}), SHORT_ROW_CHARS)

@@ -28,7 +28,8 @@ import numpy as np
 import pandas as pd
 
 from dpcbench.bench import stats
-from dpcbench.bench.compare import FLOOR_MARK, FLOOR_METHOD  # noqa: F401  (re-exported; their one source)
+from dpcbench.bench.compare import FLOOR_MARK, FLOOR_METHOD, TIED_MARK  # noqa: F401  (re-exported; their one source)
+from dpcbench.bench.latex_tables import latex_escape  # noqa: F401  (re-exported)
 
 
 def higher_is_better(metric: str) -> bool | None:
@@ -85,11 +86,6 @@ def given_labels(runs: pd.DataFrame, part: str) -> dict:
     return out
 
 
-#: the mark of a cell tied with the row's best (Markdown text; LaTeX has its own); the floor's mark and
-#: method (FLOOR_MARK, FLOOR_METHOD: the damaged input left as it is) come from bench.compare
-TIED_MARK = "†"
-
-
 def md_escape(text) -> str:
     """A label as one Markdown table cell: backslash, ``|``, ``*``, ``_`` and backtick escaped, ``<``
     as ``&lt;`` (so no raw HTML starts), line breaks as spaces."""
@@ -99,17 +95,6 @@ def md_escape(text) -> str:
     return text.replace("<", "&lt;")
 
 
-_LATEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
-          "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "±": r"$\pm$", "–": "--", "—": "---",
-          "·": r"$\cdot$", "×": r"$\times$", "≈": r"$\approx$", "<": r"\textless{}", ">": r"\textgreater{}",
-          "[": "{[}", "]": "{]}", TIED_MARK: r"$^{\dagger}$", FLOOR_MARK: r"$^{\nabla}$", "\n": " ", "\r": " "}
-
-
-def latex_escape(text) -> str:
-    """Text for LaTeX: its special characters (``\\ & % $ # _ { } ~ ^``) escaped, ``[`` and ``]`` braced
-    (so that a cell starting with one is not taken for the optional argument of the ``\\\\`` or
-    ``\\midrule`` before it), ``±·×≈–—`` and the cell marks as LaTeX, line breaks as spaces."""
-    return "".join(_LATEX.get(ch, ch) for ch in str(text))
 
 
 def csv_safe(value):

@@ -4,7 +4,8 @@
     python -m tests.import_graph --all      # every project module (bench, holes, methods, metrics)
 
 Every import counts, top-level and inside functions alike: a lazy import inside a function is still
-a dependency (and a cycle through it is still a cycle a reader has to untangle). ``dpcbench.`` in
+a dependency (and a cycle through it is still a cycle a reader has to untangle). Imports under
+``if TYPE_CHECKING:`` do not: they name a type for the checker and never run. ``dpcbench.`` in
 front of a name is dropped, so the graph reads the same whether the packages are imported by their
 folder names or under the ``dpcbench`` namespace.
 """
@@ -35,13 +36,25 @@ def _strip(name: str) -> str:
     return name.removeprefix("dpcbench.")
 
 
+def _is_type_checking_block(node: ast.AST) -> bool:
+    """``if TYPE_CHECKING:`` (or ``typing.TYPE_CHECKING``) with no ``else``."""
+    if not isinstance(node, ast.If) or node.orelse:
+        return False
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
 def imports_of(module: str, path: Path, known: set[str]) -> set[str]:
     """The project modules ``module`` imports (``from pkg import mod`` counts as ``pkg.mod`` when that
     is a module, else as ``pkg``)."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     is_package = path.name == "__init__.py"
     found: set[str] = set()
+    type_only = {id(n) for block in ast.walk(tree) if _is_type_checking_block(block) for n in ast.walk(block)}
     for node in ast.walk(tree):
+        if id(node) in type_only:
+            continue  # under `if TYPE_CHECKING:`: read by the type checker only, never run
         if isinstance(node, ast.Import):
             names = [_strip(alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):

@@ -39,6 +39,21 @@ def test_find_cycles_finds_a_cycle_through_a_function_level_import(tmp_path):
     assert import_graph.find_cycles({"x": {"y"}, "y": set()}) == []
 
 
+def test_a_type_only_import_is_no_dependency(tmp_path):
+    """An import under ``if TYPE_CHECKING:`` never runs (a type for the checker): no edge, no cycle; the same
+    import outside the block, or under an ``if`` with an ``else``, is one."""
+    pkg = tmp_path / "bench"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from bench.b import B\n")
+    (pkg / "b.py").write_text("import typing\nif typing.TYPE_CHECKING:\n    import bench.a\nelse:\n    import bench.c\n")
+    (pkg / "c.py").write_text("def f():\n    from bench import a\n")
+    for other in ("metrics", "holes", "methods"):
+        (tmp_path / other).mkdir()
+    graph = import_graph.import_graph(tmp_path)
+    assert graph["bench.a"] == set() and graph["bench.b"] == {"bench.a", "bench.c"} and graph["bench.c"] == {"bench.a"}
+
+
 def test_the_run_modules_import_one_way():
     """runner (sweep) -> executors -> worker -> provenance; paper and tables read run folders
     through provenance, never through the sweep driver."""
