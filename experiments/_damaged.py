@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dpcbench.bench.plyio import read_ply
+from dpcbench.bench.data.plyio import read_ply
 from dpcbench.holes.regions import regions_from_json
 
 

@@ -49,7 +49,7 @@ def digest(outputs: list[np.ndarray]) -> str:
 
 def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
     """case name -> (damaged frames, regions or None)."""
-    from dpcbench.bench.standins import bunny, human
+    from dpcbench.bench.data.standins import bunny, human
     from dpcbench.holes.registry import get_generator
 
     sequences = {
@@ -74,7 +74,7 @@ def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
     frames, _ = cases["bunny-tiny-float/coherent"]
     cases["bunny-tiny-float/blind"] = (frames, None)
     if DFAUST.is_dir():
-        from dpcbench.bench.sequences import load_sequence
+        from dpcbench.bench.data.sequences import load_sequence
 
         seq = load_sequence(DFAUST, colors=False)
         frames = [np.asarray(f.points, dtype=np.float64) for f in seq.frames[:3]]

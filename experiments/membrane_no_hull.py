@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
 
-from dpcbench.bench.plyio import write_ply
+from dpcbench.bench.data.plyio import write_ply
 from dpcbench.methods._spatial_fill import membrane
 from dpcbench.methods.temporal_fusion.method import TemporalFusion
 

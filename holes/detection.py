@@ -42,7 +42,7 @@ from dpcbench.metrics.neighbours import probe_indices
 
 #: Version of `detect_holes`'s output: bump it whenever a change alters the regions it returns for
 #: some input (a pure speed-up that returns the same regions keeps it). Runs with regions = "detected"
-#: carry it in their ids (`bench.config`), so a bump re-runs exactly those runs instead of reusing
+#: carry it in their ids (`bench.experiment.config`), so a bump re-runs exactly those runs instead of reusing
 #: results computed from the old detector's regions.
 #: "2" (2026-11-25): neighbourhoods of voxel frames are the k nearest plus every point tied with the
 #: k-th (read off a voxel stencil, instead of whichever tied points a k-NN query returned) and normals

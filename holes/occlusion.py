@@ -36,7 +36,7 @@ remove 20-200, mostly seen ones: neither is reliable for such tiny sets. CPU: th
 costs 5-7x less than HPR (Longdress, 858k points: 5.8 s against 37.3 s, version 1 measurements).
 
 Consequence on small figures: on the tiny human (186 voxels tall) the default stage rig leaves 2-3
-points unseen with the z-buffer (HPR: 20-24); `bench.paper.STANDIN_OCCLUSION` (one ring of 3 cameras)
+points unseen with the z-buffer (HPR: 20-24); `bench.reporting.paper.STANDIN_OCCLUSION` (one ring of 3 cameras)
 is the rig `reproduce-paper` uses for its real-hole rows on the stand-in.
 
 Choices, by measurement (one-off scripts, not kept; timings noisy on the shared 2-core machine):

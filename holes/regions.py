@@ -41,7 +41,7 @@ from dpcbench.metrics.errors import UserError
 if TYPE_CHECKING:  # imported where used: every CLI command loads this module, few need scipy
     from scipy.spatial import cKDTree
 
-#: the largest |coordinate| a region (and a frame, `bench.plyio.check_cloud`) may have: beyond it squared
+#: the largest |coordinate| a region (and a frame, `bench.data.plyio.check_cloud`) may have: beyond it squared
 #: distances leave float32's range and integer keys int64's, so scores would be silently wrong
 COORD_LIMIT = 1e15
 #: how far R^T R of a box rotation may be from the identity (entry-wise)

@@ -4,7 +4,7 @@
 ValueError), so callers of the numpy API catch what they always caught. It marks the refusals of
 the package's own checks, which say what is wrong and what to do; any other exception is a bug.
 It lives in ``metrics`` because ``metrics`` is the lowest layer (metrics < holes < methods <
-bench) and every layer raises it; `bench.errors` re-exports it, and the ``dpcbench`` command prints
+bench) and every layer raises it; `bench.core.errors` re-exports it, and the ``dpcbench`` command prints
 its message as one line and exits 2.
 """
 

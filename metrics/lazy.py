@@ -19,7 +19,7 @@ shows it). A plug-in whose module fails to import is reported by `available` wit
 raises ImportError only where it is used, so it breaks no other command.
 
 It lives in ``metrics``, the lowest layer (metrics < holes < methods < bench), so that all three
-registries share it; `holes.lazy` re-exports it for the harness (`bench.worker` loads run specs'
+registries share it; `holes.lazy` re-exports it for the harness (`bench.execution.worker` loads run specs'
 ``entry`` strings with `import_entry`).
 """
 

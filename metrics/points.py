@@ -16,7 +16,7 @@ import numpy as np
 
 def is_point_cloud_object(obj: Any) -> bool:
     """True for a cloud object that carries its coordinates in ``.points`` (open3d's PointCloud,
-    `bench.plyio.PointCloud`), as opposed to an array-like."""
+    `bench.data.plyio.PointCloud`), as opposed to an array-like."""
     return not isinstance(obj, np.ndarray) and hasattr(obj, "points")
 
 

@@ -17,7 +17,7 @@ regions (all points when no regions are given). For each consecutive pair (f, g 
 TC = the mean of the pair values (NaN pairs, with no hole points, left out).
 
 True correspondences. When the sequence knows where each ground-truth point goes (a mesh sequence
-sampled with shared connectivity, `bench.meshseq.MeshMotion.correspondences`), pass them as
+sampled with shared connectivity, `bench.data.meshseq.MeshMotion.correspondences`), pass them as
 ``correspondences``: one (forward, backward) pair of index arrays per consecutive frame pair, forward
 (N_f,) the index in frame f + 1 of each point of frame f, backward (N_{f+1},) the index in frame f of each
 point of frame f + 1. The links then follow the true motion (x in S_g linked to backward[x], y in S_f to

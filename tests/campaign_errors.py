@@ -33,7 +33,7 @@ def load_test_module():
 def workspace(t, root: Path) -> Path:
     import numpy as np
 
-    from dpcbench.bench.plyio import PointCloud, write_ply
+    from dpcbench.bench.data.plyio import PointCloud, write_ply
     from dpcbench.holes.regions import HoleRegion, regions_to_json
 
     ws = root / "ws"

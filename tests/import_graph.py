@@ -69,7 +69,7 @@ def imports_of(module: str, path: Path, known: set[str]) -> set[str]:
         else:
             continue
         for name in names:
-            # the longest known module that the name starts with (bench.plyio.PointCloud -> bench.plyio)
+            # the longest known module that the name starts with (bench.data.plyio.PointCloud -> bench.data.plyio)
             parts = name.split(".")
             while parts and ".".join(parts) not in known:
                 parts.pop()

@@ -132,7 +132,7 @@ def sphere_frames(n_frames: int = 3, n_points: int = 800, seed: int = 0) -> list
 
 
 def write_sequence(folder: Path, n_frames: int = 3, n_points: int = 800) -> Path:
-    from dpcbench.bench.sequences import save_sequence
+    from dpcbench.bench.data.sequences import save_sequence
 
     save_sequence(sphere_frames(n_frames, n_points), folder, prefix="sphere")
     return folder

@@ -1,4 +1,4 @@
-"""bench.canonical: the one canonical-JSON helper. Every former copy (config's hashing, the store's JSON
+"""bench.core.canonical: the one canonical-JSON helper. Every former copy (config's hashing, the store's JSON
 columns, compare's and paper's parameter keys, margins' row identities) now calls it; the expected
 texts below are what each copy wrote on main before it was replaced, byte for byte."""
 
@@ -10,8 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dpcbench.bench import canonical, compare, config, margins, paper
-from dpcbench.bench.records import COLUMNS, RunRecord
+from dpcbench.bench.core import canonical
+from dpcbench.bench.experiment import config
+from dpcbench.bench.experiment.records import COLUMNS, RunRecord
+from dpcbench.bench.reporting import margins, paper
+from dpcbench.bench.results import compare
 
 MIXED = {"b": 1.0, "a": [1, 2.5, (3, 4)], "c": {"z": None, "y": True, "x": "é"}, 2: "int key"}
 FLOATS = {"radius": 0.1, "count": 2, "nested": {"k": [0.30000000000000004, -0.0, 1e-300, 2.0**60, float("inf")]}}

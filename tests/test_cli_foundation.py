@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from dpcbench.bench.cli import main
-from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
+from dpcbench.bench.data.plyio import PointCloud, read_ply, write_ply
 
 
 @pytest.fixture(autouse=True)

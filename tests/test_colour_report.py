@@ -1,10 +1,10 @@
-"""The colour section of reports (`bench.colour_report`)."""
+"""The colour section of reports (`bench.reporting.colour_report`)."""
 
 from __future__ import annotations
 
 import pandas as pd
 
-from dpcbench.bench.colour_report import colour_section, colour_sequences
+from dpcbench.bench.reporting.colour_report import colour_section, colour_sequences
 
 
 def _tidy(rows):

@@ -1,4 +1,4 @@
-"""dpcbench.bench.compare and `dpcbench compare`: summaries, tolerances, regression verdicts, exit codes."""
+"""dpcbench.bench.results.compare and `dpcbench compare`: summaries, tolerances, regression verdicts, exit codes."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dpcbench.bench import compare
 from dpcbench.bench.cli import main as cli_main
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.results import compare
+from dpcbench.bench.results.store import ResultsStore
 
 
 def results_frame(cells, code_version="c1", created_at="2026-01-01T00:00:00", experiment="regression",
@@ -196,7 +196,7 @@ def test_nan_becoming_defined_is_flagged():
 
 
 def test_direction_and_change_kind_come_from_the_metric_registry_only():
-    from dpcbench.bench import tables
+    from dpcbench.bench.reporting import tables
     from dpcbench.metrics import registry
 
     assert not hasattr(compare, "HIGHER_IS_BETTER") and not hasattr(compare, "CHANGE_KIND")
@@ -218,7 +218,7 @@ def test_direction_and_change_kind_come_from_the_metric_registry_only():
 
 
 def test_peak_dependence_comes_from_the_registry():
-    from dpcbench.bench.worker import _uses_peak
+    from dpcbench.bench.execution.worker import _uses_peak
     from dpcbench.metrics import registry
 
     assert [n for n in registry.METRICS if _uses_peak(n)] == ["gpsnr_d1", "gpsnr_d2", "hausdorff_psnr"]
@@ -226,7 +226,7 @@ def test_peak_dependence_comes_from_the_registry():
 
 
 def test_a_metric_without_direction_has_no_best_cell():
-    from dpcbench.bench.tables import ComparisonTable
+    from dpcbench.bench.reporting.tables import ComparisonTable
 
     table = ComparisonTable("t", "removed_fraction", "frame", "", None, ["r"], ["a", "b"],
                             {("r", "a"): 0.1, ("r", "b"): 0.2}, {("r", "a"): 0.0, ("r", "b"): 0.0},
@@ -257,7 +257,7 @@ def test_tolerances_file(tmp_path):
 
 def test_committed_tolerances_and_baseline_are_valid():
     """results/tolerances.toml loads; the committed baseline (when present) is a readable summary."""
-    from dpcbench.bench.commands.compare import DEFAULT_BASELINE, TOLERANCES_FILE
+    from dpcbench.bench.cli.commands.compare import DEFAULT_BASELINE, TOLERANCES_FILE
 
     tol = compare.load_tolerances(TOLERANCES_FILE)
     assert set(compare.DEFAULT_TOLERANCES) <= set(tol)
@@ -370,7 +370,7 @@ def test_degraded_method_fails_compare_and_normal_passes(tmp_path, capsys):
     change that degrades the method, fails with a readable table."""
     import time
 
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
 
@@ -443,7 +443,7 @@ scopes = ["frame"]
 
 
 def test_cell_identity_ignores_seed_and_versions_not_data():
-    from dpcbench.bench.config import parse_config, tomllib
+    from dpcbench.bench.experiment.config import parse_config, tomllib
 
     specs = parse_config(tomllib.loads(TWO_HUMANS), source="t").expand()
     cells = {}
@@ -500,7 +500,7 @@ def test_compare_marks_rows_below_the_floor():
 
 
 def test_dashboard_latest_table_marks_the_floor():
-    from dpcbench.bench import dashboard
+    from dpcbench.bench.reporting import dashboard
 
     df = results_frame({("none", "gpsnr_d1", "frame"): [15.0], ("a", "gpsnr_d1", "frame"): [10.0],
                         ("b", "gpsnr_d1", "frame"): [20.0]})

@@ -7,7 +7,7 @@ import copy
 import numpy as np
 import pytest
 
-from dpcbench.bench.config import ConfigError, canonical_json, load_config, parse_config, stable_hash
+from dpcbench.bench.experiment.config import ConfigError, canonical_json, load_config, parse_config, stable_hash
 from dpcbench.holes.detection import DETECT_HOLES_VERSION
 from tests import runner_fixtures as helpers
 
@@ -74,7 +74,7 @@ def test_ids_are_stable_and_change_with_every_parameter(seq_dir):
 def test_a_frame_step_loads_every_step_th_frame_under_its_own_ids(tmp_path, monkeypatch):
     """frames = [start, stop, step]: a lower frame rate of the same capture; the frames loaded are exactly
     start, start + step, ... < stop, and the runs are not those of [start, stop)."""
-    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.data.datasets import load_run_sequence
 
     helpers.register(monkeypatch)
     folder = helpers.write_sequence(tmp_path / "seq", n_frames=5, n_points=200)
@@ -232,7 +232,7 @@ def test_detection_parameters(seq_dir):
                                     "temporal-fusion-heldout-framerate", "temporal-fusion-heldout-data"])
 def test_shipped_presets_expand(preset):
     """Every preset under bench/presets parses and expands into runs with distinct ids."""
-    from dpcbench.bench.paper import PRESETS_DIR
+    from dpcbench.bench.reporting.paper import PRESETS_DIR
 
     config = load_config(PRESETS_DIR / f"{preset}.toml")
     specs = config.expand()  # optional sequences whose data is not here are skipped

@@ -12,9 +12,10 @@ import subprocess
 import numpy as np
 import pytest
 
-from dpcbench.bench import benchsuite, dashboard, palette
 from dpcbench.bench.cli import main as cli_main
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.reporting import dashboard, palette
+from dpcbench.bench.results import benchsuite
+from dpcbench.bench.results.store import ResultsStore
 
 METHODS = {"temporal-graph": (40.0, 1e-7, 2.0), "fu-nonlocal": (36.0, 3e-7, 1.5), "none": (12.0, 5e-6, 0.01)}
 VERSIONS = [("1111111111aaaaaaaaaa", "2026-01-01T10:00:00+00:00"),
@@ -306,7 +307,7 @@ def test_history_is_cumulative_over_versions(tmp_path):
 def test_summary_files_join_the_history(tmp_path, capsys):
     """An older summary (e.g. a committed baseline) plus a store at a newer version: two versions,
     and the newer one's regression is flagged against the summary's values."""
-    from dpcbench.bench import compare
+    from dpcbench.bench.results import compare
 
     old = make_store(tmp_path / "old.sqlite", versions=(0,))
     summary = tmp_path / "old.csv"
@@ -339,7 +340,7 @@ def test_two_psnr_peaks_are_kept_apart(tmp_path):
 
 
 def test_comparison_against_a_baseline_summary(tmp_path):
-    from dpcbench.bench import compare
+    from dpcbench.bench.results import compare
 
     old = make_store(tmp_path / "old.sqlite", versions=(0,))
     baseline = (compare.summarize(old.results_frame()), {"code_version": VERSIONS[0][0], "date": "2026-01-01"})
@@ -413,7 +414,7 @@ def test_history_folder_over_two_commits_marks_the_machine_change(tmp_path, caps
     --save-history (one summary file per commit), then the page from the folder alone: every chart
     has one point per commit, the hover names commit, date and machine, and the speed chart marks
     the change of machine."""
-    from dpcbench.bench import compare
+    from dpcbench.bench.results import compare
 
     folder = tmp_path / "history"
     for v, node in ((0, "ci-a"), (1, "ci-b")):
@@ -466,8 +467,8 @@ def test_regressions_card_compares_with_the_committed_baseline(tmp_path, capsys)
     """A store of the regression preset's cells (the committed baseline's values, one cell 1 dB
     worse): by default the card and the comparison are against results/regression-baseline.csv,
     as `dpcbench compare` is; `--baseline previous` compares code versions instead (one here: none)."""
-    from dpcbench.bench import compare
-    from dpcbench.bench.commands.compare import DEFAULT_BASELINE
+    from dpcbench.bench.cli.commands.compare import DEFAULT_BASELINE
+    from dpcbench.bench.results import compare
 
     table, meta = compare.read_summary(DEFAULT_BASELINE)
     results = dashboard.summary_as_results(table, meta)
@@ -505,8 +506,8 @@ def test_method_and_run_pages_beside_the_page(tmp_path, capsys):
 
     import matplotlib.image
 
-    from dpcbench.bench import dashboard_pages
-    from dpcbench.bench.plyio import PointCloud, write_ply
+    from dpcbench.bench.data.plyio import PointCloud, write_ply
+    from dpcbench.bench.reporting import dashboard_pages
 
     store = make_store(tmp_path / "s.sqlite")
     # one run with its folder (frame 0: 150 points kept, 50 added by the method) and its log

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import dpcbench.bench.datasets as datasets
-from dpcbench.bench.datasets import PAPER, load_dataset, parse_frames, parse_params
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.plyio import PointCloud, write_ply
+import dpcbench.bench.data.datasets as datasets
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.datasets import PAPER, load_dataset, parse_frames, parse_params
+from dpcbench.bench.data.plyio import PointCloud, write_ply
 
 
 @pytest.fixture(autouse=True)
@@ -40,7 +40,7 @@ def test_embedded_human_sequence_and_cache(monkeypatch):
     # a second load is served by the cache: the generator is not called, the data are identical
     import functools
 
-    import dpcbench.bench.standins.human as human
+    import dpcbench.bench.data.standins.human as human
 
     @functools.wraps(human.generate_frame)  # keeps the signature the registry reads parameters from
     def refuse(*args, **kwargs):

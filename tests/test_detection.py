@@ -68,7 +68,7 @@ def test_detection_scores_closed_form():
 
 @pytest.fixture(scope="module")
 def human():
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     return load_dataset("human", frames=3, size="tiny", progress=False).points
 
@@ -110,7 +110,7 @@ def test_detection_finds_synthetic_holes(human, preset):
 def test_real_capture_holes(shared_dir):
     """ricardo9 (MVUB, 9-bit, front-only capture of an upper body): its largest rims are the open
     outline of the scan (inward score < 0) and are excluded; a few hole regions remain."""
-    from dpcbench.bench.sequences import load_sequence
+    from dpcbench.bench.data.sequences import load_sequence
 
     points = load_sequence(shared_dir / "data" / "mvub_ricardo9").points[0]
     every_rim = detect_holes(points, min_inward=-1.0, max_radius=10.0)  # one run, filtered below

@@ -1,4 +1,4 @@
-"""The CLI's one error path (`bench.errors`): bad input -> one line on stderr and exit 2, never a
+"""The CLI's one error path (`bench.core.errors`): bad input -> one line on stderr and exit 2, never a
 traceback, never a file changed outside --out, never a silent wrong number; bugs keep their
 traceback. One test per kind of fault, then a generated family of bad inputs for every command."""
 
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from dpcbench.bench.cli import main
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.plyio import PointCloud, write_ply
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.plyio import PointCloud, write_ply
 from dpcbench.holes.regions import HoleRegion, regions_to_json
 
 REPO = Path(__file__).resolve().parents[1]
@@ -147,7 +147,7 @@ def test_output_paths_that_are_files_under_files_or_unwritable(work, capsys, mon
     assert a_file.read_text() == "x"
 
     # a folder that cannot be written (simulated: root ignores permission bits)
-    from dpcbench.bench import outputs
+    from dpcbench.bench.data import outputs
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
@@ -162,7 +162,7 @@ def test_output_paths_that_are_files_under_files_or_unwritable(work, capsys, mon
 
 
 def test_an_oserror_writing_a_claimed_output_is_one_line(work, capsys, monkeypatch):
-    from dpcbench.bench import sequences
+    from dpcbench.bench.data import sequences
 
     def disk_full(path, cloud, **kwargs):
         raise OSError(28, "No space left on device", str(path))
@@ -229,8 +229,8 @@ def test_param_of_the_wrong_type_is_named(work, capsys):
 
 
 def test_one_param_parser_for_every_command():
-    from dpcbench.bench.datasets import parse_params as dataset_params
-    from dpcbench.bench.params import parse_params
+    from dpcbench.bench.core.params import parse_params
+    from dpcbench.bench.data.datasets import parse_params as dataset_params
 
     assert dataset_params is parse_params  # generate/info/render use the same function as damage/inpaint
     parsed = parse_params(["a=yes", "b=No", "c=none", "d=20", "e=0.5", "f=1e-3", "g=[1, 2]", 'h="20"', "i=large",
@@ -246,12 +246,12 @@ def test_one_param_parser_for_every_command():
 
 def test_every_param_option_of_every_command_goes_through_the_one_parser():
     """Every ``--param``-like option (``--param``, ``--dataset-param``) of every command is read by
-    bench.params.parse_params and by nothing else, so ``x=none`` is None everywhere."""
+    bench.core.params.parse_params and by nothing else, so ``x=none`` is None everywhere."""
     import ast
     from pathlib import Path
 
-    import dpcbench.bench.commands as commands_pkg
-    from dpcbench.bench.params import parse_params
+    import dpcbench.bench.cli.commands as commands_pkg
+    from dpcbench.bench.core.params import parse_params
 
     folder = Path(commands_pkg.__file__).parent
     checked = {}
@@ -276,7 +276,7 @@ def test_every_param_option_of_every_command_goes_through_the_one_parser():
         uses = [n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr in dests
                 and isinstance(n.value, ast.Name) and n.value.id == "args"]
         for dest in dests:
-            assert parsed_by.get(dest), f"{path.name}: --{dest} is not read by bench.params.parse_params"
+            assert parsed_by.get(dest), f"{path.name}: --{dest} is not read by bench.core.params.parse_params"
             assert uses.count(dest) == parsed_by[dest], f"{path.name}: args.{dest} is read outside parse_params"
         assert "partition(\"=\")" not in path.read_text() and "split(\"=\"" not in path.read_text(), path.name
         checked[path.stem] = sorted(dests)
@@ -362,7 +362,7 @@ def test_ascii_ply_holding_more_rows_than_declared_is_refused(work, capsys):
 
 
 def test_binary_ply_with_bytes_beyond_the_declared_rows_is_refused(tmp_path):
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     path = write_ply(tmp_path / "b.ply", sphere(50, 0))
     assert len(read_ply(path)) == 50
@@ -417,7 +417,7 @@ def test_a_folder_named_like_an_embedded_sequence_says_which_one_is_taken(work, 
 
 
 def test_config_sequence_names_never_read_a_folder_of_that_name(work):
-    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.data.datasets import load_run_sequence
 
     (work / "human").mkdir()
     (work / "human" / "f.ply").write_bytes((work / "seq" / "s_0000.ply").read_bytes())
@@ -429,7 +429,7 @@ def test_config_sequence_names_never_read_a_folder_of_that_name(work):
 def damaged_store(path: Path) -> Path:
     """A results store with 4000 results whose last data pages are overwritten by 8 KB of garbage
     (its schema still reads: only an integrity check finds the damage)."""
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.results.store import ResultsStore
 
     for stale in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
         stale.unlink(missing_ok=True)
@@ -449,7 +449,7 @@ def damaged_store(path: Path) -> Path:
 
 
 def test_a_damaged_store_is_refused_before_run_or_report(work, capsys):
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.results.store import ResultsStore
 
     bad = damaged_store(work / "bad.sqlite")
     assert ResultsStore(bad, readonly=True).experiments() == ["e"]  # opening alone does not notice

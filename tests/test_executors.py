@@ -13,15 +13,15 @@ from pathlib import Path
 
 import pytest
 
-from dpcbench.bench.config import parse_config
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.executors import (
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.execution.executors import (
     SHARED_MARKER_PREFIX,
     SharedStorageError,
     check_shared_runs_dir,
 )
-from dpcbench.bench.runner import run_experiment
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.execution.runner import run_experiment
+from dpcbench.bench.experiment.config import parse_config
+from dpcbench.bench.results.store import ResultsStore
 from tests import runner_fixtures as helpers
 
 REPO = Path(__file__).resolve().parents[1]
@@ -119,7 +119,7 @@ def test_tcp_scheduler_runs_a_grid_on_two_workers(env, tcp_cluster, tmp_path):
 def test_worker_that_cannot_see_the_run_folder_stops_the_sweep(env, tcp_cluster, tmp_path, monkeypatch):
     """The driver's marker is not where the workers look (as on a machine without the shared mount):
     every worker fails the check, nothing runs, and the message says what to do."""
-    from dpcbench.bench import executors
+    from dpcbench.bench.execution import executors
 
     real_unlink = Path.unlink
     # the driver writes its marker, then it vanishes before the workers look: what a worker on another

@@ -19,7 +19,7 @@ import pytest
 import test_errors
 from test_errors import assert_refused, run_cli, sphere, tree_hashes
 
-from dpcbench.bench.errors import UserError
+from dpcbench.bench.core.errors import UserError
 
 work = test_errors.work  # the workspace fixture: seq/ (3 frames of 800 points), holes.json
 
@@ -47,7 +47,7 @@ def test_a_link_planted_in_out_is_never_written_through(work, capsys):
 
 
 def test_a_staged_output_refuses_a_linked_subfolder_leading_out(tmp_path):
-    from dpcbench.bench.outputs import Outputs
+    from dpcbench.bench.data.outputs import Outputs
 
     (tmp_path / "elsewhere").mkdir()
     (tmp_path / "R").mkdir()
@@ -71,7 +71,7 @@ def test_a_detect_holes_link_out_of_its_folder_is_refused(work, capsys):
 
 # -- 2. an output appears whole, once; one writer at a time; readers skip temporary files --------
 def test_a_staged_output_appears_whole_and_keeps_the_old_until_complete(tmp_path):
-    from dpcbench.bench.outputs import Outputs
+    from dpcbench.bench.data.outputs import Outputs
 
     out = tmp_path / "o"
     with Outputs().staged(out) as stage:
@@ -90,8 +90,8 @@ def test_a_staged_output_appears_whole_and_keeps_the_old_until_complete(tmp_path
 
 
 def test_a_second_writer_of_one_output_is_refused_and_stale_stages_are_removed(tmp_path):
-    from dpcbench.bench.atomic import STAGE_TAG
-    from dpcbench.bench.outputs import Outputs
+    from dpcbench.bench.core.atomic import STAGE_TAG
+    from dpcbench.bench.data.outputs import Outputs
 
     out = tmp_path / "o"
     stale = tmp_path / f".o{STAGE_TAG}999999-deadbeef"  # a killed writer's staging folder
@@ -124,7 +124,7 @@ def test_concurrent_damage_into_one_out_never_replaces_ground_truth(work, capsys
 
 
 def test_readers_skip_hidden_and_temporary_frames(work, capsys):
-    from dpcbench.bench.sequences import list_frame_files
+    from dpcbench.bench.data.sequences import list_frame_files
 
     (work / "seq" / ".s_0005.x1y2.tmp.ply").write_bytes((work / "seq" / "s_0000.ply").read_bytes())
     (work / "seq" / "s_0006.ply.tmp.ply").write_bytes(b"ply\nhalf")
@@ -138,7 +138,7 @@ def test_readers_skip_hidden_and_temporary_frames(work, capsys):
 
 @pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
 def test_files_get_the_mode_the_umask_gives(tmp_path, umask):
-    from dpcbench.bench.atomic import atomic_write_text
+    from dpcbench.bench.core.atomic import atomic_write_text
 
     old = os.umask(umask)
     try:
@@ -157,7 +157,7 @@ def _write_double(path: Path, pts: np.ndarray) -> None:
 
 
 def test_double_coordinates_stay_double_through_damage(work, capsys):
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     frames = [sphere(800, f) * 0.01 + np.array([5e5, 4.5e6, 100.0]) for f in range(2)]  # georeferenced, 1 cm
     for f, pts in enumerate(frames):
@@ -199,7 +199,7 @@ def test_ground_truth_is_never_replaced_without_overwrite(work, capsys):
 # -- 5. store paths --------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["r#1.sqlite", "a?b.sqlite", "p%41.sqlite", "sp ace é.sqlite"])
 def test_store_paths_with_uri_characters_open_that_file(tmp_path, name):
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.results.store import ResultsStore
 
     ResultsStore(tmp_path / name).add_to_experiment("e", ["r1"])
     store = ResultsStore(tmp_path / name, readonly=True, verify=True)
@@ -209,7 +209,7 @@ def test_store_paths_with_uri_characters_open_that_file(tmp_path, name):
 
 
 def test_a_store_without_experiment_runs_is_one_line(tmp_path):
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.results.store import ResultsStore
 
     ResultsStore(tmp_path / "s.sqlite").add_to_experiment("e", ["r1"])
     with sqlite3.connect(tmp_path / "s.sqlite") as conn:
@@ -219,7 +219,7 @@ def test_a_store_without_experiment_runs_is_one_line(tmp_path):
 
 
 def test_a_healthy_store_in_a_read_only_folder_is_read_immutable(tmp_path, monkeypatch):
-    from dpcbench.bench import store as store_mod
+    from dpcbench.bench.results import store as store_mod
 
     store_mod.ResultsStore(tmp_path / "s.sqlite").add_to_experiment("e", ["r1"])
     for side in ("-wal", "-shm"):
@@ -317,7 +317,7 @@ name = "{method}"
 def test_values_that_used_to_pass_the_dry_run_are_refused(tmp_path, change, needle):
     import tomllib
 
-    from dpcbench.bench.config import ConfigError, parse_config
+    from dpcbench.bench.experiment.config import ConfigError, parse_config
 
     fields = {"experiment": "", "seeds": "[0]", "method": "none", "method_params": "", "metrics": "", **change}
     with pytest.raises(ConfigError, match=needle):
@@ -335,7 +335,7 @@ def test_a_symlink_loop_reached_through_a_config_is_one_line(work, capsys):
 
 
 def test_an_obj_face_past_the_vertex_list_is_refused_before_pymeshlab(tmp_path):
-    from dpcbench.bench.meshseq import read_mesh
+    from dpcbench.bench.data.meshseq import read_mesh
 
     good = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf -4/1/1 -2//2 -1\n"
     (tmp_path / "good.obj").write_text(good)
@@ -360,7 +360,7 @@ def test_a_full_disk_without_a_file_name_names_the_output(work, capsys, monkeypa
 
 @pytest.mark.parametrize("address", ["tcp://host:99999", "http://h:1", "tcp://a b:1", ";rm -rf /", "tcp://"])
 def test_malformed_scheduler_addresses_are_refused(address):
-    from dpcbench.bench.executors import make_executor
+    from dpcbench.bench.execution.executors import make_executor
 
     with pytest.raises(UserError, match="not a Dask scheduler address"):
         make_executor("dask", 1, address)
@@ -370,7 +370,7 @@ def test_a_dask_scheduler_without_workers_is_an_error_and_leaves_no_marker(tmp_p
     pytest.importorskip("distributed")
     from distributed import LocalCluster
 
-    from dpcbench.bench.executors import SHARED_MARKER_PREFIX, DaskExecutor
+    from dpcbench.bench.execution.executors import SHARED_MARKER_PREFIX, DaskExecutor
 
     monkeypatch.setenv("DPCBENCH_DASK_WORKER_WAIT_S", "1")
     with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:

@@ -27,8 +27,8 @@ import pytest
 import test_errors
 from test_errors import assert_refused, run_cli, sphere, tree_hashes
 
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.plyio import PointCloud, write_ply
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.plyio import PointCloud, write_ply
 
 REPO = Path(__file__).resolve().parents[1]
 work = test_errors.work  # the workspace fixture: seq/ (3 frames of 800 points), holes.json
@@ -71,7 +71,7 @@ def test_hostile_paths_go_through_damage_inpaint_score(work, capsys, seed):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_hostile_store_paths_open_their_own_file(tmp_path, seed):
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.results.store import ResultsStore
 
     rng = np.random.default_rng(100 + seed)
     names = [hostile_name(rng, f"s{i}") + ".sqlite" for i in range(3)]
@@ -202,7 +202,7 @@ def _mutations(rng, data: bytes) -> list[bytes]:
 
 @pytest.mark.parametrize("seed", range(3))
 def test_corrupt_ply_files_are_read_or_refused_never_crash(tmp_path, seed):
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     rng = np.random.default_rng(400 + seed)
     pts = sphere(50, seed)
@@ -234,7 +234,7 @@ def _big_input(folder: Path, frames: int = 6, points: int = 60_000) -> None:
 
 def _damage_is_whole(out: Path) -> int:
     """The seed of the damage output in ``out``, after checking that frames, masks and record agree."""
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     record = json.loads((out / "holes.json").read_text())
     masks = np.load(out / "masks.npz")
@@ -283,7 +283,7 @@ def test_a_killed_damage_overwrite_leaves_the_old_output_or_the_new_one(tmp_path
 
 
 def test_a_killed_inpaint_never_leaves_a_mixed_output(tmp_path):
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     rng = np.random.default_rng(600)
     env = {**os.environ, "DPCBENCH_QUIET": "1",

@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dpcbench.bench import figures, palette
+from dpcbench.bench.reporting import figures, palette
 
 
 def _frames(sequences=("human", "bunny", "samba"), methods=("none", "temporal-graph", "fu-nonlocal")):
@@ -62,7 +62,7 @@ def test_print_style_keeps_text_readable():
 
 
 def test_bar_chart_intervals_floor_and_colours(tmp_path, monkeypatch):
-    from dpcbench.bench.tables import comparison_table
+    from dpcbench.bench.reporting.tables import comparison_table
 
     df = _frames(sequences=("human", "bunny"))
     df["seed"] = 0
@@ -88,7 +88,7 @@ def test_bar_chart_intervals_floor_and_colours(tmp_path, monkeypatch):
 
 
 def test_a_label_with_dollar_signs_prints_as_written(tmp_path):
-    from dpcbench.bench.tables import comparison_table
+    from dpcbench.bench.reporting.tables import comparison_table
 
     df = _frames(sequences=(r"$\frac{broken$", "a $5 and $6 bill"))
     df["seed"] = 0
@@ -109,7 +109,7 @@ def test_bar_chart_draws_without_warnings(tmp_path):
     with labels found"), for a table with methods and for one with only the floor column."""
     import warnings
 
-    from dpcbench.bench.tables import comparison_table
+    from dpcbench.bench.reporting.tables import comparison_table
 
     for methods in (("none", "temporal-graph", "fu-nonlocal"), ("none",)):
         df = _frames(sequences=("human",), methods=methods)
@@ -139,7 +139,7 @@ def test_subjective_grid_columns_zooms_size_and_colours(tmp_path, monkeypatch):
     from outside the body; 7.2 in wide at 300 dpi exactly, PDF beside it."""
     import matplotlib.figure
 
-    from dpcbench.bench import render
+    from dpcbench.bench.reporting import render
 
     base, damaged, regions = _sphere_with_holes()
     methods = ["Meshlab", "Proposed", "temporal-fusion (ours)"]
@@ -181,7 +181,7 @@ def test_subjective_grid_columns_zooms_size_and_colours(tmp_path, monkeypatch):
 def test_figure_columns_follow_the_table_in_palette_colours():
     """Every non-floor column of the tables that ran, in TABLE_COLUMNS' order, in its palette colour
     (the tuned temporal-graph a darker shade of Proposed's); the missing ones named."""
-    from dpcbench.bench import paper
+    from dpcbench.bench.reporting import paper
 
     labels = [label for _, label, _, role in paper.TABLE_COLUMNS if role != "floor"]
     done = {label: (None, f"folder of {label}") for label in reversed(labels) if label != "Lozes"}
@@ -194,7 +194,7 @@ def test_figure_columns_follow_the_table_in_palette_colours():
 
 
 def test_shown_frames_keep_the_zoom_rows_within_a_page():
-    from dpcbench.bench import paper
+    from dpcbench.bench.reporting import paper
 
     assert paper.shown_frames([0, 9], [3, 3]) == [0, 9]
     assert paper.shown_frames([0, 9], [6, 6]) == [0]  # 12 zoom rows: only the first frame
@@ -205,7 +205,7 @@ def test_shown_frames_keep_the_zoom_rows_within_a_page():
 def test_hole_view_looks_into_a_hole_on_the_side_of_a_limb():
     """A limb (a cylinder along y) beside a large torso (a plane far in +x): a hole on the limb's -z side
     is seen edge-on from the centroid's direction (`facing_view`), straight on along its normal by `hole_view`."""
-    from dpcbench.bench.render import view_rotation
+    from dpcbench.bench.reporting.render import view_rotation
     from dpcbench.holes.regions import HoleRegion
 
     rng = np.random.default_rng(2)

@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.plyio import PointCloud
-from dpcbench.bench.sources.embedded import available_memory_bytes, check_frames_fit
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.plyio import PointCloud
+from dpcbench.bench.data.sources.embedded import available_memory_bytes, check_frames_fit
 
 
 def _frame(n: int) -> PointCloud:

@@ -16,7 +16,7 @@ from dpcbench.holes.synthetic import REGION_PRESETS, hole_overlap, track_point
 @pytest.fixture(scope="module")
 def human():
     """3 frames of the embedded human, tiny (~24k points a frame, voxelized 10-bit, 186 tall)."""
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     seq = load_dataset("human", frames=3, size="tiny", progress=False)
     return seq.points, seq.colors

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from dpcbench.bench.cli import main
-from dpcbench.bench.plyio import read_ply
+from dpcbench.bench.data.plyio import read_ply
 from dpcbench.holes.regions import regions_from_json
 from dpcbench.holes.registry import get_generator
 
 
 @pytest.fixture(scope="module")
 def human():
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     return load_dataset("human", frames=2, size="tiny", progress=False)
 
@@ -93,7 +93,7 @@ def test_detect_holes_bad_parameter(tmp_path, capsys):
 def _red_pixels(png) -> int:
     import matplotlib.image
 
-    from dpcbench.bench.render import HIGHLIGHT_COLOR
+    from dpcbench.bench.reporting.render import HIGHLIGHT_COLOR
 
     rgb = (matplotlib.image.imread(png)[..., :3] * 255).round().astype(int)
     return int((np.abs(rgb - np.asarray(HIGHLIGHT_COLOR)).sum(-1) <= 3).sum())

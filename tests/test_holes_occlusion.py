@@ -18,7 +18,7 @@ from dpcbench.holes.registry import get_generator
 
 @pytest.fixture(scope="module")
 def human_frame():
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     return load_dataset("human", frames=1, size="tiny", progress=False).points[0]
 
@@ -222,7 +222,7 @@ def two_sphere_voxels(extent=120.0):
     triangles)."""
     import open3d as o3d
 
-    from dpcbench.bench.meshseq import evaluate, face_areas_normals, sample_barycentric, voxelize_samples
+    from dpcbench.bench.data.meshseq import evaluate, face_areas_normals, sample_barycentric, voxelize_samples
 
     verts, tris = [], []
     for radius, x in ((1.0, 0.0), (0.6, 1.85)):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from dpcbench.bench.cli import main
-from dpcbench.bench.plyio import PointCloud, read_ply
-from dpcbench.bench.sequences import load_sequence, save_sequence
+from dpcbench.bench.data.plyio import PointCloud, read_ply
+from dpcbench.bench.data.sequences import load_sequence, save_sequence
 from dpcbench.holes.regions import HoleRegion, regions_to_json
 
 

@@ -1,4 +1,4 @@
-"""bench.isa: the pin is .ci/pinned-isa's, reaches the workers, and `compare` names each side's machine and ISA."""
+"""bench.core.isa: the pin is .ci/pinned-isa's, reaches the workers, and `compare` names each side's machine and ISA."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from dpcbench.bench import isa
 from dpcbench.bench.cli import main as cli_main
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.core import isa
+from dpcbench.bench.results.store import ResultsStore
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -96,8 +96,8 @@ def test_no_method_imports_another():
 def test_the_layer_check_sees_lazy_and_package_imports(tmp_path):
     module = tmp_path / "m.py"
     module.write_text("import numpy\nimport dpcbench.holes.base\n\ndef f():\n"
-                      "    from dpcbench.bench.errors import UserError\n    from dpcbench import metrics\n"
-                      "    from dpcbench.testing import check_method\nimport bench.store\n")
+                      "    from dpcbench.bench.core.errors import UserError\n    from dpcbench import metrics\n"
+                      "    from dpcbench.testing import check_method\nimport bench.results.store\n")
     assert _project_imports(module) == [(2, "holes"), (5, "bench"), (6, "metrics"), (7, "bench")]
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from dpcbench.bench.config import ConfigError, load_config, parse_config
+from dpcbench.bench.experiment.config import ConfigError, load_config, parse_config
 from tests import runner_fixtures as helpers
 
 PRESETS = Path(__file__).resolve().parents[1] / "bench" / "presets"
@@ -124,7 +124,7 @@ def _hand_made():
 def test_margins_of_a_win_a_tie_and_a_loss_to_the_floor():
     import numpy as np
 
-    from dpcbench.bench.margins import compute_margins
+    from dpcbench.bench.reporting.margins import compute_margins
 
     report = compute_margins(_hand_made(), "fusion", {"tune": ("tuning", None), "held": ("heldout", "tune")})
     rows = {(r.experiment, r.row): r for r in report.rows}
@@ -166,7 +166,7 @@ def test_margins_of_a_win_a_tie_and_a_loss_to_the_floor():
 
 
 def report_targets():
-    from dpcbench.bench.margins import TARGETS
+    from dpcbench.bench.reporting.margins import TARGETS
 
     return TARGETS
 
@@ -174,7 +174,7 @@ def report_targets():
 def test_rows_are_identities_not_labels_and_the_heldout_check():
     import pandas as pd
 
-    from dpcbench.bench.margins import compute_margins, heldout_check
+    from dpcbench.bench.reporting.margins import compute_margins, heldout_check
 
     obs = _hand_made()
     obs = obs[obs["experiment"] == "tune"]
@@ -277,7 +277,7 @@ def _plane_with_hole(radius: float = 6.0):
 def test_oracle_on_a_plane_with_a_hole():
     import numpy as np
 
-    from dpcbench.bench.oracle import missing_points, off_surface_rms, oracle_fill, score_oracles
+    from dpcbench.bench.results.oracle import missing_points, off_surface_rms, oracle_fill, score_oracles
     from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
 
     truth, damaged, mask = _plane_with_hole()
@@ -309,7 +309,7 @@ def test_oracle_command(tmp_path, capsys):
     import numpy as np
 
     from dpcbench.bench.cli import main
-    from dpcbench.bench.sequences import save_sequence
+    from dpcbench.bench.data.sequences import save_sequence
     from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
 
     truth, damaged, mask = _plane_with_hole()
@@ -333,7 +333,7 @@ def test_a_row_out_of_reach_by_measurement():
     every pair misses it too: that row is out of reach by measurement."""
     import pandas as pd
 
-    from dpcbench.bench.margins import ORACLE_PREFIX, compute_margins
+    from dpcbench.bench.reporting.margins import ORACLE_PREFIX, compute_margins
 
     obs = _hand_made()
     obs = obs[obs["experiment"] == "tune"]
@@ -353,7 +353,7 @@ def test_a_row_out_of_reach_by_measurement():
 def test_roles_of_runs_stored_before_the_key_come_from_the_presets():
     import pandas as pd
 
-    from dpcbench.bench.margins import preset_roles, resolve_roles
+    from dpcbench.bench.reporting.margins import preset_roles, resolve_roles
 
     presets = preset_roles()
     assert presets["fusion-targets"] == ("tuning", None)

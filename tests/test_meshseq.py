@@ -1,4 +1,4 @@
-"""Mesh sequences (bench.meshseq): sampling, voxelization bound, normals, true motion, bad input, and the
+"""Mesh sequences (bench.data.meshseq): sampling, voxelization bound, normals, true motion, bad input, and the
 temporal consistency metric's use of true correspondences. The meshes are built here (open3d
 primitives written as OBJ / PLY / OFF), so nothing needs ../shared except the samba tests."""
 
@@ -10,9 +10,9 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from dpcbench.bench.datasets import load_dataset
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.meshseq import (
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.datasets import load_dataset
+from dpcbench.bench.data.meshseq import (
     face_areas_normals,
     list_mesh_files,
     load_mesh_sequence,
@@ -20,8 +20,8 @@ from dpcbench.bench.meshseq import (
     sample_barycentric,
     voxelize_samples,
 )
-from dpcbench.bench.plyio import read_ply
-from dpcbench.bench.sequences import save_sequence
+from dpcbench.bench.data.plyio import read_ply
+from dpcbench.bench.data.sequences import save_sequence
 from dpcbench.metrics.temporal import temporal_consistency
 
 
@@ -322,8 +322,8 @@ def test_temporal_consistency_follows_true_correspondences():
 
 # -- configs, presets, the samba data ----------------------------------------------------------------------
 def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch, capsys):
-    import dpcbench.bench.sources.meshes as meshes
-    from dpcbench.bench.config import ConfigError, parse_config
+    import dpcbench.bench.data.sources.meshes as meshes
+    from dpcbench.bench.experiment.config import ConfigError, parse_config
 
     monkeypatch.setattr(meshes, "default_data_dirs", lambda: [tmp_path / "nothing"])
     monkeypatch.delenv("DPCBENCH_DATA_DIR", raising=False)
@@ -342,8 +342,8 @@ def test_optional_sequence_is_skipped_when_data_is_missing(tmp_path, monkeypatch
 
 
 def test_mesh_folder_as_config_path(tmp_path):
-    from dpcbench.bench.config import parse_config
-    from dpcbench.bench.datasets import load_run_sequence
+    from dpcbench.bench.data.datasets import load_run_sequence
+    from dpcbench.bench.experiment.config import parse_config
 
     rigid_frames(tmp_path / "m", count=3)
     data = {"experiment": {"name": "x"},
@@ -372,7 +372,7 @@ def test_samba(shared_dir):
 
 
 def test_reproduce_paper_has_a_real_motion_row(shared_dir, monkeypatch):
-    from dpcbench.bench import paper
+    from dpcbench.bench.reporting import paper
 
     monkeypatch.setenv("DPCBENCH_DATA_DIR", str(shared_dir / "data"))
     proto = paper.paper_protocol(quick=True, frames=2)

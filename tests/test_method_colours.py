@@ -141,7 +141,7 @@ def test_inpaint_command_uses_the_methods_colours(tmp_path):
     import json
 
     from dpcbench.bench.cli import main
-    from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
+    from dpcbench.bench.data.plyio import PointCloud, read_ply, write_ply
     from dpcbench.holes.regions import regions_to_json
 
     full = _plane(30)

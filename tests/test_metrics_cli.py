@@ -9,8 +9,8 @@ import pytest
 
 import dpcbench.metrics as metrics
 from dpcbench.bench.cli import main
-from dpcbench.bench.plyio import PointCloud, write_ply
-from dpcbench.bench.sequences import load_sequence, save_sequence
+from dpcbench.bench.data.plyio import PointCloud, write_ply
+from dpcbench.bench.data.sequences import load_sequence, save_sequence
 from dpcbench.holes.regions import HoleRegion, regions_to_json
 
 

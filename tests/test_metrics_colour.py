@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import dpcbench.metrics as metrics
-from dpcbench.bench.plyio import read_ply
+from dpcbench.bench.data.plyio import read_ply
 from dpcbench.metrics import pairs
 from dpcbench.metrics.colour import merged_colours, pc_error_colour, to_ycbcr
 from dpcbench.metrics.errors import UserError
@@ -265,7 +265,7 @@ def test_score_command_adds_colour_psnr(capsys):
 
 def test_score_command_says_when_colours_are_missing(tmp_path, capsys):
     import dpcbench.bench.cli as cli
-    from dpcbench.bench.plyio import PointCloud, write_ply
+    from dpcbench.bench.data.plyio import PointCloud, write_ply
 
     ref = GOLDEN / "colour_ref.ply"
     bare = write_ply(tmp_path / "bare.ply", PointCloud(read_ply(GOLDEN / "colour_noise.ply").points))

@@ -15,7 +15,7 @@ import pytest
 
 import dpcbench.metrics as metrics
 from dpcbench.bench.cli import main
-from dpcbench.bench.plyio import read_ply
+from dpcbench.bench.data.plyio import read_ply
 
 RELATIVE = 1e-4
 PEAKS = {"r0": "intrinsic", "r1023": 1023}

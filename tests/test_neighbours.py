@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from dpcbench.bench.errors import UserError
+from dpcbench.bench.core.errors import UserError
 from dpcbench.metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing, probe
 
 

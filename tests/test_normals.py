@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from dpcbench.bench.cli import main
-from dpcbench.bench.plyio import PointCloud, read_ply
-from dpcbench.bench.sequences import save_sequence
+from dpcbench.bench.data.plyio import PointCloud, read_ply
+from dpcbench.bench.data.sequences import save_sequence
 from dpcbench.holes.regions import HoleRegion, regions_to_json
 from dpcbench.methods._normals import output_normals
 from dpcbench.methods.progress import frame_done, report_frames_to
@@ -77,7 +77,7 @@ def damaged_with_normals(tmp_path):
 
 
 def test_inpaint_writes_the_inputs_normals_and_oriented_new_ones(damaged_with_normals, tmp_path, monkeypatch):
-    import dpcbench.bench.progress as progress
+    import dpcbench.bench.core.progress as progress
 
     folder, holes, frames, normals = damaged_with_normals
     bars = []

@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from dpcbench.bench import palette
+from dpcbench.bench.reporting import palette
 
 # Machado, Oliveira & Fernandes (2009), severity 1.0, applied to linear sRGB
 DEUTERANOPIA = np.array([[0.367322, 0.860646, -0.227968], [0.280085, 0.672501, 0.047413],

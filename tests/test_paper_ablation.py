@@ -1,13 +1,13 @@
-"""The ablation of the paper configuration (issue 50): `bench.paper_ablation` and its preset."""
+"""The ablation of the paper configuration (issue 50): `bench.reporting.paper_ablation` and its preset."""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from dpcbench.bench.config import tomllib
-from dpcbench.bench.paper import PRESETS_DIR
-from dpcbench.bench.paper_ablation import ROWS, TEMPORAL_ONLY, ablation_markdown, diagnostics, method_params
+from dpcbench.bench.experiment.config import tomllib
+from dpcbench.bench.reporting.paper import PRESETS_DIR
+from dpcbench.bench.reporting.paper_ablation import ROWS, TEMPORAL_ONLY, ablation_markdown, diagnostics, method_params
 from dpcbench.methods.temporal_graph import VARIANTS
 
 
@@ -51,7 +51,7 @@ def test_the_section_gives_each_row_against_no_fill():
 
 
 def test_the_calibration_table_gives_the_rms_distance_to_the_papers_longdress_values():
-    from dpcbench.bench.paper_ablation import PAPER_LONGDRESS, calibration_markdown
+    from dpcbench.bench.reporting.paper_ablation import PAPER_LONGDRESS, calibration_markdown
 
     rows = []
     for seed, shift in ((0, 1.0), (1, -1.0)):  # mean over the seeds: Lozes 2 dB above the paper, Meshlab 2 below
@@ -66,7 +66,7 @@ def test_the_calibration_table_gives_the_rms_distance_to_the_papers_longdress_va
 def test_store_results_are_mapped_to_their_rows():
     import json
 
-    from dpcbench.bench.paper_ablation import ablation_frame, row_of
+    from dpcbench.bench.reporting.paper_ablation import ablation_frame, row_of
     from dpcbench.methods.registry import get_method
 
     assert row_of("none", {}) == "none" and row_of("lozes-pde", {}) == "lozes"

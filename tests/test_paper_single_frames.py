@@ -1,12 +1,12 @@
-"""Single real frames of the paper's sequences (issue 50, item 4): `bench.sources.paper.find_single_frame`."""
+"""Single real frames of the paper's sequences (issue 50, item 4): `bench.data.sources.paper.find_single_frame`."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from dpcbench.bench.datasets import PAPER
-from dpcbench.bench.paper import PAPER_SEQUENCES
-from dpcbench.bench.sources.paper import find_single_frame, single_frame_rows
+from dpcbench.bench.data.datasets import PAPER
+from dpcbench.bench.data.sources.paper import find_single_frame, single_frame_rows
+from dpcbench.bench.reporting.paper import PAPER_SEQUENCES
 
 
 def touch(path: Path) -> Path:
@@ -45,7 +45,7 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 def test_the_shared_longdress_frame_is_found_and_its_entry_loads_as_one_frame():
     import pytest
 
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     if not (SHARED / "8i_longdress_1300").is_dir():
         pytest.skip("../shared/data/8i_longdress_1300 is not here")
@@ -56,7 +56,7 @@ def test_the_shared_longdress_frame_is_found_and_its_entry_loads_as_one_frame():
 
 
 def test_reproduce_paper_protocol_adds_a_row_per_single_real_frame(tmp_path):
-    from dpcbench.bench.paper import TABLE_COLUMNS, paper_protocol
+    from dpcbench.bench.reporting.paper import TABLE_COLUMNS, paper_protocol
 
     one = touch(tmp_path / "8i_longdress_1300" / "longdress_vox10_1300.ply")
     protocol = paper_protocol(True, tmp_path)

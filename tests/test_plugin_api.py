@@ -88,7 +88,7 @@ def test_one_version_for_the_package_the_cli_and_the_citation(capsys):
 
     from dpcbench.bench import __version__
     from dpcbench.bench.cli import main
-    from dpcbench.bench.provenance import package_versions
+    from dpcbench.bench.execution.provenance import package_versions
 
     if sys.version_info >= (3, 11):
         import tomllib

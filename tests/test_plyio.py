@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
-from dpcbench.bench.sequences import list_frame_files, load_sequence, natural_key
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.plyio import PointCloud, read_ply, write_ply
+from dpcbench.bench.data.sequences import list_frame_files, load_sequence, natural_key
 
 
 def test_natural_order(tmp_path):

@@ -4,7 +4,7 @@
 def test_progress_rate_ignores_runs_done_before():
     import time
 
-    from dpcbench.bench.progress import progress_bar
+    from dpcbench.bench.core.progress import progress_bar
 
     bar = progress_bar(total=100, initial=90, quiet=False)
     time.sleep(0.2)

@@ -50,7 +50,7 @@ def test_no_holes_is_a_registered_generator_that_removes_nothing():
 
 def test_no_holes_in_a_config_keeps_its_run_identity():
     """The same identity (so the same run ids and stored results) as when "none" was a special case."""
-    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.experiment.config import parse_config
 
     cfg = {"experiment": {"name": "real"}, "sequences": [{"name": "human", "params": {"size": "tiny"}, "frames": 1}],
            "holes": [{"generator": "none", "seeds": [3, 4]}], "methods": [{"name": "none"}]}
@@ -63,9 +63,9 @@ def test_no_holes_in_a_config_keeps_its_run_identity():
 
 
 def test_a_run_without_holes_stores_no_quality_score(tmp_path, monkeypatch):
-    from dpcbench.bench.config import parse_config
-    from dpcbench.bench.runner import run_experiment
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.execution.runner import run_experiment
+    from dpcbench.bench.experiment.config import parse_config
+    from dpcbench.bench.results.store import ResultsStore
     from tests import runner_fixtures as helpers
 
     helpers.register(monkeypatch)
@@ -175,7 +175,7 @@ names = sorted(METHODS)
 lazy = "dpcb_testplug" not in sys.modules and "dpcb_testplug_broken" not in sys.modules
 cls = method_class("centroid-fill")
 status = METHODS.available()
-from dpcbench.bench.config import parse_config
+from dpcbench.bench.experiment.config import parse_config
 cfg = parse_config({"experiment": {"name": "d"}, "sequences": [{"name": "human", "params": {"size": "tiny"}, "frames": 1}],
                     "holes": [{"generator": "region"}], "methods": [{"name": "none"}]})
 print(json.dumps({"default_metrics": cfg.metrics["names"], "names": names, "lazy": lazy, "cls": cls.__name__, "builtin_tg": METHODS["temporal-graph"],
@@ -241,7 +241,7 @@ sys.exit(main(sys.argv[1:]))
                "--regions", str(damaged / "holes.json"), "--out", str(tmp_path / "filled"))
     assert proc.returncode == 0, proc.stderr
     regions = json.loads((damaged / "holes.json").read_text())["frames"][0]["regions"]
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     before = read_ply(next(damaged.glob("*.ply"))).points
     after = read_ply(next((tmp_path / "filled").glob("*.ply"))).points
@@ -251,7 +251,7 @@ sys.exit(main(sys.argv[1:]))
 def test_an_import_path_names_a_method_and_its_version_follows_its_source(tmp_path, monkeypatch):
     """``name = "pkg.mod:Class"`` in a config: no registration; the run ids follow a declared
     ``version`` when there is one, else the module's source (a changed plug-in is rerun)."""
-    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.experiment.config import parse_config
     from dpcbench.methods.registry import METHODS, method_class
 
     source = PLUGIN_MODULE.replace("CentroidFill", "PathFill")
@@ -326,9 +326,9 @@ POINTS_RATIO = _metric()
 
 
 def test_a_metric_named_by_import_path_is_scored_and_stored_by_a_run(tmp_path, monkeypatch):
-    from dpcbench.bench.config import parse_config
-    from dpcbench.bench.runner import run_experiment
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.execution.runner import run_experiment
+    from dpcbench.bench.experiment.config import parse_config
+    from dpcbench.bench.results.store import ResultsStore
     from dpcbench.metrics import score_frame
     from tests import runner_fixtures as helpers
 

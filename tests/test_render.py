@@ -1,4 +1,4 @@
-"""dpcbench.bench.render: projection, z-buffer, shading, zoom box, highlight, figure layout."""
+"""dpcbench.bench.reporting.render: projection, z-buffer, shading, zoom box, highlight, figure layout."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from dpcbench.bench.plyio import PointCloud
-from dpcbench.bench.render import (
+from dpcbench.bench.data.plyio import PointCloud
+from dpcbench.bench.reporting.render import (
     HIGHLIGHT_COLOR,
     panel_colours,
     rasterize,
@@ -127,8 +127,8 @@ def test_render_refuses_bad_panels(tmp_path):
 
 
 def _record_rasterize(monkeypatch):
-    """Capture every rasterize call of bench.render: (points, bounds, width, height, radius)."""
-    from dpcbench.bench import render
+    """Capture every rasterize call of bench.reporting.render: (points, bounds, width, height, radius)."""
+    from dpcbench.bench.reporting import render
 
     calls = []
     original = render.rasterize
@@ -142,7 +142,7 @@ def _record_rasterize(monkeypatch):
 
 
 def test_splat_size_closes_gaps_within_limits():
-    from dpcbench.bench.render import point_spacing, splat_size
+    from dpcbench.bench.reporting.render import point_spacing, splat_size
 
     assert splat_size(1.0, 10.0) == 5  # half of 10 pixels between neighbours
     assert splat_size(1.0, 10.0, cover=0.7, limit=10) == 7 and splat_size(1.0, 10.0, cover=0.7) == 6  # capped
@@ -179,7 +179,7 @@ def test_zoom_grid_columns_zoom_rows_and_one_splat_size(tmp_path, monkeypatch):
     """Columns are the configurations, each frame a body row and then one zoom row per zoom; every
     body panel is drawn with one splat radius and every zoom with one (a sparse panel does not get
     larger splats); exactly ``width_in`` x ``dpi`` pixels wide, PDF beside the PNG."""
-    from dpcbench.bench.render import render_zoom_grid
+    from dpcbench.bench.reporting.render import render_zoom_grid
 
     calls = _record_rasterize(monkeypatch)
     grid, highlight, zooms = _zoom_grid_scene()
@@ -205,7 +205,7 @@ def test_zoom_grid_columns_zoom_rows_and_one_splat_size(tmp_path, monkeypatch):
 def test_zoom_grid_magnifies_tints_and_windows_depth(tmp_path):
     """The hole's tinted fill covers many times more pixels in its zoom than in the body panel; a blob
     far in front of the hole (an occluding limb) hides it on the body but not in the zoom (depth window)."""
-    from dpcbench.bench.render import render_zoom_grid
+    from dpcbench.bench.reporting.render import render_zoom_grid
 
     full = sphere(n=6000, seed=3)
     hole = np.linalg.norm(full - [0.0, 0.0, 50.0], axis=1) < 10
@@ -235,7 +235,7 @@ def test_zoom_grid_key_and_text_size(tmp_path, monkeypatch):
     """The figure has a key for the red tint and the orange zoom box, and no text under 7 pt."""
     import matplotlib.figure
 
-    from dpcbench.bench.render import ZOOM_COLOUR, render_zoom_grid
+    from dpcbench.bench.reporting.render import ZOOM_COLOUR, render_zoom_grid
 
     sizes, keys = [], []
     text, legend = matplotlib.figure.Figure.text, matplotlib.figure.Figure.legend
@@ -257,7 +257,7 @@ def test_zoom_grid_key_and_text_size(tmp_path, monkeypatch):
 
 
 def test_zoom_grid_refuses_bad_input(tmp_path):
-    from dpcbench.bench.render import render_zoom_grid
+    from dpcbench.bench.reporting.render import render_zoom_grid
 
     grid, highlight, zooms = _zoom_grid_scene()
     with pytest.raises(ValueError, match="lists of zooms"):

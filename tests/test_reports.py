@@ -11,11 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dpcbench.bench import paper
 from dpcbench.bench.cli import main as cli_main
-from dpcbench.bench.reports import paper_tables, write_comparison_report, write_paper_report
-from dpcbench.bench.store import ResultsStore
-from dpcbench.bench.tables import comparison_table
+from dpcbench.bench.reporting import paper
+from dpcbench.bench.reporting.reports import paper_tables, write_comparison_report, write_paper_report
+from dpcbench.bench.reporting.tables import comparison_table
+from dpcbench.bench.results.store import ResultsStore
 
 METHODS = ["meshlab", "lozes-pde", "fu-nonlocal", "temporal-graph"]
 #: each of the paper's columns as reproduce-paper runs it (the paper configurations)
@@ -104,8 +104,11 @@ def test_paper_values_and_headline():
 
 
 def test_the_paper_facts_have_one_source():
-    """config, datasets, paper and the dashboard read bench.paper_facts; none keeps its own copy."""
-    from dpcbench.bench import config, dashboard, datasets, paper_facts
+    """config, datasets, paper and the dashboard read bench.core.paper_facts; none keeps its own copy."""
+    from dpcbench.bench.core import paper_facts
+    from dpcbench.bench.data import datasets
+    from dpcbench.bench.experiment import config
+    from dpcbench.bench.reporting import dashboard
 
     assert config.PAPER_SEQUENCES is paper_facts.PAPER_SEQUENCES
     assert paper.PAPER_SEQUENCES is paper_facts.PAPER_SEQUENCES and paper.TABLE1_GPSNR is paper_facts.TABLE1_GPSNR
@@ -177,7 +180,7 @@ def test_paper_report_labels_stand_ins_everywhere(tmp_path):
 
 
 def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
-    from dpcbench.bench.sources import meshes
+    from dpcbench.bench.data.sources import meshes
 
     monkeypatch.setattr(meshes, "default_data_dirs", lambda: [])  # no real-motion row (samba) here
     proto = paper.paper_protocol(quick=True, size="tiny", frames=2)
@@ -199,7 +202,7 @@ def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
     # a data folder with the paper's layout: the paper's sequences replace the stand-ins
     ply = tmp_path / "data" / "longdress" / "Ply"
     ply.mkdir(parents=True)
-    from dpcbench.bench.plyio import write_ply
+    from dpcbench.bench.data.plyio import write_ply
 
     for i in range(2):
         write_ply(ply / f"longdress_vox10_{1051 + i:04d}.ply",
@@ -214,7 +217,7 @@ def test_paper_protocol_stand_ins_and_data_dir(tmp_path, monkeypatch):
 
 def test_flattest_region_prefers_a_hole_in_an_open_surface():
     """A ball through a thin cylinder (a limb) against one on a plane (a torso): the plane's."""
-    from dpcbench.bench.figures import flattest_region
+    from dpcbench.bench.reporting.figures import flattest_region
     from dpcbench.holes.regions import HoleRegion
 
     rng = np.random.default_rng(1)
@@ -272,7 +275,7 @@ def test_report_keeps_hole_configurations_apart_and_uses_config_labels(tmp_path)
 
 
 def test_a_label_given_to_a_grid_keeps_its_configurations_apart():
-    from dpcbench.bench.tables import config_labels
+    from dpcbench.bench.reporting.tables import config_labels
 
     names = pd.Series(["tg", "tg", "tg", "fu"])
     params = pd.Series(['{"beta":0.25}', '{"beta":0.5}', '{"beta":0.25}', "{}"])
@@ -293,7 +296,7 @@ def test_a_single_value_cell_shows_no_spread():
 
 
 def test_facing_view_looks_at_the_hole_from_outside():
-    from dpcbench.bench.figures import facing_view
+    from dpcbench.bench.reporting.figures import facing_view
 
     body = np.array([[0.0, 0.0, 0.0], [0.0, 100.0, 0.0]])  # centroid (0, 50, 0)
     assert facing_view(body, [0.0, 50.0, 30.0]) == pytest.approx((0.0, 0.0))      # in front: front view
@@ -303,7 +306,7 @@ def test_facing_view_looks_at_the_hole_from_outside():
 
 
 def test_paper_presets_list_the_table_columns():
-    from dpcbench.bench.config import tomllib
+    from dpcbench.bench.experiment.config import tomllib
 
     for preset in ("paper-quick", "paper"):
         data = tomllib.loads((paper.PRESETS_DIR / f"{preset}.toml").read_text())
@@ -360,7 +363,7 @@ def test_paper_configuration_and_ours_are_separate_columns(tmp_path):
 def test_d2_tables_say_which_normals_d2_used(tmp_path):
     """The D2 table captions (Markdown, LaTeX) and REPORT.md name the normals the runs' D2 used, as
     the runner records them: from file for both sequences here, then mixed per sequence."""
-    from dpcbench.bench.tables import d2_normals_note
+    from dpcbench.bench.reporting.tables import d2_normals_note
 
     store = _store_with_results(tmp_path / "s.sqlite")
     for seq in ("Human (stand-in)", "Bunny (stand-in)"):
@@ -400,7 +403,7 @@ def _tidy(cells: dict, frames=3, seeds=3, metric="gpsnr_d1", step=1.0) -> pd.Dat
 
 
 def test_the_floor_marks_cells_below_no_fill():
-    from dpcbench.bench.tables import FLOOR_MARK, TIED_MARK
+    from dpcbench.bench.reporting.tables import FLOOR_MARK, TIED_MARK
 
     df = _tidy({("S", "none"): 15.0, ("S", "a"): 10.0, ("S", "b"): 20.0, ("S", "c"): 20.0, ("T", "none"): 5.0,
                 ("T", "a"): 10.0})
@@ -423,7 +426,7 @@ def test_the_floor_marks_cells_below_no_fill():
 
 
 def test_labels_are_escaped_in_every_format():
-    from dpcbench.bench.tables import csv_safe, latex_escape, md_escape
+    from dpcbench.bench.reporting.tables import csv_safe, latex_escape, md_escape
 
     evil = "x|y\n<b>z</b> 50% {a}_\\"
     assert md_escape(evil) == "x\\|y &lt;b>z&lt;/b> 50% {a}\\_\\\\"
@@ -444,7 +447,7 @@ def test_one_precision_per_table():
 
 
 def test_the_paper_claims_are_judged(tmp_path):
-    from dpcbench.bench.reports import claims_markdown, gains_claim, nshd_claim, ranking_claim
+    from dpcbench.bench.reporting.reports import claims_markdown, gains_claim, nshd_claim, ranking_claim
 
     df = _store_with_results(tmp_path / "s.sqlite", seeds=(0, 1, 2)).results_frame("exp")
     t1, t2 = paper_tables(df, standins=True)
@@ -465,7 +468,7 @@ def test_the_paper_claims_are_judged(tmp_path):
 
 
 def test_a_reversed_order_is_not_reproduced_and_says_why(tmp_path):
-    from dpcbench.bench.reports import ranking_claim
+    from dpcbench.bench.reporting.reports import ranking_claim
 
     df = _store_with_results(tmp_path / "s.sqlite", seeds=(0, 1, 2)).results_frame("exp")
     swap = {"lozes-pde": "temporal-graph", "temporal-graph": "lozes-pde"}

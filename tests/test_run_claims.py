@@ -1,4 +1,4 @@
-"""Run claims in the store (`bench.claims`, `ResultsStore.claim_runs`): disjoint claims, live holders
+"""Run claims in the store (`bench.execution.claims`, `ResultsStore.claim_runs`): disjoint claims, live holders
 kept, dead and reused-pid holders taken over, claims dropped when a run is recorded or a sweep ends."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import time
 
 import pytest
 
-from dpcbench.bench.claims import FOREIGN_CLAIM_TTL_S, ClaimHolder, process_start_time
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.execution.claims import FOREIGN_CLAIM_TTL_S, ClaimHolder, process_start_time
+from dpcbench.bench.results.store import ResultsStore
 
 
 @pytest.fixture
@@ -63,7 +63,7 @@ def test_claims_from_another_host_count_until_their_ttl(store, monkeypatch):
     me = ClaimHolder.this_sweep()
     assert set(store.claim_runs(["a"], me).held) == {"a"}
     later = time.time() + FOREIGN_CLAIM_TTL_S + 1
-    monkeypatch.setattr("dpcbench.bench.store.time.time", lambda: later)
+    monkeypatch.setattr("dpcbench.bench.results.store.time.time", lambda: later)
     assert store.claim_runs(["a"], me).mine == ["a"]
 
 

@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dpcbench.bench.config import parse_config
-from dpcbench.bench.plyio import PointCloud
-from dpcbench.bench.provenance import read_run_folder
-from dpcbench.bench.runner import run_experiment
-from dpcbench.bench.sequences import save_sequence
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.data.plyio import PointCloud
+from dpcbench.bench.data.sequences import save_sequence
+from dpcbench.bench.execution.provenance import read_run_folder
+from dpcbench.bench.execution.runner import run_experiment
+from dpcbench.bench.experiment.config import parse_config
+from dpcbench.bench.results.store import ResultsStore
 from tests.runner_fixtures import sphere_frames
 
 REPO = Path(__file__).resolve().parents[1]
@@ -74,7 +74,7 @@ def test_a_run_on_coloured_data_scores_colour_psnr_of_coloured_frames(tmp_path, 
 
 
 def _damaged_colours(run_dir: Path) -> list[np.ndarray]:
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     return [read_ply(p).colors for p in sorted((run_dir / "damaged").glob("*.ply"))]
 
@@ -90,8 +90,8 @@ def test_data_without_colour_has_no_colour_rows(tmp_path, in_repo):
 def test_a_run_folder_without_colours_is_made_anew(tmp_path, in_repo):
     import json
 
-    from dpcbench.bench.plyio import read_ply, write_ply
-    from dpcbench.bench.provenance import folder_checksums
+    from dpcbench.bench.data.plyio import read_ply, write_ply
+    from dpcbench.bench.execution.provenance import folder_checksums
 
     seq = _write(tmp_path / "seq", coloured=True)
     store, _ = _run(tmp_path, seq, ["none"], metrics=("gpsnr_d1",))

@@ -12,18 +12,18 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from dpcbench.bench import compare
 from dpcbench.bench.cli import main as cli_main
-from dpcbench.bench.config import parse_config, stable_hash
-from dpcbench.bench.costs import cost_table, format_duration
-from dpcbench.bench.runner import run_experiment
-from dpcbench.bench.store import SCHEMA_VERSION, ResultsStore
+from dpcbench.bench.execution.runner import run_experiment
+from dpcbench.bench.experiment.config import parse_config, stable_hash
+from dpcbench.bench.results import compare
+from dpcbench.bench.results.costs import cost_table, format_duration
+from dpcbench.bench.results.store import SCHEMA_VERSION, ResultsStore
 from dpcbench.holes.detection import DETECT_HOLES_VERSION
 from tests import runner_fixtures as helpers
 
 REPO = Path(__file__).resolve().parents[1]
 
-# The schema of version 1 exactly as dpcbench wrote it before cpu_time_s (bench/store.py at df51db7).
+# The schema of version 1 exactly as dpcbench wrote it before cpu_time_s (bench/results/store.py at df51db7).
 SCHEMA_V1 = """
 CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS runs (
@@ -223,8 +223,8 @@ def test_cpu_time_is_recorded_per_run_and_per_frame_with_children_and_failures(e
     assert len(failed) == 2 and (failed["cpu_time_s"] > 0).all() and (failed["wall_time_s"] > 0).all()
 
     # the report and the dashboard show the CPU time beside the wall time
-    from dpcbench.bench.dashboard import render_dashboard
-    from dpcbench.bench.reports import write_comparison_report
+    from dpcbench.bench.reporting.dashboard import render_dashboard
+    from dpcbench.bench.reporting.reports import write_comparison_report
 
     report = write_comparison_report(results, env["store"].runs_frame("t"), env["tmp"] / "report", title="t")
     text = report.read_text()
@@ -364,7 +364,7 @@ def test_a_detector_version_bump_reruns_detected_runs_and_only_those(env, monkey
 def test_given_region_keys_are_unchanged(monkeypatch):
     """The ids of given-region runs are those dpcbench computed before the detector entered the keys
     (values computed at df51db7): stored runs stay cached and the run folders are reused."""
-    import dpcbench.bench.datasets as datasets
+    import dpcbench.bench.data.datasets as datasets
 
     helpers.register(monkeypatch)
     monkeypatch.setattr(datasets, "DATASETS_VERSION", "golden")

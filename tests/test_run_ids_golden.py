@@ -1,7 +1,7 @@
 """Golden run ids: the run_id and inpaint_key of representative runs, pinned as literal hex.
 
 The ids name stored runs and their on-disk frame folders, so a change to how a run spec is built,
-normalised or hashed (bench.config, bench.canonical) must not move them. The values were computed on
+normalised or hashed (bench.experiment.config, bench.core.canonical) must not move them. The values were computed on
 main before the run records were typed (branch records); they change only when a version that is
 hashed into a run changes (a method's or generator's version, the metrics' versions, the embedded
 datasets' version), never by refactoring.
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from dpcbench.bench.config import parse_config
+from dpcbench.bench.experiment.config import parse_config
 
 _METRICS = {"names": ["gpsnr_d1", "gpsnr_d2"], "peaks": ["intrinsic", 1023], "scopes": ["frame", "holes"],
             "region_margin": 0.5, "temporal_consistency": True}
@@ -54,7 +54,7 @@ def test_run_ids_are_the_golden_ones(key):
 
 
 def test_presentation_does_not_move_the_ids():
-    # labels, descriptions and the data role are not hashed (bench.config's docstring)
+    # labels, descriptions and the data role are not hashed (bench.experiment.config's docstring)
     cfg = _config()
     cfg["experiment"].update(description="another", data_role="tuning")
     cfg["sequences"][0]["label"] = "another label"

@@ -1,4 +1,4 @@
-"""Run records (bench.records.RunRecord): what the store's `runs` table holds about a run, built in one
+"""Run records (bench.experiment.records.RunRecord): what the store's `runs` table holds about a run, built in one
 place for finished and failed runs, its columns the store's; rows round trip; and what a sweep stores
 is what main stored (tests/data/run_rows_golden.json, written by main's code before RunRecord)."""
 
@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dpcbench.bench import store as store_module
-from dpcbench.bench.config import parse_config
-from dpcbench.bench.records import COLUMNS, RunRecord, run_record
-from dpcbench.bench.runner import _failure_record, run_experiment
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.execution.runner import _failure_record, run_experiment
+from dpcbench.bench.experiment.config import parse_config
+from dpcbench.bench.experiment.records import COLUMNS, RunRecord, run_record
+from dpcbench.bench.results import store as store_module
+from dpcbench.bench.results.store import ResultsStore
 from tests import runner_fixtures as helpers
 
 REPO = Path(__file__).resolve().parents[1]

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from dpcbench.bench.config import parse_config
-from dpcbench.bench.provenance import read_run_folder
-from dpcbench.bench.runner import run_experiment
-from dpcbench.bench.store import ResultsStore
+from dpcbench.bench.execution.provenance import read_run_folder
+from dpcbench.bench.execution.runner import run_experiment
+from dpcbench.bench.experiment.config import parse_config
+from dpcbench.bench.results.store import ResultsStore
 from tests import runner_fixtures as helpers
 
 REPO = Path(__file__).resolve().parents[1]
@@ -77,7 +77,7 @@ def test_failures_are_recorded_while_others_finish(env):
     assert all(len(d) < 600 for d in content["damaged"])
     # the stored scores are metrics.score_frame of the frames as written, against the ground truth
     import dpcbench.metrics as metrics
-    from dpcbench.bench.sequences import load_sequence
+    from dpcbench.bench.data.sequences import load_sequence
 
     truth = load_sequence(env["seq"]).points
     run_id = done[done.status == "done"].iloc[0].run_id
@@ -230,7 +230,7 @@ def test_a_sweep_takes_over_the_runs_of_a_sweep_that_died(env):
     when the holder dies while the next sweep is waiting for it."""
     import threading
 
-    from dpcbench.bench.claims import ClaimHolder, process_start_time
+    from dpcbench.bench.execution.claims import ClaimHolder, process_start_time
 
     specs = parse_config(_cfg(env["seq"], [{"name": "test-identity", "params": {"shift": [0.0, 0.01]}}])).expand()
     holder_proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
@@ -308,8 +308,8 @@ def test_stand_in_d2_uses_the_ground_truth_normals_as_pc_error_would(tmp_path, m
     give another value."""
     import dpcbench.metrics as metrics
     from dpcbench.bench.cli import main as cli_main
-    from dpcbench.bench.plyio import read_ply
-    from dpcbench.bench.sequences import list_frame_files
+    from dpcbench.bench.data.plyio import read_ply
+    from dpcbench.bench.data.sequences import list_frame_files
 
     monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
     monkeypatch.chdir(REPO)
@@ -346,7 +346,7 @@ def test_generated_sequences_are_cached_before_the_runs_so_no_worker_pays_for_ge
     """`warm_caches` generates each stand-in of the runs once, in a child process, into the frame cache
     (a worker that generated it would count what generating left loaded in its peak memory); a sequence
     read from files is not loaded ahead, nor one with the cache turned off."""
-    from dpcbench.bench.runner import warm_caches
+    from dpcbench.bench.execution.runner import warm_caches
 
     cache = tmp_path / "cache"
     monkeypatch.setenv("DPCBENCH_CACHE", str(cache))

@@ -1,20 +1,20 @@
-"""Sequence sources behind one interface and one resolver (`bench.sources`, `bench.datasets.resolve_source`)."""
+"""Sequence sources behind one interface and one resolver (`bench.data.sources`, `bench.data.datasets.resolve_source`)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import dpcbench.bench.datasets as datasets
-from dpcbench.bench.datasets import load_dataset, load_run_sequence, resolve_source
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.plyio import PointCloud, write_ply
-from dpcbench.bench.sequences import Sequence
-from dpcbench.bench.sources import SequenceSource, frame_indices
-from dpcbench.bench.sources.embedded import EmbeddedSource
-from dpcbench.bench.sources.meshes import MeshDatasetSource, MeshFolderSource
-from dpcbench.bench.sources.paper import PaperSource
-from dpcbench.bench.sources.points import PointCloudSource
+import dpcbench.bench.data.datasets as datasets
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.data.datasets import load_dataset, load_run_sequence, resolve_source
+from dpcbench.bench.data.plyio import PointCloud, write_ply
+from dpcbench.bench.data.sequences import Sequence
+from dpcbench.bench.data.sources import SequenceSource, frame_indices
+from dpcbench.bench.data.sources.embedded import EmbeddedSource
+from dpcbench.bench.data.sources.meshes import MeshDatasetSource, MeshFolderSource
+from dpcbench.bench.data.sources.paper import PaperSource
+from dpcbench.bench.data.sources.points import PointCloudSource
 
 
 @pytest.fixture(autouse=True)

@@ -8,8 +8,8 @@ import open3d as o3d
 import pytest
 from scipy.spatial import cKDTree
 
-from dpcbench.bench.standins import bunny, cache, human
-from dpcbench.bench.standins.sdf import Ellipsoid, RoundCone, smooth_min, surface_voxels
+from dpcbench.bench.data.standins import bunny, cache, human
+from dpcbench.bench.data.standins.sdf import Ellipsoid, RoundCone, smooth_min, surface_voxels
 
 
 @pytest.fixture(autouse=True)

@@ -1,4 +1,4 @@
-"""bench.stats against hand-computed and brute-force cases."""
+"""bench.results.stats against hand-computed and brute-force cases."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from dpcbench.bench import stats
+from dpcbench.bench.results import stats
 
 
 def exact_signed_rank_p(d) -> float:

@@ -9,7 +9,7 @@ import sqlite3
 import pandas as pd
 import pytest
 
-from dpcbench.bench.store import RESULT_COLUMNS, RUN_COLUMNS, ResultsStore, default_store_path
+from dpcbench.bench.results.store import RESULT_COLUMNS, RUN_COLUMNS, ResultsStore, default_store_path
 
 
 def _record(method="none", seed=0):

@@ -58,11 +58,11 @@ def test_the_run_modules_import_one_way():
     """runner (sweep) -> executors -> worker -> provenance; paper and tables read run folders
     through provenance, never through the sweep driver."""
     graph = import_graph.import_graph()
-    assert "bench.runner" not in graph["bench.executors"]
-    assert "bench.executors" in graph["bench.runner"] and "bench.worker" in graph["bench.executors"]
-    for module in ("bench.paper", "bench.tables", "bench.worker", "bench.provenance"):
-        assert "bench.runner" not in graph[module], module
-    assert not graph["bench.provenance"] & {"bench.worker", "bench.executors", "bench.runner"}
+    assert "bench.execution.runner" not in graph["bench.execution.executors"]
+    assert "bench.execution.executors" in graph["bench.execution.runner"] and "bench.execution.worker" in graph["bench.execution.executors"]
+    for module in ("bench.reporting.paper", "bench.reporting.tables", "bench.execution.worker", "bench.execution.provenance"):
+        assert "bench.execution.runner" not in graph[module], module
+    assert not graph["bench.execution.provenance"] & {"bench.execution.worker", "bench.execution.executors", "bench.execution.runner"}
 
 
 def test_lower_layers_import_nothing_from_a_higher_layer():
@@ -72,12 +72,12 @@ def test_lower_layers_import_nothing_from_a_higher_layer():
     graph = import_graph.import_graph()
     assert import_graph.layer_violations(graph) == []
     # the checker does see an upward import when there is one
-    assert import_graph.layer_violations({"metrics.pairs": {"bench.errors"}}) == [("metrics.pairs", "bench.errors")]
+    assert import_graph.layer_violations({"metrics.pairs": {"bench.core.errors"}}) == [("metrics.pairs", "bench.core.errors")]
 
 
 # -- atomic writes -------------------------------------------------------------------------------
 def test_atomic_write_keeps_the_old_file_when_the_writer_fails(tmp_path):
-    from dpcbench.bench.atomic import atomic_path, atomic_write_text
+    from dpcbench.bench.core.atomic import atomic_path, atomic_write_text
 
     out = atomic_write_text(tmp_path / "sub" / "summary.csv", "a,b\n1,2\n")
     assert out.read_text() == "a,b\n1,2\n"
@@ -90,7 +90,7 @@ def test_atomic_write_keeps_the_old_file_when_the_writer_fails(tmp_path):
 
 
 def test_atomic_folder_replaces_a_folder_whole_and_stale_ones_are_removed(tmp_path):
-    from dpcbench.bench.atomic import atomic_folder, remove_stale_folders
+    from dpcbench.bench.core.atomic import atomic_folder, remove_stale_folders
 
     run = tmp_path / "runs" / "abc"
     with atomic_folder(run) as tmp:
@@ -120,8 +120,8 @@ def _git(cwd, *args):
 
 
 def test_git_commit_names_the_commit_and_a_dirty_tree(tmp_path):
-    from dpcbench.bench import compare
-    from dpcbench.bench.provenance import git_commit
+    from dpcbench.bench.execution.provenance import git_commit
+    from dpcbench.bench.results import compare
 
     assert compare.git_commit is git_commit  # one probe
     repo = tmp_path / "repo"
@@ -145,7 +145,7 @@ def test_git_commit_names_the_commit_and_a_dirty_tree(tmp_path):
 def test_environment_and_summary_header_come_from_one_probe():
     import platform
 
-    from dpcbench.bench.provenance import environment, summary_environment
+    from dpcbench.bench.execution.provenance import environment, summary_environment
 
     env = environment()
     flat = summary_environment()
@@ -156,7 +156,7 @@ def test_environment_and_summary_header_come_from_one_probe():
 
 
 def test_run_folder_round_trip(tmp_path):
-    from dpcbench.bench.provenance import is_complete_run_folder, read_run_folder, write_run_folder
+    from dpcbench.bench.execution.provenance import is_complete_run_folder, read_run_folder, write_run_folder
     from dpcbench.holes.regions import HoleRegion, regions_to_json
 
     rng = np.random.default_rng(0)
@@ -185,7 +185,7 @@ def test_run_folder_round_trip(tmp_path):
     assert sha["inpainted/frame_0000.ply"] == hashlib.sha256(frame.read_bytes()).hexdigest()
     assert set(sha) == {"holes.json"} | {f"{s}/frame_{i:04d}.ply" for s in ("damaged", "inpainted") for i in (0, 1)}
     # a frame replaced (here by the damaged one), deleted, or the folder renamed: never trusted
-    from dpcbench.bench.errors import UserError
+    from dpcbench.bench.core.errors import UserError
 
     frame.write_bytes((run / "damaged" / "frame_0000.ply").read_bytes())
     with pytest.raises(UserError, match="inpainted/frame_0000.ply"):
@@ -204,7 +204,7 @@ def test_run_folder_round_trip(tmp_path):
 
 def test_every_package_folder_is_listed_for_the_wheel():
     """A sub-package missing from pyproject's `packages` installs editable but is absent from the wheel."""
-    from dpcbench.bench.config import tomllib
+    from dpcbench.bench.experiment.config import tomllib
 
     root = Path(__file__).resolve().parents[1]
     config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]

@@ -1,4 +1,4 @@
-"""LaTeX tables for a two-column paper (bench/latex_tables.py): booktabs structure, the column count of
+"""LaTeX tables for a two-column paper (bench/reporting/latex_tables.py): booktabs structure, the column count of
 every row, `table` or `table*` by the estimated width, short labels with their key, escaping of hostile
 labels, the paper's rows with the table's decimals, a pdflatex compile (skipped without pdflatex); and
 the config's [labels] renaming methods in `dpcbench report`."""
@@ -13,13 +13,13 @@ import subprocess
 import pandas as pd
 import pytest
 
-from dpcbench.bench import latex_tables, paper
 from dpcbench.bench.cli import main as cli_main
-from dpcbench.bench.config import ConfigError, load_labels, parse_config, parse_labels
-from dpcbench.bench.errors import UserError
-from dpcbench.bench.reports import paper_tables, rename_methods, write_comparison_report
-from dpcbench.bench.store import ResultsStore
-from dpcbench.bench.tables import comparison_table
+from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.experiment.config import ConfigError, load_labels, parse_config, parse_labels
+from dpcbench.bench.reporting import latex_tables, paper
+from dpcbench.bench.reporting.reports import paper_tables, rename_methods, write_comparison_report
+from dpcbench.bench.reporting.tables import comparison_table
+from dpcbench.bench.results.store import ResultsStore
 from tests import runner_fixtures as helpers
 
 HOSTILE = "a_b&c%\\end{table}"

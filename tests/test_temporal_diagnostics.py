@@ -1,10 +1,10 @@
-"""The per-frame diagnostics of Proposed's temporal terms (issue 50): `bench.temporal_diagnostics`."""
+"""The per-frame diagnostics of Proposed's temporal terms (issue 50): `bench.reporting.temporal_diagnostics`."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from dpcbench.bench.temporal_diagnostics import run
+from dpcbench.bench.reporting.temporal_diagnostics import run
 from dpcbench.holes.registry import get_generator
 from dpcbench.methods import temporal_graph as tg
 from dpcbench.methods.registry import get_method

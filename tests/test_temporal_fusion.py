@@ -1031,7 +1031,7 @@ def test_two_runs_on_the_human_figure_give_byte_identical_output():
     """The case where version 4 was not deterministic: the human stand-in (~100k points a frame), 3 medium
     region holes in the middle frame of 7, window 3 (frame 3 got between 1982 and 1993 new points in repeated
     runs in one process, before the point-to-plane refinement was our own deterministic code)."""
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
 
     truth = load_dataset("human", frames=7, size="small", progress=False).points

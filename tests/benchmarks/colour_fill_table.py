@@ -36,7 +36,7 @@ def main() -> int:
     args = parser.parse_args()
 
     import dpcbench.metrics as metrics
-    from dpcbench.bench.sequences import load_sequence
+    from dpcbench.bench.data.sequences import load_sequence
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods._colour import colour_outputs
     from dpcbench.methods.registry import get_method
@@ -44,7 +44,7 @@ def main() -> int:
     if Path(args.sequence).exists():
         seq = load_sequence(args.sequence)
     else:
-        from dpcbench.bench.datasets import load_dataset
+        from dpcbench.bench.data.datasets import load_dataset
 
         seq = load_dataset(args.sequence, frames=args.frames, size=args.size, progress=False)
     truth = seq.frames

@@ -1,7 +1,7 @@
 """Shared, deterministic data for the benchmark suite (pytest-benchmark; see README.md here).
 
 Every fixture is session-scoped and lazy: a benchmark file pays only for the sizes it asks for, and
-the embedded human figure is cached on disk by bench.datasets after its first generation (about
+the embedded human figure is cached on disk by bench.data.datasets after its first generation (about
 2 s / 14 s / 24 s per 100k / 800k / 1M-point frame on a 2-core machine), so later sessions start at once.
 
 Sizes (embedded "human", walk motion, seed 0; point counts measured on frame 0):
@@ -11,10 +11,10 @@ Sizes (embedded "human", walk motion, seed 0; point counts measured on frame 0):
 The 800k and 1M figures are about 1000 voxels tall with unit voxel spacing, like the paper's 8i
 sequences (10-bit, ~800k-1M points), so methods' default cube size (M = 20) fits them as it fits
 8i data; their coordinates run up to 2047 because the figure is taller than a 10-bit grid allows
-(bench.standins.human caps the height at a fraction of the grid).
+(bench.data.standins.human caps the height at a fraction of the grid).
 
 Fixtures:
-  bench_sequence(size)      -> bench.sequences.Sequence of 3 consecutive frames
+  bench_sequence(size)      -> bench.data.sequences.Sequence of 3 consecutive frames
   frames_100k / 800k / 1m   -> list of 3 (N, 3) float64 arrays
   damaged_100k / 800k       -> holes.base.DamageResult: "region" holes, preset medium, 5 a frame,
                                temporally coherent, seed 0 (methods take .frames and .regions)
@@ -46,7 +46,7 @@ def bench_sequence(size: str):
     if size not in SIZES:
         raise KeyError(f"unknown benchmark size {size!r}; choose one of {', '.join(SIZES)}")
     if size not in _sequences:
-        from dpcbench.bench.datasets import load_dataset
+        from dpcbench.bench.data.datasets import load_dataset
 
         _sequences[size] = load_dataset("human", frames=N_FRAMES, seed=SEED, **SIZES[size])
     return _sequences[size]

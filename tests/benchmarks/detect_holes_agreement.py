@@ -52,7 +52,7 @@ def load_before(revision: str):
 def frames(standins: list[str], plys: list[str]):
     """(label, (N, 3) frame) for each requested stand-in and PLY file."""
     for item in standins:
-        from dpcbench.bench.datasets import load_dataset
+        from dpcbench.bench.data.datasets import load_dataset
         from dpcbench.holes.registry import get_generator
 
         name, _, size = item.partition(":")
@@ -61,7 +61,7 @@ def frames(standins: list[str], plys: list[str]):
         damaged = get_generator("region", preset="medium").damage([seq[0]], 0).frames[0]
         yield f"{name}:{size} + medium holes", damaged
     for path in plys:
-        from dpcbench.bench.plyio import read_ply
+        from dpcbench.bench.data.plyio import read_ply
 
         yield os.path.basename(path), np.asarray(read_ply(path).points, dtype=np.float64)
 

@@ -12,7 +12,7 @@ under ``--data`` (default: ``$DPCBENCH_DATA_DIR`` or ../shared/data beside the r
 Damage: the ``region`` generator (ball holes), every preset of ``--presets`` x every seed of ``--seeds``;
 or with ``--generator occlusion`` the occlusion generator's default rig per seed (the holes of the
 real-hole protocol; pass its detection parameters with ``--param``, e.g. those of
-`bench.paper.STANDIN_DETECTION`: ``--param gap=1.5707963267948966 --param min_points=5 --param min_inward=0``).
+`bench.reporting.paper.STANDIN_DETECTION`: ``--param gap=1.5707963267948966 --param min_points=5 --param min_inward=0``).
 
 Scores, per damaged frame (``detect_holes`` with ``--param`` keyword arguments, else its defaults):
 
@@ -83,14 +83,14 @@ def data_dir(given: str | None) -> Path:
 def load_frame(item: str, data: Path) -> np.ndarray:
     """The (N, 3) float64 frame named by ``item`` (see the module docstring)."""
     if item == "dfaust":
-        from dpcbench.bench.sequences import load_sequence
+        from dpcbench.bench.data.sequences import load_sequence
 
         return np.asarray(load_sequence(data / "dfaust_50004_punching", colors=False).points[0], dtype=np.float64)
     if item == "longdress":
-        from dpcbench.bench.plyio import read_ply
+        from dpcbench.bench.data.plyio import read_ply
 
         return np.asarray(read_ply(data / "8i_longdress_1300" / "longdress_vox10_1300.ply").points, dtype=np.float64)
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     name, _, size = item.partition(":")
     return np.asarray(load_dataset(name, frames=1, seed=0, size=size or "small", progress=False).points[0],

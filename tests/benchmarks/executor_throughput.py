@@ -17,7 +17,7 @@ Three subcommands (each prints a table and can save JSON; the third only compute
     python tests/benchmarks/executor_throughput.py project --grid grid.json --costs costs.json \\
         --frames 300 --machines 10 --workers-per-machine 2
 
-Every timing is the wall time of the whole sweep as `bench.runner.run_experiment` does it (worker
+Every timing is the wall time of the whole sweep as `bench.execution.runner.run_experiment` does it (worker
 process per run, stand-ins loaded from the disk cache, scoring), the minimum over ``--repeats``.
 The machine this runs on may be shared: give the load average with the figures (printed).
 """
@@ -67,9 +67,9 @@ def load_average() -> str:
 
 def _sweep(cfg: dict, executor: str, jobs: int, scheduler: str | None, workdir: Path) -> tuple[float, object]:
     """Wall time of one sweep of ``cfg`` into a fresh store and run folder; returns (seconds, store)."""
-    from dpcbench.bench.config import parse_config
-    from dpcbench.bench.runner import run_experiment
-    from dpcbench.bench.store import ResultsStore
+    from dpcbench.bench.execution.runner import run_experiment
+    from dpcbench.bench.experiment.config import parse_config
+    from dpcbench.bench.results.store import ResultsStore
 
     if workdir.exists():
         shutil.rmtree(workdir)
@@ -160,7 +160,7 @@ def cmd_grid(args) -> dict:
     for name in setups:
         if name not in EXECUTOR_SETUPS:
             raise SystemExit(f"unknown setup {name!r}; choose from {', '.join(EXECUTOR_SETUPS)}")
-    from dpcbench.bench.config import parse_config
+    from dpcbench.bench.experiment.config import parse_config
 
     n_runs = len(parse_config(THROUGHPUT_GRID).expand())
     root = Path(tempfile.mkdtemp(prefix="dpcbench-throughput-"))
@@ -223,7 +223,7 @@ def cmd_grid(args) -> dict:
 
 class WorkerCpuPoller:
     """Samples, once a second, the CPU time (user + system, /proc/PID/stat) of every run worker process
-    (``python -m dpcbench.bench.runner --worker``) whose command line names ``runs_dir``; keeps the last sample
+    (``python -m dpcbench.bench.execution.runner --worker``) whose command line names ``runs_dir``; keeps the last sample
     per run id. On a shared machine a run's wall time measures the load, its CPU time the run (Linux only)."""
 
     def __init__(self, runs_dir: Path):
@@ -259,8 +259,8 @@ class WorkerCpuPoller:
 
 
 def cmd_paper_costs(args) -> dict:
-    from dpcbench.bench.config import parse_config
-    from dpcbench.bench.paper import table_methods
+    from dpcbench.bench.experiment.config import parse_config
+    from dpcbench.bench.reporting.paper import table_methods
 
     seqs = args.sequences.split(",")
     cfg = {
@@ -274,7 +274,7 @@ def cmd_paper_costs(args) -> dict:
     if args.columns:
         wanted = set(args.columns.split(","))
         cfg["methods"] = [m for m in cfg["methods"] if m["label"] in wanted or m["name"] in wanted]
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
 
     load_before = load_average()
     gen = {}
@@ -289,7 +289,7 @@ def cmd_paper_costs(args) -> dict:
     res = store.results_frame()
     times = res[(res.metric == "time_s") & (res.scope == "frame")]
     specs = {s.run_id: s for s in parse_config(cfg).expand()}
-    from dpcbench.bench.paper import column_label
+    from dpcbench.bench.reporting.paper import column_label
 
     rows = []
     for _, run in runs.iterrows():
@@ -354,15 +354,15 @@ def _cpu_s() -> float:
 def _run_part_costs(specs: dict, runs, runs_dir: Path) -> dict:
     """CPU seconds of the parts of each run besides its method, timed in this process: per sequence the
     frames' load (`load_run_sequence`, from the disk cache), the damage, and a worker process's start
-    (``python -c 'import dpcbench.bench.worker'``, child CPU); per run the scoring of its folder
-    (`bench.worker.score_run`, as the worker does it)."""
-    from dpcbench.bench.datasets import load_run_sequence
-    from dpcbench.bench.provenance import read_run_folder
-    from dpcbench.bench.worker import score_run
+    (``python -c 'import dpcbench.bench.execution.worker'``, child CPU); per run the scoring of its folder
+    (`bench.execution.worker.score_run`, as the worker does it)."""
+    from dpcbench.bench.data.datasets import load_run_sequence
+    from dpcbench.bench.execution.provenance import read_run_folder
+    from dpcbench.bench.execution.worker import score_run
     from dpcbench.holes.lazy import import_entry
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([sys.executable, "-c", "import dpcbench.bench.worker, dpcbench.metrics"], check=True)
+    subprocess.run([sys.executable, "-c", "import dpcbench.bench.execution.worker, dpcbench.metrics"], check=True)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     truths: dict[str, tuple] = {}

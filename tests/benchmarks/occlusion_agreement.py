@@ -54,12 +54,12 @@ def main(argv=None) -> int:
 
     frames: list[tuple[str, np.ndarray]] = []
     if args.ply:
-        from dpcbench.bench.plyio import read_ply
+        from dpcbench.bench.data.plyio import read_ply
 
         for path in args.ply:
             frames.append((Path(path).stem, np.asarray(read_ply(path, colors=False).points, dtype=np.float64)))
     else:
-        from dpcbench.bench.datasets import load_dataset
+        from dpcbench.bench.data.datasets import load_dataset
 
         for name in args.sequences.split(","):
             sizing = dict(ONE_MILLION) if args.size == "1m" else {"size": args.size}

@@ -5,7 +5,7 @@ that a rig truly cannot see, on meshes where the surface is known.
     python tests/benchmarks/occlusion_truth.py --cases bunny --voxels 600 --rigs stage
 
 Per case the mesh is scaled into a 10-bit grid (largest extent ``--voxels`` voxels), sampled uniformly
-(8 samples per voxel^2, as `bench.meshseq` does) and voxelized: one point per occupied voxel, anchored
+(8 samples per voxel^2, as `bench.data.meshseq` does) and voxelized: one point per occupied voxel, anchored
 to the sample nearest its centre (`meshseq.voxelize_samples`); ``--float`` keeps the samples instead.
 
 Exact visibility (`holes.occlusion.raycast_visible_mask`, open3d's RaycastingScene on the mesh): camera c
@@ -55,12 +55,12 @@ def two_spheres() -> tuple[np.ndarray, np.ndarray]:
 def load_case(name: str) -> tuple[np.ndarray, np.ndarray]:
     """(vertices (V, 3) float64, triangles (T, 3) int64) of a test mesh, y up."""
     if name == "bunny":
-        from dpcbench.bench.standins.bunny import rest_mesh
+        from dpcbench.bench.data.standins.bunny import rest_mesh
 
         v, t, _ = rest_mesh()
         return v, t
     if name == "samba":
-        from dpcbench.bench.meshseq import read_mesh
+        from dpcbench.bench.data.meshseq import read_mesh
 
         v, t = read_mesh("/work/shared/data/mit_samba/samba_0000.obj")
         return np.asarray(v, dtype=np.float64), np.asarray(t, dtype=np.int64)
@@ -71,7 +71,7 @@ def load_case(name: str) -> tuple[np.ndarray, np.ndarray]:
 
 def sample_frame(vertices, triangles, voxels: float, voxelize: bool, seed: int = 0):
     """(points (N, 3), anchors (N, 3) on the mesh, anchor face normals (N, 3)) in voxel units."""
-    from dpcbench.bench.meshseq import evaluate, face_areas_normals, sample_barycentric, voxelize_samples
+    from dpcbench.bench.data.meshseq import evaluate, face_areas_normals, sample_barycentric, voxelize_samples
 
     lo, hi = vertices.min(0), vertices.max(0)
     scale = voxels / float((hi - lo).max())

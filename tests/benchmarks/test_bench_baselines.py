@@ -48,7 +48,7 @@ def damaged_frames(size: str):
     importlib.import_module("open3d")
     importlib.import_module("pymeshlab")
 
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
 
     if size not in _damaged:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dpcbench.bench.plyio import PointCloud, read_ply, write_ply
+from dpcbench.bench.data.plyio import PointCloud, read_ply, write_ply
 
 ONE_MILLION = 1_000_000
 
@@ -30,7 +30,7 @@ def million_ply(million_cloud, tmp_path_factory):
 
 def test_generate_default_human_frame(benchmark):
     """Seconds for one default-size (about 580k points) 10-bit human frame, generated from scratch."""
-    from dpcbench.bench.standins.human import generate_frame
+    from dpcbench.bench.data.standins.human import generate_frame
 
     points, _, _ = benchmark.pedantic(generate_frame, args=(0,), rounds=3, iterations=1)
     benchmark.extra_info["points"] = len(points)
@@ -38,7 +38,7 @@ def test_generate_default_human_frame(benchmark):
 
 
 def test_generate_default_bunny_frame(benchmark):
-    from dpcbench.bench.standins.bunny import generate_frame, rest_mesh
+    from dpcbench.bench.data.standins.bunny import generate_frame, rest_mesh
 
     rest_mesh()  # the mesh is read once per process; time the per-frame work
     points, _, _ = benchmark.pedantic(generate_frame, args=(0,), rounds=3, iterations=1)
@@ -58,7 +58,7 @@ def test_write_1m_point_ply(benchmark, million_cloud, tmp_path):
 
 def test_render_1m_points(benchmark, million_cloud, tmp_path):
     """One panel of a 1M-point cloud with its colours (z-buffer rasterizer), 480 px high."""
-    from dpcbench.bench.render import render_clouds
+    from dpcbench.bench.reporting.render import render_clouds
 
     out = benchmark.pedantic(render_clouds, args=([million_cloud], tmp_path / "million.png"), rounds=3, iterations=1)
     assert out.stat().st_size > 0

@@ -1,4 +1,4 @@
-"""Mesh sequences (bench.meshseq): seconds to produce one 800k-point 10-bit frame from a 10k-vertex mesh.
+"""Mesh sequences (bench.data.meshseq): seconds to produce one 800k-point 10-bit frame from a 10k-vertex mesh.
 
 - ``test_mesh_frame_800k_10bit``: one frame of a sequence whose samples are already drawn (what every
   frame after the first costs: evaluate the ~5M carried samples on the frame's vertices, voxelize, normals).
@@ -15,7 +15,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from dpcbench.bench.meshseq import (
+from dpcbench.bench.data.meshseq import (
     face_areas_normals,
     fit_placement,
     frame_from_samples,

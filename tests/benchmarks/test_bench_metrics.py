@@ -54,7 +54,7 @@ def test_d1_d2_1m(benchmark, pair_1m, peak):
 
 def test_d1_d2_golden_pair_100k(benchmark, shared_dir):
     """The real 100k pair pc_error's 0.45 s was measured on (a frame of Dynamic FAUST and its next frame)."""
-    from dpcbench.bench.plyio import read_ply
+    from dpcbench.bench.data.plyio import read_ply
 
     folder = shared_dir / "golden"
     a, b = read_ply(folder / "punching_f8_ref.ply"), read_ply(folder / "punching_f7.ply")
@@ -110,7 +110,7 @@ def longdress_pair(shared_dir, tmp_path_factory):
     """(reference with normals, damaged copy) PLY paths: Longdress 1300 (857,966 points, 10-bit) and the
     same frame with 5 medium region holes (seed 0); the reference carries open3d k=12 normals so that
     pc_error would compute D2 on it too."""
-    from dpcbench.bench.plyio import read_ply, write_ply
+    from dpcbench.bench.data.plyio import read_ply, write_ply
     from dpcbench.holes.registry import get_generator
 
     source = shared_dir / "data" / "8i_longdress_1300" / "longdress_vox10_1300.ply"

@@ -112,7 +112,7 @@ WINDOW = 3
 
 
 def _case(size: str, holes: int):
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
 
     seq = load_dataset("human", frames=2 * WINDOW + 1, progress=False, **SIZES[size])
@@ -151,7 +151,7 @@ OCCLUSION = {
 
 @pytest.mark.parametrize("case", list(OCCLUSION))
 def test_bench_fusion_occlusion(benchmark, case):
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
 
@@ -178,7 +178,7 @@ def test_bench_fusion_coherent_800k(benchmark):
     in every frame, so no frame is a source and each hole goes to the spatial fills (steps 6-6e). The whole-frame
     D1 / D2 of the result and of no fill go into the benchmark's extra_info (outside the timed call): a change of
     order among the spatial fills moved this case's D1 by 8.8 dB (version 35) with no 100k-point row changing."""
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
 
@@ -211,7 +211,7 @@ def test_bench_fusion_longdress(benchmark, shared_dir, holes):
     42, CPU time, one run each (one-off scripts, docs/notes-journal.md "Longdress, one frame, occlusion holes"): region
     8.1 s CPU (7.4 s wall through the CLI), D1 / D2 14.05 / 26.58 against no fill 8.30 / 29.05; occlusion 84-88 s CPU (73 s of it
     step 6c refusing its wide boxes; ``poisson_in_boxes=False`` 8 s), 18.64 / 27.65 against 15.41 / 32.03."""
-    from dpcbench.bench.sequences import load_sequence
+    from dpcbench.bench.data.sequences import load_sequence
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
     from dpcbench.metrics import score_frame

@@ -26,7 +26,7 @@ SIZES = {
 
 
 def _case(size: str, holes: int):
-    from dpcbench.bench.datasets import load_dataset
+    from dpcbench.bench.data.datasets import load_dataset
     from dpcbench.holes.registry import get_generator
 
     seq = load_dataset("human", frames=3, progress=False, **SIZES[size])

@@ -1,0 +1,118 @@
+"""`dpcbench oracle TRUTH DAMAGED`: what fills that know the ground truth's surface score
+(`bench.results.oracle`): the floor (no fill), samples on the truth's surface, the truth's points jittered
+by a method's off-surface error, and the truth itself (the ceiling)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from dpcbench.bench.core.errors import UserError
+
+
+def register(subparsers) -> None:
+    from dpcbench.bench.results.oracle import VARIANTS
+
+    p = subparsers.add_parser(
+        "oracle", help="score oracle fills that know the ground truth's surface (a row's best achievable D1/D2)",
+        description="Fill the holes of DAMAGED (a folder of PLY frames, e.g. `dpcbench damage` output or a run "
+                    "folder's damaged/) from TRUTH (the ground-truth frames) and score each fill like a method: "
+                    "none (no fill, the floor), surface (one sample per missing truth point, moved within the "
+                    "truth's tangent plane by up to half the damaged frame's spacing), jitter (the missing truth "
+                    "points moved along the truth normal by N(0, sigma^2)) and truth (the ceiling).")
+    p.add_argument("truth", help="ground-truth PLY file, or folder / glob of PLY frames")
+    p.add_argument("damaged", help="damaged PLY file, or folder / glob of PLY frames (same frame count)")
+    p.add_argument("--variant", action="append", dest="variants", choices=VARIANTS, metavar="NAME",
+                   help=f"oracle to score (repeatable; default all: {', '.join(VARIANTS)})")
+    p.add_argument("--region", metavar="HOLES_JSON", default=None,
+                   help="holes.json of the damage: also score inside the hole regions")
+    p.add_argument("--masks", metavar="MASKS_NPZ", default=None,
+                   help="removal masks of the damage (default: masks.npz in DAMAGED when there); without them the "
+                        "missing points are the truth points farther than 1%% of the spacing from every damaged point")
+    p.add_argument("--jitter", type=float, default=None, metavar="SIGMA",
+                   help="the jitter oracle's sigma (coordinate units)")
+    p.add_argument("--method-result", default=None, metavar="RESULT",
+                   help="a method's inpainted frames of the same damage: sigma is its measured off-surface error "
+                        "(RMS point-to-plane distance of its fill points to the truth)")
+    p.add_argument("--peak", default="intrinsic", help="PSNR peak (as `dpcbench score`)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the surface and jitter samples")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=main)
+
+
+def _masks(args, count: int):
+    import numpy as np
+
+    path = Path(args.masks) if args.masks else Path(args.damaged) / "masks.npz"
+    if not path.is_file():
+        if args.masks:
+            raise UserError(f"--masks {args.masks}: no such file; give the masks.npz written by `dpcbench damage`")
+        return None
+    with np.load(path) as data:
+        keys = sorted(data.files)
+        if len(keys) != count:
+            raise UserError(f"{path}: {len(keys)} mask(s) for {count} frame(s); use the masks of this damage")
+        return [data[k] for k in keys]
+
+
+def main(args) -> int:
+    import numpy as np
+
+    from dpcbench.bench.data.sequences import load_sequence
+    from dpcbench.bench.results.oracle import VARIANTS, off_surface_rms, score_oracles
+
+    truth = load_sequence(args.truth, colors=False)
+    damaged = load_sequence(args.damaged, colors=False)
+    if len(truth) != len(damaged):
+        raise UserError(f"{args.truth} has {len(truth)} frame(s), {args.damaged} has {len(damaged)}; give the truth "
+                        "and the damaged frames of the same sequence")
+    variants = args.variants or list(VARIANTS)
+    if args.jitter is not None and args.method_result:
+        raise UserError("--jitter and --method-result both set sigma; give one")
+    if args.jitter is not None and not (math.isfinite(args.jitter) and args.jitter >= 0):
+        raise UserError(f"--jitter {args.jitter:g}: must be a distance >= 0")
+    sigma, measured = args.jitter, None
+    if args.method_result:
+        result = load_sequence(args.method_result, colors=False)
+        if len(result) != len(truth):
+            raise UserError(f"--method-result {args.method_result}: {len(result)} frame(s) for {len(truth)}")
+        per = [off_surface_rms(t, d, r) for t, d, r in zip(truth.points, damaged.points, result.points)]
+        counts = np.array([n for _, n in per], dtype=float)
+        if counts.sum() == 0:
+            raise UserError(f"--method-result {args.method_result}: adds no point to the damaged frames, so it has "
+                            "no off-surface error to measure")
+        sigma = float(np.sqrt(sum(r ** 2 * n for r, n in per if n) / counts.sum()))
+        measured = {"sigma": sigma, "fill_points": int(counts.sum())}
+    if "jitter" in variants and sigma is None:
+        if args.variants:
+            raise UserError("--variant jitter: give its sigma with --jitter SIGMA or --method-result RESULT")
+        variants = [v for v in variants if v != "jitter"]
+    regions = None
+    if args.region:
+        from dpcbench.holes.regions import regions_from_json
+
+        regions = regions_from_json(args.region, frame_count=len(truth), label=f"--region {args.region}")
+    normals = [f.normals for f in truth.frames]
+    scores = score_oracles(truth.points, damaged.points, variants, masks=_masks(args, len(truth)), regions=regions,
+                           sigma=sigma or 0.0, seed=args.seed, peak=args.peak,
+                           reference_normals=normals if any(n is not None for n in normals) else None)
+    if args.json:
+        payload = {"variants": {v: {scope: s["mean"] for scope, s in by.items()} for v, by in scores.items()},
+                   "frames": {v: {scope: s["frames"] for scope, s in by.items()} for v, by in scores.items()},
+                   "sigma": sigma, "measured": measured}
+        sys.stdout.write(json.dumps(payload, default=lambda x: None if not math.isfinite(x) else x) + "\n")
+        return 0
+    names = list(next(iter(scores.values()))["frame"]["mean"])
+    scopes = list(next(iter(scores.values())))
+    header = ["oracle"] + [f"{n} ({scope})" for scope in scopes for n in names]
+    rows = [[v] + [f"{scores[v][scope]['mean'].get(n, float('nan')):.6g}" for scope in scopes for n in names]
+            for v in variants]
+    widths = [max(len(r[c]) for r in [header, *rows]) for c in range(len(header))]
+    for row in [header, *rows]:
+        print("  ".join([row[0].ljust(widths[0])] + [x.rjust(w) for x, w in zip(row[1:], widths[1:])]))
+    print(f"means over {len(truth)} frame(s); peak {args.peak}"
+          + (f"; jitter sigma {sigma:.6g}" + (f" (measured on {measured['fill_points']} fill points of "
+                                              f"{args.method_result})" if measured else "") if sigma is not None else ""))
+    return 0

@@ -1,0 +1,137 @@
+"""Oracle fills: what a fill that knows the ground truth's surface scores (`dpcbench oracle`).
+
+A method never sees the ground truth; these fills do, so a row's best achievable D1 / D2 is a
+measurement, not an argument. Each fills the hole of a damaged frame (the truth's points absent
+from it: ``truth[mask]`` with the damage's removal mask, else the truth points farther than 1% of
+the damaged frame's spacing from every damaged point) and returns ``damaged ∪ fill``:
+
+- ``none``:    no fill (the damaged frame itself): the floor;
+- ``surface``: one sample per missing truth point q, moved within the truth's tangent plane at q
+               (PCA of its ``k`` nearest truth points, `metrics.neighbours.estimate_normals`) by
+               ``u t1 + v t2``, ``u, v ~ U(-s/2, s/2)`` (seeded), s the damaged frame's median
+               nearest-neighbour spacing: points on the truth's own surface at the truth's density,
+               not at its sample positions (the best a fill that knows the surface, not the samples,
+               can do); on a plane every sample lies on it, so its D2 is the ceiling;
+- ``jitter``:  the missing truth points moved along their truth normal by ``N(0, sigma^2)``
+               (seeded), sigma a method's measured off-surface error (`off_surface_rms`): what the
+               method would score if its only error were that;
+- ``truth``:   the missing truth points themselves: the ceiling (the result equals the truth).
+
+`off_surface_rms` measures a method's off-surface error: the RMS over its fill points (result
+points farther than 1% of the spacing from every damaged point) of ``|(p - q) . n_q|``, q the
+nearest truth point and n_q the truth's PCA normal there (D2's point-to-plane distance).
+Scores are those of `metrics.score_sequence` (whole frame, and in the hole regions when given).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dpcbench.bench.core.errors import UserError
+
+VARIANTS = ("none", "surface", "jitter", "truth")
+#: a truth point closer than this share of the damaged frame's spacing to a damaged point is kept
+MATCH_SHARE = 0.01
+DEFAULT_NEIGHBOURS = 12
+
+
+def spacing(points: np.ndarray) -> float:
+    """Median distance from each point to its nearest other point."""
+    points = np.asarray(points, dtype=float)
+    if len(points) < 2:
+        raise UserError(f"a frame of {len(points)} point(s) has no spacing; give frames of at least 2 points")
+    d, _ = cKDTree(points).query(points, k=2)
+    return float(np.median(d[:, 1]))
+
+
+def missing_points(truth: np.ndarray, damaged: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """The truth's points absent from the damaged frame: ``truth[mask]`` (mask: True = removed),
+    else those farther than MATCH_SHARE x spacing(damaged) from every damaged point."""
+    truth = np.asarray(truth, dtype=float)
+    if mask is not None:
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != (len(truth),):
+            raise UserError(f"a removal mask of {mask.shape[0]} entries for a truth frame of {len(truth)} points; "
+                            "use the masks.npz written with these damaged frames")
+        return truth[mask]
+    d, _ = cKDTree(np.asarray(damaged, dtype=float)).query(truth, k=1)
+    return truth[d > MATCH_SHARE * spacing(damaged)]
+
+
+def _tangents(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors spanning the plane orthogonal to each (unit) normal."""
+    axis = np.eye(3)[np.argmin(np.abs(normals), axis=1)]  # the axis least aligned with n
+    t1 = np.cross(normals, axis)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, np.cross(normals, t1)
+
+
+def oracle_fill(truth: np.ndarray, damaged: np.ndarray, variant: str, *, mask: np.ndarray | None = None,
+                sigma: float = 0.0, seed: int = 0, k: int = DEFAULT_NEIGHBOURS) -> np.ndarray:
+    """``damaged`` with the hole filled by the oracle ``variant`` (module docstring): (N, 3)."""
+    from dpcbench.metrics.neighbours import estimate_normals
+
+    if variant not in VARIANTS:
+        raise UserError(f"oracle variant {variant!r}: expected one of {', '.join(VARIANTS)}")
+    damaged = np.asarray(damaged, dtype=float)
+    if variant == "none":
+        return damaged
+    truth = np.asarray(truth, dtype=float)
+    hole = missing_points(truth, damaged, mask)
+    if variant == "truth" or not len(hole):
+        return np.vstack([damaged, hole])
+    rng = np.random.default_rng(seed)
+    normals = estimate_normals(truth, k, queries=hole, tree=cKDTree(truth))
+    if variant == "surface":
+        s = spacing(damaged)
+        t1, t2 = _tangents(normals)
+        u, v = rng.uniform(-s / 2, s / 2, (2, len(hole), 1))
+        fill = hole + u * t1 + v * t2
+    else:  # jitter
+        if not (np.isfinite(sigma) and sigma >= 0):
+            raise UserError(f"oracle jitter: sigma must be a distance >= 0, got {sigma!r}")
+        fill = hole + rng.normal(0.0, sigma, (len(hole), 1)) * normals
+    return np.vstack([damaged, fill])
+
+
+def off_surface_rms(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
+                    k: int = DEFAULT_NEIGHBOURS) -> tuple[float, int]:
+    """(RMS point-to-plane distance of the result's fill points to the truth, their count); (nan, 0)
+    when the result adds no point."""
+    from dpcbench.metrics.neighbours import estimate_normals
+
+    truth, result = np.asarray(truth, dtype=float), np.asarray(result, dtype=float)
+    d, _ = cKDTree(np.asarray(damaged, dtype=float)).query(result, k=1)
+    fill = result[d > MATCH_SHARE * spacing(damaged)]
+    if not len(fill):
+        return float("nan"), 0
+    tree = cKDTree(truth)
+    _, nearest = tree.query(fill, k=1)
+    normals = estimate_normals(truth, k, queries=truth[nearest], tree=tree)
+    distance = np.einsum("ij,ij->i", fill - truth[nearest], normals)
+    return float(np.sqrt(np.mean(distance ** 2))), len(fill)
+
+
+def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=VARIANTS, *,
+                  masks: list | None = None, regions: list | None = None, sigma: float = 0.0, seed: int = 0,
+                  metrics=("gpsnr_d1", "gpsnr_d2", "nshd"), peak="intrinsic", reference_normals=None) -> dict:
+    """variant -> {"frame": `metrics.score_sequence` of the filled frames against the truth, whole
+    frames, and "holes": the same in ``regions`` (when given)}. Frame f of variant v is filled with
+    seed ``seed + f``."""
+    from dpcbench import metrics as metrics_pkg
+
+    if len(truth) != len(damaged):
+        raise UserError(f"{len(truth)} truth frame(s) and {len(damaged)} damaged frame(s); give sequences of the "
+                        "same length")
+    out = {}
+    for variant in variants:
+        filled = [oracle_fill(t, d, variant, mask=None if masks is None else masks[f], sigma=sigma, seed=seed + f)
+                  for f, (t, d) in enumerate(zip(truth, damaged))]
+        scores = {"frame": metrics_pkg.score_sequence(truth, filled, list(metrics), peak=peak,
+                                                      reference_normals=reference_normals)}
+        if regions is not None:
+            scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), peak=peak, regions=regions,
+                                                         reference_normals=reference_normals)
+        out[variant] = scores
+    return out
