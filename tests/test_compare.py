@@ -257,7 +257,7 @@ def test_tolerances_file(tmp_path):
 
 def test_committed_tolerances_and_baseline_are_valid():
     """results/tolerances.toml loads; the committed baseline (when present) is a readable summary."""
-    from dpcbench.bench.cli.commands.compare import DEFAULT_BASELINE, TOLERANCES_FILE
+    from dpcbench.bench.cli.options import DEFAULT_BASELINE, TOLERANCES_FILE
 
     tol = compare.load_tolerances(TOLERANCES_FILE)
     assert set(compare.DEFAULT_TOLERANCES) <= set(tol)

@@ -467,7 +467,7 @@ def test_regressions_card_compares_with_the_committed_baseline(tmp_path, capsys)
     """A store of the regression preset's cells (the committed baseline's values, one cell 1 dB
     worse): by default the card and the comparison are against results/regression-baseline.csv,
     as `dpcbench compare` is; `--baseline previous` compares code versions instead (one here: none)."""
-    from dpcbench.bench.cli.commands.compare import DEFAULT_BASELINE
+    from dpcbench.bench.cli.options import DEFAULT_BASELINE
     from dpcbench.bench.results import compare
 
     table, meta = compare.read_summary(DEFAULT_BASELINE)

@@ -5,7 +5,10 @@
 2. Inside methods, no method imports another: a method module (one a `methods.registry` entry names, a package's
    submodules included) imports the shared modules (``base``, ``registry``, the ``_``-prefixed helpers) and its
    own package only, and a shared module imports no method module. Shared geometry lives below the methods
-   (``methods._geometry``)."""
+   (``methods._geometry``).
+3. Inside bench, the sub-packages are layers too (`BENCH_LAYERS`, lowest first): core < data < experiment <
+   execution < results < reporting < testing < cli; a module imports only its own sub-package or a lower one.
+   ``dpcbench.bench`` itself holds only the version."""
 
 from __future__ import annotations
 
@@ -19,6 +22,9 @@ LAYERS = ["metrics", "holes", "methods", "bench"]
 PREFIX = "dpcbench."
 #: installed names that are not a top-level folder, and the layer of the folder they live in
 ALIASES = {"testing": "bench"}  # dpcbench.testing is bench/testing (pyproject's package-dir)
+
+#: bench's sub-packages, lowest first (``testing`` is bench/testing, installed as ``dpcbench.testing``)
+BENCH_LAYERS = ["core", "data", "experiment", "execution", "results", "reporting", "testing", "cli"]
 
 #: known imports of a method module from below, each with the reason it is still there
 KNOWN_METHOD_IMPORTS = {
@@ -117,3 +123,71 @@ def test_the_method_check_sees_one_method_importing_another(tmp_path):
                      "methods/_helper.py:1 imports dpcbench.methods.pde.LozesPDE",
                      "methods/fusion/stage.py:4 imports dpcbench.methods.pde",
                      "methods/fusion/stage.py:4 imports dpcbench.methods.pde.sampling_step"]
+
+
+def _bench_layer_of_import(name: str) -> str | None:
+    """The bench sub-package an import names (``dpcbench.bench.results.store`` -> results, ``dpcbench.testing`` ->
+    testing), None for any other import and for ``dpcbench.bench`` itself (the version)."""
+    if name == "dpcbench.testing" or name.startswith("dpcbench.testing."):
+        return "testing"
+    parts = name.split(".")
+    if parts[:2] == ["dpcbench", "bench"] and len(parts) > 2 and parts[2] in BENCH_LAYERS:
+        return parts[2]
+    return None
+
+
+def bench_layer_violations(bench_root: Path) -> list[str]:
+    """'path:line (layer) imports module (layer)' for every import of a higher bench sub-package."""
+    out = []
+    for layer in BENCH_LAYERS:
+        rank = BENCH_LAYERS.index(layer)
+        for path in sorted((bench_root / layer).rglob("*.py")):
+            for line, name in _imports(path):
+                target = _bench_layer_of_import(name)
+                if target is not None and BENCH_LAYERS.index(target) > rank:
+                    out.append(f"{path.relative_to(bench_root.parent).as_posix()}:{line} ({layer}) imports {name} "
+                               f"({target})")
+    return sorted(set(out))
+
+
+def test_bench_sub_packages_are_layers():
+    present = sorted(p.name for p in (REPO / "bench").iterdir() if p.is_dir() and (p / "__init__.py").is_file())
+    assert set(present) - {"presets", "static"} == set(BENCH_LAYERS), (
+        "a bench sub-package is not in BENCH_LAYERS (give it a place in the order): " + ", ".join(present))
+    loose = sorted(p.name for p in (REPO / "bench").glob("*.py") if p.name != "__init__.py")
+    assert not loose, f"modules directly in bench/ belong in a layer sub-package: {loose}"
+    violations = bench_layer_violations(REPO / "bench")
+    assert not violations, "a bench module imports a higher layer:\n" + "\n".join(violations)
+
+
+def test_the_bench_layer_check_sees_an_upward_import(tmp_path):
+    bench = tmp_path / "bench"
+    for layer in BENCH_LAYERS:
+        (bench / layer).mkdir(parents=True)
+    (bench / "core" / "a.py").write_text("def f():\n    from dpcbench.bench.results.store import ResultsStore\n")
+    (bench / "data" / "b.py").write_text("from dpcbench.bench.core import errors\nimport dpcbench.testing\n")
+    (bench / "cli" / "c.py").write_text("from dpcbench.bench.reporting import paper\nfrom dpcbench.bench import __version__\n")
+    assert bench_layer_violations(bench) == [
+        "bench/core/a.py:2 (core) imports dpcbench.bench.results.store (results)",
+        "bench/core/a.py:2 (core) imports dpcbench.bench.results.store.ResultsStore (results)",
+        "bench/data/b.py:2 (data) imports dpcbench.testing (testing)"]
+
+
+def command_import_violations(commands: Path) -> list[str]:
+    """'file:line imports module' for every import of one command module from another (what they share lives
+    in `dpcbench.bench.cli.options`)."""
+    out = []
+    for path in sorted(commands.glob("*.py")):
+        for line, name in _imports(path):
+            parts = name.split(".")
+            if parts[:4] == ["dpcbench", "bench", "cli", "commands"] and len(parts) > 4 and parts[4] != path.stem:
+                out.append(f"{path.name}:{line} imports {name}")
+    return sorted(set(out))
+
+
+def test_no_command_imports_another(tmp_path):
+    assert command_import_violations(REPO / "bench" / "cli" / "commands") == []
+    (tmp_path / "a.py").write_text("def f():\n    from dpcbench.bench.cli.commands.b import g\n")
+    (tmp_path / "b.py").write_text("from dpcbench.bench.cli.options import load_input\n")
+    assert command_import_violations(tmp_path) == ["a.py:2 imports dpcbench.bench.cli.commands.b",
+                                                   "a.py:2 imports dpcbench.bench.cli.commands.b.g"]

@@ -11,12 +11,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dpcbench.bench.cli.options import DEFAULT_BASELINE, DEFAULT_EXPERIMENT, REPO_ROOT, TOLERANCES_FILE, run_environment
 from dpcbench.bench.core.errors import UserError
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
-DEFAULT_BASELINE = REPO_ROOT / "results" / "regression-baseline.csv"
-TOLERANCES_FILE = REPO_ROOT / "results" / "tolerances.toml"
-DEFAULT_EXPERIMENT = "regression"
 SUMMARY_SUFFIXES = (".csv", ".json")
 
 
@@ -66,34 +63,11 @@ def current_from_store(store_path, experiment: str | None):
     results = compare.with_cells(results, runs)
     summary = compare.summarize(results, experiment=experiment or None)
     chosen = results if not experiment else results[results["experiment"] == experiment]
-    environment = _run_environment(runs, set(chosen["run_id"]))
+    environment = run_environment(runs, set(chosen["run_id"]))
     meta = compare.summary_meta(results=chosen, environment=environment,
                                 source=str(getattr(store, "path", store_path or "default store")),
                                 experiment=experiment or "all")
     return summary, meta
-
-
-def _run_environment(runs, run_ids) -> dict | None:
-    """The environment the runner recorded for these runs (newest run), if it recorded one."""
-    import json
-
-    if runs is None or runs.empty or "env" not in runs.columns:
-        return None
-    chosen = runs[runs["run_id"].isin(run_ids)]
-    if chosen.empty:
-        return None
-    text = chosen.sort_values("created_at")["env"].iloc[-1]
-    try:
-        env = json.loads(text) if isinstance(text, str) else dict(text or {})
-    except (TypeError, ValueError):
-        return None
-    flat = {}
-    for key, value in env.items():  # {"packages": {...}, "machine": ...} -> flat strings
-        if isinstance(value, dict):
-            flat.update({k: str(v) for k, v in value.items()})
-        else:
-            flat[key] = str(value)
-    return flat
 
 
 def machine_line(meta: dict) -> str:

@@ -36,7 +36,7 @@ def register(subparsers) -> None:
 
 
 def _runs_of_config(store, args):
-    from dpcbench.bench.cli.commands.run import resolve_config_path
+    from dpcbench.bench.cli.options import resolve_config_path
     from dpcbench.bench.experiment.config import load_config
 
     overrides = {"experiment": {"data_dir": args.data_dir}} if args.data_dir else None
@@ -48,7 +48,7 @@ def _runs_of_config(store, args):
 
 
 def main(args) -> int:
-    from dpcbench.bench.cli.commands.report import resolve_store
+    from dpcbench.bench.cli.options import resolve_store
     from dpcbench.bench.results.costs import cost_table, format_cost_table
     from dpcbench.bench.results.store import ResultsStore, default_store_path
 

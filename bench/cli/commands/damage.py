@@ -18,27 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from dpcbench.bench.cli.options import add_input_options, load_input
 from dpcbench.bench.core.errors import UserError
 from dpcbench.bench.core.params import parse_params
-
-
-def load_input(source: str, frames=None, data_dir=None, dataset_params=None):
-    """The input sequence: an embedded/paper dataset name or a PLY folder/glob/file.
-
-    frames: the text of --frames (a count "10", a list "0,5,9" or a range "0-9"; None: all).
-    """
-    from dpcbench.bench.data.datasets import load_dataset, parse_frames
-
-    return load_dataset(source, frames=parse_frames(frames), data_dir=data_dir, **(dataset_params or {}))
-
-
-def add_input_options(parser) -> None:
-    """--frames, --data-dir, --dataset-param: shared with `dpcbench detect-holes`."""
-    parser.add_argument("--frames", default=None,
-                        help="frames to use: a count (10), a list (0,5,9) or a range (0-9); default all")
-    parser.add_argument("--data-dir", default=None, help="folder holding the paper sequences")
-    parser.add_argument("--dataset-param", action="append", metavar="KEY=VALUE",
-                        help="parameter of an embedded dataset (repeatable), e.g. --dataset-param size=tiny")
 
 
 def register(subparsers) -> None:

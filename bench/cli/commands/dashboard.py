@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dpcbench.bench.cli.options import REPO_ROOT
 from dpcbench.bench.core.errors import UserError
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
 #: the committed history of the regression preset: one summary per commit
 DEFAULT_HISTORY = REPO_ROOT / "results" / "history"
 #: `--baseline previous`: compare the newest code version with the one before it, not a summary
@@ -85,7 +85,7 @@ def save_history(folder: Path, store_paths, experiment: str | None, guard) -> Pa
     """The store's summary as `folder`/<date>_<commit>.csv (`dashboard.history_file_name`); an older
     file of the same commit there is replaced (one dpcbench did not write, e.g. a committed one, only
     with --overwrite: ``guard``, the command's `Outputs`)."""
-    from dpcbench.bench.cli.commands.compare import DEFAULT_EXPERIMENT, _run_environment
+    from dpcbench.bench.cli.options import DEFAULT_EXPERIMENT, run_environment
     from dpcbench.bench.data.outputs import record_written
     from dpcbench.bench.reporting import dashboard
     from dpcbench.bench.results import compare
@@ -102,7 +102,7 @@ def save_history(folder: Path, store_paths, experiment: str | None, guard) -> Pa
             known = ", ".join(sorted(map(str, results["experiment"].dropna().unique())))
             raise UserError(f"no runs of experiment {experiment!r} in {where} (it has: {known}); pass --experiment")
         results = results[results["experiment"] == experiment]
-    summary, meta = dashboard.history_summary(results, runs, _run_environment(runs, set(results["run_id"])),
+    summary, meta = dashboard.history_summary(results, runs, run_environment(runs, set(results["run_id"])),
                                               source=str(where), experiment=experiment or "all")
     name = dashboard.history_file_name(meta)
     commit = name.split("_", 1)[-1]
@@ -121,7 +121,7 @@ def save_history(folder: Path, store_paths, experiment: str | None, guard) -> Pa
 def choose_baseline(arg: str | None, results):
     """(summary, meta) to compare against, or None for the previous code version: ``arg`` a file, or
     'previous'; unset: the committed regression baseline where it shares rows with ``results``."""
-    from dpcbench.bench.cli.commands.compare import DEFAULT_BASELINE
+    from dpcbench.bench.cli.options import DEFAULT_BASELINE
     from dpcbench.bench.reporting import dashboard
     from dpcbench.bench.results import compare
 
@@ -141,7 +141,7 @@ def choose_baseline(arg: str | None, results):
 def run(args) -> int:
     import pandas as pd
 
-    from dpcbench.bench.cli.commands.compare import TOLERANCES_FILE
+    from dpcbench.bench.cli.options import TOLERANCES_FILE
     from dpcbench.bench.data.outputs import Outputs, record_written
     from dpcbench.bench.reporting import dashboard, dashboard_pages
     from dpcbench.bench.results import benchsuite, compare

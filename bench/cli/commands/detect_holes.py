@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 
-from dpcbench.bench.cli.commands.damage import add_input_options, load_input
+from dpcbench.bench.cli.options import add_input_options, load_input
 from dpcbench.bench.core.errors import UserError
 from dpcbench.bench.core.params import parse_params
 

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from dpcbench.bench.cli.commands.damage import add_input_options, load_input
+from dpcbench.bench.cli.options import add_input_options, load_input
 from dpcbench.bench.core.errors import RECORDED, UserError
 from dpcbench.bench.core.params import parse_params
 

@@ -35,7 +35,7 @@ def register(subparsers) -> None:
 
 
 def main(args) -> int:
-    from dpcbench.bench.cli.commands.report import resolve_store
+    from dpcbench.bench.cli.options import resolve_store
     from dpcbench.bench.data.outputs import Outputs
     from dpcbench.bench.reporting.margins import margins_from_store
     from dpcbench.bench.results.store import ResultsStore

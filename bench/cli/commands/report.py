@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dpcbench.bench.cli.options import resolve_store
 from dpcbench.bench.core.errors import UserError
 
 
@@ -26,21 +27,6 @@ def register(subparsers) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace existing files in the output folder that dpcbench did not write")
     p.set_defaults(func=main)
-
-
-def resolve_store(text: str) -> Path:
-    path = Path(text).expanduser()
-    if path.is_dir():
-        candidates = sorted(path.glob("*.sqlite"))
-        if (path / "results.sqlite").is_file():
-            return path / "results.sqlite"
-        if len(candidates) == 1:
-            return candidates[0]
-        raise UserError(f"{path}: expected one results store (*.sqlite) in the folder, found {len(candidates)}; "
-                        "pass the store file itself")
-    if not path.is_file():
-        raise UserError(f"{path}: no such results store; run `dpcbench run CONFIG --store {path}` first")
-    return path
 
 
 def main(args) -> int:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from pathlib import Path
 
+from dpcbench.bench.cli.options import resolve_config_path
 from dpcbench.bench.core.errors import UserError
 
 
@@ -33,22 +33,6 @@ def register(subparsers) -> None:
     p.add_argument("--retry-failed", action="store_true", help="redo runs that failed before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=main)
-
-
-def resolve_config_path(text: str) -> Path:
-    path = Path(text)
-    if path.is_file():
-        return path
-    if path.is_dir():
-        raise UserError(f"{text}: is a folder; give an experiment TOML file or a preset name")
-    presets = Path(__file__).resolve().parents[2] / "presets"
-    stem = path.name.removesuffix(".toml")
-    preset = presets / f"{stem}.toml"
-    if stem and path.name == text and preset.is_file():  # a bare name, like `paper-quick`
-        return preset
-    names = ", ".join(sorted(p.stem for p in presets.glob("*.toml")))
-    raise UserError(f"{text}: no such config file, and no preset of that name (presets: {names}); "
-                    "give the path of an experiment TOML file or one of the preset names")
 
 
 def main(args) -> int:
