@@ -220,3 +220,79 @@ def test_hole_view_looks_into_a_hole_on_the_side_of_a_limb():
     assert edge_on[2] < 0.5
     sparse = HoleRegion.ball([0.0, 100.0, 0.0], 1.0)  # no point near: the centroid's direction
     assert figures.hole_view(body, sparse) == figures.facing_view(body, sparse.center)
+
+
+def _psnr_frames(capped_method="temporal-fusion"):
+    """gpsnr_d1 per frame: two methods near 30-40 dB, one at the 200 dB cap on frame 1 (equal to the reference)."""
+    rows = []
+    for seq in ("Samba (real captured motion, not one of the paper's sequences) · independent holes", "b"):
+        for m, method in enumerate(("none", "lozes-pde", capped_method)):
+            for frame in range(3):
+                value = 200.0 if (method == capped_method and frame == 1) else 30.0 + 3 * m + 0.5 * frame
+                rows.append({"sequence": seq, "method": method, "frame": frame, "metric": "gpsnr_d1", "scope": "frame",
+                             "peak": "intrinsic", "value": value, "seed": 0})
+    return pd.DataFrame(rows)
+
+
+def test_capped_psnr_stays_off_the_scale_and_is_marked(tmp_path, monkeypatch):
+    """A frame equal to the reference (200 dB, the cap) would squash the other values into the bottom tenth of the
+    axis: the y range is set by the values below the cap, the capped ones marked at the top."""
+    from dpcbench.bench.reporting.tables import comparison_table
+
+    assert figures.psnr_cap("gpsnr_d1") == 200.0 and figures.psnr_cap("nshd") is None
+    assert figures.capped_limits([30.0, 36.0], 200.0, from_zero=True) is None
+    bottom, top = figures.capped_limits([30.0, 36.0, 200.0], 200.0, from_zero=False)
+    assert 36.0 < top < 40.0 and 25.0 < bottom < 30.0
+
+    limits, notes = [], []
+    set_ylim, text = figures.plt.Axes.set_ylim, figures.plt.Figure.text
+
+    def record_ylim(self, *args, **kwargs):
+        result = set_ylim(self, *args, **kwargs)
+        limits.append(self.get_ylim())
+        return result
+
+    def record_text(self, x, y, s, *args, **kwargs):
+        notes.append(s)
+        return text(self, x, y, s, *args, **kwargs)
+
+    monkeypatch.setattr(figures.plt.Axes, "set_ylim", record_ylim)
+    monkeypatch.setattr(figures.plt.Figure, "text", record_text)
+    df = _psnr_frames()
+    table = comparison_table(df, "gpsnr_d1", peak="intrinsic", column_of=lambda sel: sel["method"])
+    figures.bar_chart(table, tmp_path / "bars.png")
+    # the mean over frames of which one is capped (~87 dB) sets the scale, its interval (hundreds of dB) is cut
+    bottom, top = limits[-1]
+    assert -0.3 * top <= bottom <= 0.0 and 87 < top < 120, limits
+    assert any("cut at its edge" in note for note in notes)
+    # a cell at the cap in every frame: off the scale, marked at the top
+    limits.clear()
+    notes.clear()
+    always = df.assign(value=np.where(df["method"] == "temporal-fusion", 200.0, df["value"]))
+    figures.bar_chart(comparison_table(always, "gpsnr_d1", peak="intrinsic", column_of=lambda sel: sel["method"]),
+                      tmp_path / "bars2.png")
+    bottom, top = limits[-1]
+    assert top < 45, limits
+    assert any(figures.CAP_MARK in note and "200 dB" in note for note in notes)
+    assert figures.bar_limits([30.0, 36.0], [29.0, 35.0], [31.0, 37.0], 200.0) is None  # nothing to cut: matplotlib's
+    limits.clear()
+    notes.clear()
+    figures.per_frame_curves(df, "gpsnr_d1", "frame", "intrinsic", tmp_path / "curves.png",
+                             column_of=lambda sel: sel["method"])
+    assert [top < 45 for _, top in limits].count(True) == 2, limits  # one per panel (matplotlib's own calls besides)
+    assert any("200 dB" in note for note in notes)
+
+
+def test_long_panel_titles_wrap_within_their_panel(tmp_path, monkeypatch):
+    titles = []
+    set_title = figures.plt.Axes.set_title
+
+    def record(self, label, *args, **kwargs):
+        titles.append(label)
+        return set_title(self, label, *args, **kwargs)
+
+    monkeypatch.setattr(figures.plt.Axes, "set_title", record)
+    figures.per_frame_curves(_psnr_frames(), "gpsnr_d1", "frame", "intrinsic", tmp_path / "curves.png",
+                             column_of=lambda sel: sel["method"])
+    longest = max(len(line) for t in titles for line in t.split("\n"))
+    assert longest <= 16 * figures.DOUBLE_COLUMN_IN / 2 and any("\n" in t for t in titles)

@@ -55,7 +55,11 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
                                  gridspec_kw={"width_ratios": [max(1, len(rows)) * (1.0 if source == "this run" else 0.8)
                                                                for source, rows in panels]})
         width = 0.8 / max(1, len(columns))
+        cap = psnr_cap(table.metric)
+        capped_any = cut_any = False
         for ax, (source, rows) in zip(axes[0], panels):
+            drawn: list[tuple[float, float]] = []  # (x, mean) of every bar of this panel
+            ends: list[float] = []  # the interval ends of this panel's bars
             x = np.arange(len(rows))
             for k, col in enumerate(columns):
                 means, low, high = [], [], []
@@ -75,10 +79,21 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
                 ax.bar(offsets, means, width, yerr=[low, high] if source == "this run" else None, label=col,
                        color=colours[col], hatch="//" if source != "this run" else None, capsize=1.5,
                        edgecolor="black", linewidth=0.3, error_kw={"linewidth": 0.6})
+                drawn += list(zip(offsets, means))
+                ends += [m - d for m, d in zip(means, low)] + [m + d for m, d in zip(means, high)]
                 if source == "this run":
                     for xo, r, m in zip(offsets, rows, means):
                         if table.below_floor(r, col):
                             ax.annotate(FLOOR_MARK, (xo, m), ha="center", va="bottom", fontsize=MIN_TEXT_PT)
+            limits = bar_limits([m for _, m in drawn], ends, [], cap)
+            if limits is not None:
+                ax.set_ylim(*limits)
+                cut_any = cut_any or any(v < limits[0] or v > limits[1] for v in ends if math.isfinite(v))
+                for xo, m in drawn:
+                    if cap is not None and math.isfinite(m) and m >= cap:
+                        capped_any = True
+                        ax.annotate(CAP_MARK, (xo, limits[1]), ha="center", va="top", fontsize=MIN_TEXT_PT,
+                                    annotation_clip=False)
             if source == "this run" and table.floor:
                 for i, r in enumerate(rows):
                     f = table.mean.get((r, table.floor))
@@ -98,13 +113,16 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
         handles, labels = axes[0][0].get_legend_handles_labels()
         fig.suptitle(table.title + (f"\n{subtitle}" if subtitle else ""))
         fig.tight_layout()
+        key_lines = [cap_note(cap)] if capped_any and cap is not None else []
+        if cut_any:
+            key_lines.append("An interval reaching past the axis is cut at its edge.")
         # a legend only of labelled artists: one without any draws an empty box (and, called without
         # handles, warns "No artists with labels found")
         legend = None
         if handles:
             legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, frameon=False)
-        key = tick_labels(table.rows)[1]
-        if key:  # the rows' full names under the legend, for the short tick labels
+        key = key_lines + tick_labels(table.rows)[1]
+        if key:  # the rows' full names under the legend, for the short tick labels (and the cap's mark)
             fig.canvas.draw()
             bottom = 0.0 if legend is None else legend.get_window_extent().transformed(fig.transFigure.inverted()).y0
             fig.text(0.02, bottom - 0.02, "\n".join(_wrap(line, 130) for line in key), ha="left", va="top",
@@ -130,6 +148,63 @@ def _wrap(text: str, width: int) -> str:
     import textwrap
 
     return "\n".join(textwrap.wrap(str(text), width)) or str(text)
+
+
+#: the mark of a value at the PSNR cap (the result equals the reference), drawn at the top of its axis
+CAP_MARK = "▲"
+
+
+def psnr_cap(metric: str) -> float | None:
+    """The value a PSNR metric is capped at when the result equals the reference (`metrics.scoring`'s
+    ``DEFAULT_MAX_PSNR``, 200 dB), None for a metric that is no PSNR."""
+    from dpcbench.metrics.registry import describe
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    entry = describe(metric)
+    return DEFAULT_MAX_PSNR if entry is not None and entry.unit == "dB" else None
+
+
+def capped_limits(values, cap: float | None, *, from_zero: bool) -> tuple[float, float] | None:
+    """y limits of a curve panel that leave capped values out of the scale: None unless some of ``values``
+    reach ``cap`` (one 200 dB frame squashes every other value into the bottom tenth), else (bottom, top)
+    around the finite values below the cap, 12% padding, from 0 when ``from_zero``. The capped values are
+    drawn at the top with a triangle."""
+    vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
+    if cap is None or not any(v >= cap for v in vals):
+        return None
+    below = [v for v in vals if v < cap]
+    if not below:
+        return None
+    lo, hi = min(below), max(below)
+    pad = 0.12 * ((hi - lo) or abs(hi) or 1.0)
+    bottom = min(0.0, lo - pad) if from_zero else lo - pad
+    return bottom, hi + pad
+
+
+def bar_limits(means, lows, highs, cap: float | None) -> tuple[float, float] | None:
+    """y limits of a bar panel when its intervals or a capped bar would set the scale, else None (matplotlib's).
+
+    The bars (``means`` below ``cap``) and 0 set the range R; the axis reaches 25% of R beyond them, and an
+    interval (``lows``, ``highs``: its ends) reaching farther is cut at the axis edge: the intervals of a mean
+    over frames of which some equal the reference (200 dB) span hundreds of dB and would flatten every bar.
+    A bar at the cap is drawn at the top with `CAP_MARK`."""
+    finite = [float(m) for m in means if m is not None and math.isfinite(float(m))]
+    bars = [m for m in finite if cap is None or m < cap]
+    if not bars:
+        return None
+    bottom_bar, top_bar = min(0.0, min(bars)), max(0.0, max(bars))
+    reach = 0.25 * ((top_bar - bottom_bar) or 1.0)
+    ends = [float(v) for v in (*lows, *highs) if v is not None and math.isfinite(float(v))]
+    capped = cap is not None and any(m >= cap for m in finite)
+    if not capped and all(bottom_bar - reach <= v <= top_bar + reach for v in ends):
+        return None
+    low_end = min(ends, default=bottom_bar)
+    return (bottom_bar if low_end >= bottom_bar else max(low_end, bottom_bar - reach)), top_bar + reach
+
+
+def cap_note(cap: float) -> str:
+    """The line saying what `CAP_MARK` means."""
+    return f"{CAP_MARK} at the top: the result equals the reference there (PSNR capped at {cap:g} dB)"
 
 
 #: print widths (inches) of an IEEE-style page: one column and the full text width
@@ -192,7 +267,13 @@ def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_p
         for ax in axes.flat[len(sequences):]:
             ax.set_visible(False)
         method_of = sel.drop_duplicates("column").set_index("column")["method"].to_dict() if "method" in sel else {}
+        cap = psnr_cap(metric)
+        capped_any = False
+        # about 16 characters of 8 pt title text per inch of panel: a longer title wraps instead of
+        # running into its neighbour's
+        title_chars = max(20, int(16 * width_in / ncols))
         for ax, seq in zip(axes.flat, sequences):
+            panel_values = []
             for k, col in enumerate(columns):
                 curve = sel[(sel["sequence"] == seq) & (sel["column"] == col)].groupby("frame")["value"].mean()
                 if curve.empty:
@@ -201,7 +282,17 @@ def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_p
                 ax.plot(curve.index, curve.values * scale, marker=markers[k % len(markers)], ms=3.5 - 0.2 * k,
                         linewidth=max(0.6, 1.6 - 0.15 * k), linestyle="--" if floor else "-",
                         color=colours[col], label=col, markerfacecolor="white" if k % 2 else colours[col])
-            ax.set_title(seq, loc="left")
+                panel_values.append((curve, colours[col]))
+            limits = capped_limits([v * scale for curve, _ in panel_values for v in curve.values], cap, from_zero=False)
+            if limits is not None and cap is not None:
+                ax.set_ylim(*limits)
+                for curve, colour in panel_values:
+                    at_cap = curve[curve.values * scale >= cap]
+                    if len(at_cap):
+                        capped_any = True
+                        ax.plot(at_cap.index, np.full(len(at_cap), limits[1]), linestyle="none", marker="^", ms=4,
+                                color=colour, clip_on=False)
+            ax.set_title(_wrap(seq, title_chars), loc="left")
             ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
             ax.yaxis.get_major_formatter().set_useOffset(False)
             ax.set_xlabel("frame")
@@ -215,9 +306,15 @@ def per_frame_curves(df: pd.DataFrame, metric: str, scope: str, peak: str, out_p
                     labels.append(lab)
         fig.suptitle(title or f"{metric_label(metric)} per frame ({'whole frame' if scope == 'frame' else 'holes'})")
         fig.tight_layout()
+        legend = None
         if handles:
-            fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
-                       ncol=min(len(labels), 3 if width_in <= SINGLE_COLUMN_IN else 4), frameon=False)
+            legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                                ncol=min(len(labels), 3 if width_in <= SINGLE_COLUMN_IN else 4), frameon=False)
+        if capped_any and cap is not None:
+            fig.canvas.draw()
+            bottom = 0.0 if legend is None else legend.get_window_extent().transformed(fig.transFigure.inverted()).y0
+            fig.text(0.02, bottom - 0.01, cap_note(cap), ha="left", va="top",
+                     fontsize=MIN_TEXT_PT)
         return save_figure(fig, out_png)
 
 
