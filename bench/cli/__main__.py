@@ -4,4 +4,5 @@ import sys
 
 from dpcbench.bench.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not on import (a walk over every module imports this one too)
+    sys.exit(main())
