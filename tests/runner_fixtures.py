@@ -165,3 +165,10 @@ if __name__ == "__main__":  # a driver with the test entries registered: python 
 
     register_global()
     sys.exit(main(sys.argv[1:]))
+
+
+def voxel_plane(shift: int, size: int = 40, z: int = 20) -> np.ndarray:
+    """A ``size`` x ``size`` plane of voxels at height ``z``, moved ``shift`` voxels along x (a frame of a
+    sliding plane)."""
+    i, j = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    return np.column_stack([i.ravel() + shift, j.ravel(), np.full(i.size, z)]).astype(np.float64)

@@ -11,11 +11,7 @@ from dpcbench.bench.cli import main
 from dpcbench.bench.data.plyio import PointCloud, read_ply
 from dpcbench.bench.data.sequences import load_sequence, save_sequence
 from dpcbench.holes.regions import HoleRegion, regions_to_json
-
-
-def voxel_plane(shift):
-    i, j = np.meshgrid(np.arange(40), np.arange(40), indexing="ij")
-    return np.column_stack([i.ravel() + shift, j.ravel(), np.full(i.size, 20)]).astype(np.float64)
+from tests.runner_fixtures import voxel_plane
 
 
 @pytest.fixture

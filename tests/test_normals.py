@@ -15,6 +15,7 @@ from dpcbench.holes.regions import HoleRegion, regions_to_json
 from dpcbench.methods._normals import output_normals
 from dpcbench.methods.progress import frame_done, report_frames_to
 from dpcbench.metrics.errors import UserError
+from tests.runner_fixtures import voxel_plane
 
 
 def sphere(n, seed):
@@ -50,11 +51,6 @@ def test_bad_normals_are_refused_with_a_reason():
     bad[3] = np.nan
     with pytest.raises(UserError, match="not all finite"):
         output_normals(points, bad, points)
-
-
-def voxel_plane(shift):
-    i, j = np.meshgrid(np.arange(40), np.arange(40), indexing="ij")
-    return np.column_stack([i.ravel() + shift, j.ravel(), np.full(i.size, 20)]).astype(np.float64)
 
 
 @pytest.fixture
