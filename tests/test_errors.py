@@ -287,7 +287,7 @@ def test_every_param_option_of_every_command_goes_through_the_one_parser():
 
 def test_user_terms_messages(work, capsys):
     code, _, err = run_cli(["run", "no-such-preset", "--dry-run"], capsys)
-    assert_refused(code, err, "run", "no-such-preset: no such config file", "presets: methods, paper, paper-ablation, paper-quick")
+    assert_refused(code, err, "run", "no-such-preset: no such config file", "presets: colour, methods, paper, paper-ablation, paper-quick")
     assert "presets/toml" not in err
     # a message that ends with a quoted value keeps its closing quote
     code, _, err = run_cli(["damage", "seq", "--holes", "region", "--param", "shape=blob", "--out", "d"], capsys)

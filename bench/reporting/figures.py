@@ -85,15 +85,8 @@ def bar_chart(table: ComparisonTable, out_png: str | Path, *, subtitle: str = ""
                     for xo, r, m in zip(offsets, rows, means):
                         if table.below_floor(r, col):
                             ax.annotate(FLOOR_MARK, (xo, m), ha="center", va="bottom", fontsize=MIN_TEXT_PT)
-            limits = bar_limits([m for _, m in drawn], ends, [], cap)
-            if limits is not None:
-                ax.set_ylim(*limits)
-                cut_any = cut_any or any(v < limits[0] or v > limits[1] for v in ends if math.isfinite(v))
-                for xo, m in drawn:
-                    if cap is not None and math.isfinite(m) and m >= cap:
-                        capped_any = True
-                        ax.annotate(CAP_MARK, (xo, limits[1]), ha="center", va="top", fontsize=MIN_TEXT_PT,
-                                    annotation_clip=False)
+            capped, cut = _limit_bar_panel(ax, drawn, ends, cap)
+            capped_any, cut_any = capped_any or capped, cut_any or cut
             if source == "this run" and table.floor:
                 for i, r in enumerate(rows):
                     f = table.mean.get((r, table.floor))
@@ -200,6 +193,21 @@ def bar_limits(means, lows, highs, cap: float | None) -> tuple[float, float] | N
         return None
     low_end = min(ends, default=bottom_bar)
     return (bottom_bar if low_end >= bottom_bar else max(low_end, bottom_bar - reach)), top_bar + reach
+
+
+def _limit_bar_panel(ax, drawn: list[tuple[float, float]], ends: list[float], cap: float | None) -> tuple[bool, bool]:
+    """Apply `bar_limits` to one bar panel (``drawn``: (x, mean) per bar; ``ends``: the interval ends) and mark
+    the capped bars at the top; (any bar capped, any interval cut)."""
+    limits = bar_limits([m for _, m in drawn], ends, [], cap)
+    if limits is None:
+        return False, False
+    ax.set_ylim(*limits)
+    capped = False
+    for xo, m in drawn:
+        if cap is not None and math.isfinite(m) and m >= cap:
+            capped = True
+            ax.annotate(CAP_MARK, (xo, limits[1]), ha="center", va="top", fontsize=MIN_TEXT_PT, annotation_clip=False)
+    return capped, any(v < limits[0] or v > limits[1] for v in ends if math.isfinite(v))
 
 
 def cap_note(cap: float) -> str:
