@@ -109,3 +109,29 @@ def test_a_run_folder_without_colours_is_made_anew(tmp_path, in_repo):
     assert not summary.failed and len(summary.done) == 1
     assert read_run_folder(run_dir)["inpainted_colors"] is not None
     assert "cpsnr_y" in set(store.results_frame().metric)
+
+
+def test_colour_fill_of_an_experiment_is_used_and_named_in_the_run_identity(tmp_path, in_repo):
+    from dpcbench.bench.experiment.config import ConfigError
+
+    seq = _write(tmp_path / "seq", coloured=True)
+    default = parse_config(_cfg(seq, ["lozes-pde"])).expand()
+    cfg = _cfg(seq, ["lozes-pde"])
+    cfg["experiment"]["colour_fill"] = "auto"
+    assert [s.run_id for s in parse_config(cfg).expand()] == [s.run_id for s in default]  # the default: same ids
+    cfg["experiment"]["colour_fill"] = "nearest"
+    nearest = parse_config(cfg).expand()
+    assert nearest[0].protocol["colour_fill"] == "nearest" and nearest[0].run_id != default[0].run_id
+    assert nearest[0].inpaint_key != default[0].inpaint_key  # its own run folder: the colours differ
+    store = ResultsStore(tmp_path / "store.sqlite")
+    assert not run_experiment(nearest, store, executor="serial", quiet=True, runs_dir=tmp_path / "runs").failed
+    folder = read_run_folder(Path(store.runs_frame()["output_dir"].iloc[0]))
+    from dpcbench.methods._colour import colour_outputs
+
+    want = colour_outputs(folder["damaged"], _damaged_colours(Path(store.runs_frame()["output_dir"].iloc[0])),
+                          folder["inpainted"], None, "nearest")
+    for got, expected in zip(folder["inpainted_colors"], want):
+        np.testing.assert_array_equal(got, expected)
+    cfg["experiment"]["colour_fill"] = "sepia"
+    with pytest.raises(ConfigError, match="colour_fill: expected one of auto, nearest, harmonic, source"):
+        parse_config(cfg)

@@ -181,12 +181,13 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
     inpainted = _check_output(inpainted, damage.frames, spec.method["name"])
     inpainted_colors = None
     if damage.colors is not None:
-        # the method's colours as `dpcbench inpaint` gives them by default (fill "auto"): kept points keep
-        # theirs, copied points their source's, the rest a harmonic fill from the rim (`methods._colour`)
+        # the method's colours as `dpcbench inpaint --colour` gives them (the experiment's colour_fill, default
+        # "auto": kept points keep theirs, copied points their source's, the rest a harmonic fill from the rim)
         from dpcbench.methods._colour import colour_outputs
 
         t0 = time.perf_counter()
-        inpainted_colors = colour_outputs(damage.frames, damage.colors, inpainted, sources, "auto")
+        inpainted_colors = colour_outputs(damage.frames, damage.colors, inpainted, sources,
+                                          spec.protocol.get("colour_fill", "auto"))
         total = {**total, "colour_time_s": time.perf_counter() - t0}
 
     holes = regions_to_json(damage.regions, generator=spec.holes["generator"], params=spec.holes["params"],

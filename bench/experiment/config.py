@@ -16,6 +16,8 @@ grids), and the metrics with their options::
                                     # "heldout" (data they never saw); recorded in every run's spec
     holds_out = "my-tuning-sweep"   # with data_role = "heldout" (required there): the experiment
                                     # name of the tuning data it is held out from (`dpcbench margins`)
+    colour_fill = "auto"            # on coloured data, how new points are coloured (methods._colour.FILLS:
+                                    # auto, nearest, harmonic, source); part of a run's identity unless "auto"
 
     [[sequences]]
     name = "human"                  # an embedded, paper or mesh (samba) dataset name (bench.data.datasets), or ...
@@ -96,7 +98,7 @@ SCOPES = ("frame", "holes")
 
 _TOP_KEYS = {"experiment", "sequences", "holes", "methods", "metrics", "labels"}
 _EXPERIMENT_KEYS = {"name", "description", "timeout_s", "regions", "data_dir", "detection", "data_role", "holds_out",
-                   "pin_isa"}
+                   "pin_isa", "colour_fill"}
 #: values of experiment.data_role: data a method was tuned on, and data it never saw
 DATA_ROLES = ("tuning", "heldout")
 REGION_MODES = ("given", "detected", "none")
@@ -369,6 +371,8 @@ class ExperimentConfig:
     timeout_s: float = DEFAULT_TIMEOUT_S
     regions: str = "given"
     pin_isa: bool = False
+    #: the colour fill of new points on coloured data (`methods._colour.FILLS`)
+    colour_fill: str = "auto"
     detection: dict = field(default_factory=dict)
     data_dir: str | None = None
     data_role: str | None = None
@@ -520,6 +524,12 @@ def _parse_experiment(exp, source: str) -> ExperimentConfig:
     if not isinstance(exp.get("pin_isa", False), bool):
         raise ConfigError(f"experiment.pin_isa: expected true or false, got {exp['pin_isa']!r}")
     cfg.pin_isa = exp.get("pin_isa", False)  # run pinned to one instruction set (bench.core.isa), e.g. a regression gate
+    from dpcbench.methods._colour import FILLS
+
+    fill = exp.get("colour_fill", "auto")
+    if fill not in FILLS:
+        raise ConfigError(f"experiment.colour_fill: expected one of {', '.join(FILLS)}, got {fill!r}")
+    cfg.colour_fill = fill
     detection = exp.get("detection", {})
     if detection:
         if regions != "detected":
@@ -683,6 +693,8 @@ def expand_config(cfg: ExperimentConfig) -> list[RunSpec]:
             if n in registry:
                 metric_versions[n] = str(getattr(registry[n], "version", "1"))
     protocol: dict = {"regions": cfg.regions}
+    if cfg.colour_fill != "auto":  # only then: runs of the default fill keep the ids they always had
+        protocol["colour_fill"] = cfg.colour_fill
     detector: dict = {}
     if cfg.regions == "detected":
         protocol["detection"], detector["detector"] = detection_protocol(cfg.detection)
