@@ -172,3 +172,15 @@ def voxel_plane(shift: int, size: int = 40, z: int = 20) -> np.ndarray:
     sliding plane)."""
     i, j = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
     return np.column_stack([i.ravel() + shift, j.ravel(), np.full(i.size, z)]).astype(np.float64)
+
+
+def tidy_results(cells: dict, frames: int = 3, seeds: int = 3, metric: str = "gpsnr_d1", step: float = 1.0):
+    """A tidy results table (pandas) as the store gives it: cells (sequence, method) -> the value of frame f, seed s
+    = base + step (f + 0.1 s)."""
+    import pandas as pd
+
+    rows = [{"sequence": seq, "method": m, "method_params": "{}", "metric": metric, "scope": "frame",
+             "peak": "intrinsic" if metric.startswith("gpsnr") else "", "frame": f, "seed": s,
+             "value": base + step * (f + 0.1 * s)}
+            for (seq, m), base in cells.items() for f in range(frames) for s in range(seeds)]
+    return pd.DataFrame(rows)

@@ -16,6 +16,7 @@ from dpcbench.bench.reporting import paper
 from dpcbench.bench.reporting.reports import paper_tables, write_comparison_report, write_paper_report
 from dpcbench.bench.reporting.tables import comparison_table
 from dpcbench.bench.results.store import ResultsStore
+from tests.runner_fixtures import tidy_results
 
 METHODS = ["meshlab", "lozes-pde", "fu-nonlocal", "temporal-graph"]
 #: each of the paper's columns as reproduce-paper runs it (the paper configurations)
@@ -393,19 +394,10 @@ def test_d2_tables_say_which_normals_d2_used(tmp_path):
     assert "PCA" not in (out / "tables" / "table2_nshd.md").read_text()  # NSHD does not use normals
 
 
-def _tidy(cells: dict, frames=3, seeds=3, metric="gpsnr_d1", step=1.0) -> pd.DataFrame:
-    """A tidy results table: cells (sequence, method) -> value of frame f, seed s = base + step (f + 0.1 s)."""
-    rows = [{"sequence": seq, "method": m, "method_params": "{}", "metric": metric, "scope": "frame",
-             "peak": "intrinsic" if metric.startswith("gpsnr") else "", "frame": f, "seed": s,
-             "value": base + step * (f + 0.1 * s)}
-            for (seq, m), base in cells.items() for f in range(frames) for s in range(seeds)]
-    return pd.DataFrame(rows)
-
-
 def test_the_floor_marks_cells_below_no_fill():
     from dpcbench.bench.reporting.tables import FLOOR_MARK, TIED_MARK
 
-    df = _tidy({("S", "none"): 15.0, ("S", "a"): 10.0, ("S", "b"): 20.0, ("S", "c"): 20.0, ("T", "none"): 5.0,
+    df = tidy_results({("S", "none"): 15.0, ("S", "a"): 10.0, ("S", "b"): 20.0, ("S", "c"): 20.0, ("T", "none"): 5.0,
                 ("T", "a"): 10.0})
     t = comparison_table(df, "gpsnr_d1", "frame", "intrinsic")
     assert t.floor == "none"
@@ -421,7 +413,7 @@ def test_the_floor_marks_cells_below_no_fill():
     rows = list(csv.DictReader(io.StringIO(t.csv())))
     assert {r["method"] for r in rows if r["below_floor"] == "True"} == {"a"}
     # lower is better: a larger NSHD than no fill is below the floor
-    t2 = comparison_table(_tidy({("S", "none"): 1.0, ("S", "a"): 2.0}, metric="nshd"), "nshd", "frame")
+    t2 = comparison_table(tidy_results({("S", "none"): 1.0, ("S", "a"): 2.0}, metric="nshd"), "nshd", "frame")
     assert t2.below_floor("S", "a")
 
 
@@ -432,7 +424,7 @@ def test_labels_are_escaped_in_every_format():
     assert md_escape(evil) == "x\\|y &lt;b>z&lt;/b> 50% {a}\\_\\\\"
     assert latex_escape(evil) == r"x|y \textless{}b\textgreater{}z\textless{}/b\textgreater{} 50\% \{a\}\_\textbackslash{}"
     assert [csv_safe(v) for v in ("=1+1", "+a", "-b", "@c", "ok", -1.5)] == ["'=1+1", "'+a", "'-b", "'@c", "ok", -1.5]
-    df = _tidy({("=HYPERLINK(1)", "a|b"): 10.0, ("=HYPERLINK(1)", "50%"): 11.0})
+    df = tidy_results({("=HYPERLINK(1)", "a|b"): 10.0, ("=HYPERLINK(1)", "50%"): 11.0})
     t = comparison_table(df, "gpsnr_d1", "frame", "intrinsic")
     assert "| a\\|b |" in t.markdown() and r"50\%" in t.latex()
     rows = list(csv.reader(io.StringIO(t.csv())))
@@ -440,7 +432,7 @@ def test_labels_are_escaped_in_every_format():
 
 
 def test_one_precision_per_table():
-    t = comparison_table(_tidy({("S", "a"): 0.001, ("S", "b"): 12.0}, metric="nshd", step=1e-4), "nshd", "frame",
+    t = comparison_table(tidy_results({("S", "a"): 0.001, ("S", "b"): 12.0}, metric="nshd", step=1e-4), "nshd", "frame",
                          decimals=None)
     # the smallest mean (0.00111) gets 3 significant digits: 5 decimals for every value
     assert t.cell_text("S", "b").startswith("12.00011 [") and t.cell_text("S", "a").startswith("0.00111 [")

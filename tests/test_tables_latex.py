@@ -21,24 +21,16 @@ from dpcbench.bench.reporting.reports import paper_tables, rename_methods, write
 from dpcbench.bench.reporting.tables import comparison_table
 from dpcbench.bench.results.store import ResultsStore
 from tests import runner_fixtures as helpers
+from tests.runner_fixtures import tidy_results
 
 HOSTILE = "a_b&c%\\end{table}"
-
-
-def _tidy(cells: dict, frames=3, seeds=3, metric="gpsnr_d1", step=1.0) -> pd.DataFrame:
-    """A tidy results table: cells (sequence, method) -> value of frame f, seed s = base + step (f + 0.1 s)."""
-    rows = [{"sequence": seq, "method": m, "method_params": "{}", "metric": metric, "scope": "frame",
-             "peak": "intrinsic" if metric.startswith("gpsnr") else "", "frame": f, "seed": s,
-             "value": base + step * (f + 0.1 * s)}
-            for (seq, m), base in cells.items() for f in range(frames) for s in range(seeds)]
-    return pd.DataFrame(rows)
 
 
 def _table(methods, sequences=("S",), metric="gpsnr_d1", **kwargs):
     scale = 1e7 if metric == "nshd" else 1.0  # NSHD in units of 1e-7, as Table 2
     cells = {(seq, m): (10.0 + i + j) / scale for j, seq in enumerate(sequences) for i, m in enumerate(methods)}
     step = 1 / scale
-    return comparison_table(_tidy(cells, metric=metric, step=step), metric, "frame",
+    return comparison_table(tidy_results(cells, metric=metric, step=step), metric, "frame",
                             "intrinsic" if metric.startswith("gpsnr") else "", scale=scale, **kwargs)
 
 
@@ -48,7 +40,7 @@ def _paper_style_tables():
     for i, (name, _label, params, _role) in enumerate(paper.TABLE_COLUMNS):
         for j, seq in enumerate(("Human (stand-in)", "Bunny (stand-in)")):
             for metric, base, step in (("gpsnr_d1", 20.0 + i + 3 * j, 1.0), ("nshd", (20.0 + i + 3 * j) * 1e-7, 1e-7)):
-                frames.append(_tidy({(seq, name): base}, metric=metric, step=step).assign(
+                frames.append(tidy_results({(seq, name): base}, metric=metric, step=step).assign(
                     method_params=json.dumps(params, sort_keys=True)))
     return paper_tables(pd.concat(frames, ignore_index=True), standins=True)
 

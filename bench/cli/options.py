@@ -91,3 +91,17 @@ def run_environment(runs, run_ids) -> dict | None:
         else:
             flat[key] = str(value)
     return flat
+
+
+def choose_experiment(store, name: str | None, alternative: str = "") -> str:
+    """The experiment of ``store`` a command reads: ``name``, which the store must hold, or with None the store's
+    only experiment; UserError otherwise (``alternative``: another way to choose, said in the message)."""
+    experiments = store.experiments()
+    if name is None:
+        if len(experiments) != 1:
+            raise UserError(f"the store holds {len(experiments)} experiments ({', '.join(experiments) or 'none'}); "
+                            f"choose one with --experiment NAME{alternative}")
+        return experiments[0]
+    if name not in experiments:
+        raise UserError(f"no experiment {name!r} in {store.path}; it holds: {', '.join(experiments) or 'none'}")
+    return name

@@ -62,15 +62,9 @@ def main(args) -> int:
             raise UserError("give --experiment or --config, not both (--config picks the runs by their ids)")
         what, runs, expected = _runs_of_config(store, args)
     else:
-        experiments = store.experiments()
-        experiment = args.experiment
-        if experiment is None:
-            if len(experiments) != 1:
-                raise UserError(f"the store holds {len(experiments)} experiments ({', '.join(experiments) or 'none'}); "
-                                "choose one with --experiment NAME (or give --config)")
-            experiment = experiments[0]
-        elif experiment not in experiments:
-            raise UserError(f"no experiment {experiment!r} in {store.path}; it holds: {', '.join(experiments) or 'none'}")
+        from dpcbench.bench.cli.options import choose_experiment
+
+        experiment = choose_experiment(store, args.experiment, " (or give --config)")
         what, runs = f"experiment {experiment!r}", store.runs_frame(experiment)
     table = cost_table(runs)
     stored = int(runs["run_id"].nunique())

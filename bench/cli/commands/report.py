@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from dpcbench.bench.cli.options import resolve_store
+from dpcbench.bench.cli.options import choose_experiment, resolve_store
 from dpcbench.bench.core.errors import UserError
 
 
@@ -40,15 +40,7 @@ def main(args) -> int:
 
         display_names = load_labels(args.labels)  # before the store is read: a bad table fails at once
     store = ResultsStore(resolve_store(args.results), readonly=True, verify=True)
-    experiments = store.experiments()
-    experiment = args.experiment
-    if experiment is None:
-        if len(experiments) != 1:
-            raise UserError(f"the store holds {len(experiments)} experiments ({', '.join(experiments) or 'none'}); "
-                            "choose one with --experiment NAME")
-        experiment = experiments[0]
-    elif experiment not in experiments:
-        raise UserError(f"no experiment {experiment!r} in {store.path}; it holds: {', '.join(experiments) or 'none'}")
+    experiment = choose_experiment(store, args.experiment)
     df = store.results_frame(experiment)
     runs = store.runs_frame(experiment)
     if df.empty:
