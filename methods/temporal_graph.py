@@ -893,7 +893,7 @@ class _CubeGraphInpainting(InpaintingMethod):
             fill = self._fill_group(group, normals, agtv, ctx)
             out[fill.moved_index] = fill.moved_points
             new_points.append(fill.new)
-            new_colours.append(fill.colours)
+            new_colours.append(np.full((len(fill.new), 3), np.nan) if fill.colours is None else fill.colours)
         added = np.vstack(new_points) if new_points else np.empty((0, 3))
         result = finish_frame(out, added, regions, voxelized=voxelized, round_known=self.known_points == "free")
         if colours is None:

@@ -16,6 +16,8 @@ alignment errors, as the voxel's fit averages their positions."""
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -38,6 +40,12 @@ def masked(colours: np.ndarray | None, keep: np.ndarray) -> np.ndarray | None:
     return None if colours is None else colours[keep]
 
 
+@overload
+def pooled(points: np.ndarray, colours: np.ndarray, targets: np.ndarray, reach: float) -> np.ndarray: ...
+@overload
+def pooled(points: np.ndarray, colours: None, targets: np.ndarray, reach: float) -> None: ...
+@overload
+def pooled(points: np.ndarray, colours: np.ndarray | None, targets: np.ndarray, reach: float) -> np.ndarray | None: ...
 def pooled(points: np.ndarray, colours: np.ndarray | None, targets: np.ndarray, reach: float) -> np.ndarray | None:
     """(T, 3) the mean colour of the coloured ``points`` (P, 3) within ``reach`` (ties included) of each of
     ``targets`` (T, 3); a target with none within reach takes its nearest coloured point's colour, NaN when no
@@ -63,6 +71,12 @@ def pooled(points: np.ndarray, colours: np.ndarray | None, targets: np.ndarray, 
     return out
 
 
+@overload
+def rounded(points: np.ndarray, colours: np.ndarray, voxels: np.ndarray) -> np.ndarray: ...
+@overload
+def rounded(points: np.ndarray, colours: None, voxels: np.ndarray) -> None: ...
+@overload
+def rounded(points: np.ndarray, colours: np.ndarray | None, voxels: np.ndarray) -> np.ndarray | None: ...
 def rounded(points: np.ndarray, colours: np.ndarray | None, voxels: np.ndarray) -> np.ndarray | None:
     """(V, 3) the mean colour of the coloured ``points`` (P, 3) that round (half up) to each of ``voxels`` (V, 3;
     integer), NaN where none does."""

@@ -262,9 +262,9 @@ class TemporalFusion(InpaintingMethod):
                 fills[f] = fill_frame(cfg, seq, f, previous_fill, previous_colours)
                 added, previous_fill = fills[f].added, fills[f].reusable
                 outputs.append(np.vstack([frame, added]) if len(added) else frame.copy())
-                if colours is not None and fills[f].colours is not None:  # (always, when colours are given)
-                    out_colours.append(colour_frame(frame, colours[f], outputs[f], fill,
-                                                    as_sources(len(frame), fills[f].colours)))
+                carried = fills[f].colours
+                if colours is not None and carried is not None:  # (always, when colours are given)
+                    out_colours.append(colour_frame(frame, colours[f], outputs[f], fill, as_sources(len(frame), carried)))
                     previous_colours = out_colours[f][len(frame):][fills[f].reusable_rows].astype(np.float64)
             frame_done(f + 1, len(frames))  # the back-fill after the last frame is short
         if cfg.reuse_next:
