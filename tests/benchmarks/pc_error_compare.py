@@ -11,11 +11,12 @@ YCbCr, and 0, RGB); every colour figure it prints (c[k] MSE and PSNR, A->B, B->A
 `metrics.colour.pc_error_colour` on the same clouds, and the worst relative difference is printed; the symmetric
 PSNRs are printed as JSON (the golden values of tests/test_metrics_colour.py).
 
-Time (``--time``): on the Longdress frame against its filled copy, ``--repeat`` rounds, each timing (wall clock)
-pc_error ``--color=1 --nbThreads=THREADS`` (D1, D2 and colour), `dpcbench score --jobs THREADS` with its
-default metrics (D1, D2, NSHD, Hausdorff, Chamfer, F-score, and colour PSNR Y/U/V), and `dpcbench score` with
-D1, D2 and cpsnr_y/u/v only (pc_error's figures), one after the other in this process's niceness; the median of
-each is printed."""
+Time (``--time``): on the Longdress frame against its filled copy, ``--repeat`` rounds, each timing (wall clock,
+and CPU seconds: user + system of the command and its threads) pc_error ``--color=1 --nbThreads=THREADS`` (the
+frame has no normals, so pc_error computes D1 and colour: no D2), `dpcbench score --jobs THREADS` with the same
+figures (D1, cpsnr_y/u/v), and `dpcbench score --jobs THREADS` with its default metrics (D1, D2 with estimated
+normals, NSHD, Hausdorff, Chamfer, F-score, and colour PSNR Y/U/V), one after the other in this process's
+niceness; the median of each is printed."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import argparse
 import json
 import math
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -108,25 +110,30 @@ def timings(binary: str, files: dict[str, Path], threads: int, repeat: int) -> N
     dpcbench = str(ROOT / ".venv" / "bin" / "dpcbench")
     truth, result = str(files["truth"]), str(files["filled"])
     commands = {
-        f"pc_error --color=1 --nbThreads={threads}": [binary, f"--fileA={truth}", f"--fileB={result}", "--color=1",
-                                                      f"--nbThreads={threads}"],
+        f"pc_error --color=1 --nbThreads={threads} (D1, colour)": [
+            binary, f"--fileA={truth}", f"--fileB={result}", "--color=1", f"--nbThreads={threads}"],
+        f"dpcbench score --jobs {threads} (D1, cpsnr_y/u/v)": [
+            dpcbench, "score", truth, result, "--jobs", str(threads), "--metric", "gpsnr_d1", "--metric", "cpsnr_y",
+            "--metric", "cpsnr_u", "--metric", "cpsnr_v"],
         f"dpcbench score --jobs {threads} (default metrics + colour)": [dpcbench, "score", truth, result, "--jobs",
                                                                          str(threads)],
-        f"dpcbench score --jobs {threads} (D1, D2, cpsnr_y/u/v)": [
-            dpcbench, "score", truth, result, "--jobs", str(threads), "--metric", "gpsnr_d1", "--metric", "gpsnr_d2",
-            "--metric", "cpsnr_y", "--metric", "cpsnr_u", "--metric", "cpsnr_v"],
     }
-    seconds: dict[str, list[float]] = {label: [] for label in commands}
+    wall: dict[str, list[float]] = {label: [] for label in commands}
+    cpu: dict[str, list[float]] = {label: [] for label in commands}
     for _ in range(repeat):
         for label, command in commands.items():
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
             start = time.perf_counter()
             subprocess.run(command, check=True, capture_output=True)
-            seconds[label].append(time.perf_counter() - start)
-    print(f"\nLongdress 1300 against its filled copy, wall seconds, median of {repeat} (each round runs all three):")
-    print("| command | median s | all |")
-    print("|---|---|---|")
-    for label, values in seconds.items():
-        print(f"| {label} | {statistics.median(values):.2f} | {', '.join(f'{v:.2f}' for v in values)} |")
+            wall[label].append(time.perf_counter() - start)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu[label].append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    print(f"\nLongdress 1300 against its filled copy, median of {repeat} rounds (each round runs all three):")
+    print("| command | wall s | CPU s | wall, each round | CPU, each round |")
+    print("|---|---|---|---|---|")
+    for label in commands:
+        print(f"| {label} | {statistics.median(wall[label]):.2f} | {statistics.median(cpu[label]):.2f} | "
+              f"{', '.join(f'{v:.2f}' for v in wall[label])} | {', '.join(f'{v:.2f}' for v in cpu[label])} |")
 
 
 def main() -> int:
