@@ -78,14 +78,17 @@ output and f+1 the damaged input (the paper's commented text: results feed later
 Colour (``inpaint_with_colours``, fill "auto"; the paper's future work, "attribute inpainting"): colour is a
 further signal on each target cube's graph (`cube_colours`). The same Eq. (5)-(6) system as the positions (the
 same rows, Omega, spatial Laplacian L, temporal links D_g and weights alpha, gamma, beta) is solved per colour
-channel, with c_t the known rows' colours, c_s_hat the colour of each new row in its source cube (intra- or
-inter-source: the new rows are source points) and W_g c_g the colour of each row's counterpart in the
-inter-source cube of f-1 (its output colours) and f+1 (its input colours). Known points always keep their colour
-(Dirichlet rows, also where known_points="free" moves them: a captured colour is data). A voxel of step 10 takes
-the colour of its nearest new point (whose tangent plane chose it). Why this reading: the colour of a new point
-then follows the source its position came from, smoothed on the same graph towards the rim's colours and, in
-temporal-graph, pulled towards the colours the same surface has in the neighbouring frames, which is how the
-paper treats geometry; fu-nonlocal (beta = 0) gets the spatial terms only. The geometry does not depend on it.
+channel, with c_t the known rows' colours and W_g c_g the colour of each row's counterpart in the inter-source
+cube of f-1 (its output colours) and f+1 (its input colours). c_s_hat: where the new rows come from an
+inter-source cube (the same surface in a neighbouring frame), their colours there; where they come from an
+intra-source cube (a patch elsewhere that matches the target's geometry, not its colour) only a weak anchor to the
+nearest known colour, so that the colour is the harmonic extension of the known colours on the cube's graph (the
+discrete Laplace equation of Lozes et al.'s colour PDE, on the paper's graph) pulled, in temporal-graph, towards
+the colours the same surface has in the neighbouring frames. Known points always keep their colour (Dirichlet
+rows, also where known_points="free" moves them: a captured colour is data). A voxel of step 10 takes the colour
+of its nearest new point (whose tangent plane chose it). Measured: with the intra-source cube's own colours as
+c_s_hat, hole-region colour fell far below the harmonic fill on a real capture (docs/colour.md). The geometry
+does not depend on colour.
 
 Code. Each step is a function or a small class: `normal_features` and `CandidateCubes` (step 4's
 features), `methods._cubes` (`hole_cells`, `region_groups`, `TargetCubeOrder`: steps 1-3),
@@ -353,14 +356,6 @@ class InterSource:
     colours: np.ndarray | None = None
 
 
-@dataclass(frozen=True)
-class SourceFit(RigidFit):
-    """`intra_source`'s aligned patch, with ``rows`` (S,): the row in the frame of each source point (so that
-    its colour can be read)."""
-
-    rows: np.ndarray | None = None
-
-
 # -- steps --------------------------------------------------------------------------------------------
 # The pipeline of one frame, in order: features and candidates (`normal_features`,
 # `CandidateCubes`), the cubes (`methods._cubes`: `hole_cells`, `region_groups`,
@@ -427,8 +422,8 @@ def normal_features(points: np.ndarray, tree: cKDTree, sigma: float, feature_fra
 
 def intra_source(target: np.ndarray, lower: np.ndarray, query: np.ndarray, ctx: FrameContext, *,
                  intra_candidates: int, hole_free: bool, grow_source: bool, cells_per_cube: int,
-                 agtv_weight: float, icp_iterations: int, residual: bool) -> SourceFit | None:
-    """The aligned intra-source cube of the target cube at ``lower`` (with its points' rows in the frame), or None.
+                 agtv_weight: float, icp_iterations: int, residual: bool) -> RigidFit | None:
+    """The aligned intra-source cube of the target cube at ``lower``, or None.
 
     target (m, 3): the target's known points; query (4,): its (DC, agtv_weight * AGTV). The best
     ``intra_candidates`` of `CandidateCubes.ranked` (the paper: 1) give source patches: a
@@ -444,17 +439,11 @@ def intra_source(target: np.ndarray, lower: np.ndarray, query: np.ndarray, ctx: 
     half = ctx.cube / 2.0
     grow = ctx.cell if grow_source else 0.0
     sources: list[np.ndarray | None] = []
-    rows: list[np.ndarray] = []
     for index in choices:
         source_lower = cand.lower[index]
         source_idx = ctx.tree.query_ball_point(source_lower + half, half + grow, p=np.inf)
         sources.append(ctx.points[source_idx] + (lower - source_lower) if len(source_idx) >= 3 else None)
-        rows.append(np.asarray(source_idx, dtype=np.int64))
-    fit = align_best(sources, target, iterations=icp_iterations, residual=residual)
-    if fit is None:
-        return None
-    won = next(i for i, source in enumerate(sources) if source is fit.source)
-    return SourceFit(fit.source, fit.tree, fit.rotation, fit.translation, fit.residual, rows[won])
+    return align_best(sources, target, iterations=icp_iterations, residual=residual)
 
 
 def inter_source_window(target: np.ndarray, lower: np.ndarray, neighbour: NeighbourFrame, *, cube: float,
@@ -549,18 +538,36 @@ def uncontradicted(links: Sequence[TemporalLinks], m: int) -> np.ndarray:
     return supported | ~against
 
 
-def cube_colours(rows: np.ndarray, m: int, known_colours: np.ndarray, source: np.ndarray, source_colours: np.ndarray,
-                 inter: Sequence[InterSource], links: Sequence[TemporalLinks], laplacian, *, alpha: float,
-                 gamma: float, beta: float) -> np.ndarray:
+#: weight of the colour data term of a new row whose source is an intra-source cube (a patch elsewhere in the frame
+#: that matches the target's geometry, not its colour), relative to alpha: small, so that the row's colour is the
+#: graph's harmonic extension of the known colours (and the temporal terms), only anchored (so that the system is
+#: never singular) to its nearest known row's colour. With the intra-source cube's own colours as c_s_hat (weight
+#: alpha) fu-nonlocal's hole-region cpsnr_y on MVUB ricardo9 fell from 29.82 (harmonic fill) to 15.15 dB
+#: (docs/colour.md)
+INTRA_COLOUR_WEIGHT = 1e-3
+
+
+def cube_colours(rows: np.ndarray, m: int, known_colours: np.ndarray, source: np.ndarray,
+                 source_colours: np.ndarray | None, inter: Sequence[InterSource], links: Sequence[TemporalLinks],
+                 laplacian, *, alpha: float, gamma: float, beta: float) -> np.ndarray:
     """Colours (P, 3) float64 of a cube's new rows: colour as a further signal on the cube's graph (the paper's
     future work), Eq. (5)-(6) solved per colour channel on the same rows, Omega, L and temporal links as the
     positions (`methods._graph.solve_cube`): c_t the m known rows' colours ``known_colours`` (m, 3), kept
-    (Dirichlet rows: captured colours are data, whatever the variant does with the known positions), c_s_hat
-    the colour of each new row's point in its source cube (``source`` (S, 3) aligned, ``source_colours`` (S, 3):
-    the new rows are source points), and each temporal term W_g c_g the colour of the row's nearest point in
-    that inter-source cube (the counterpart its position is linked to, with the same link mask)."""
-    _, nearest = cKDTree(source).query(rows[m:])
-    signal = np.vstack([known_colours, source_colours[nearest]])
+    (Dirichlet rows: captured colours are data, whatever the variant does with the known positions); each
+    temporal term W_g c_g the colour of the row's nearest point in that inter-source cube (the counterpart its
+    position is linked to, with the same link mask). c_s_hat: where the new rows come from an inter-source cube
+    (``source_colours`` given: the same surface in a neighbouring frame) each row's colour there, weight alpha;
+    from an intra-source cube (``source_colours`` None: a patch elsewhere that matches the geometry, not the
+    colour) each row's nearest known row's colour with weight alpha * `INTRA_COLOUR_WEIGHT`, so that the colour is
+    the harmonic extension of the known colours on the graph, pulled towards the temporal counterparts."""
+    new = rows[m:]
+    if source_colours is not None:
+        _, nearest = cKDTree(source).query(new)
+        prior, weight = source_colours[nearest], alpha
+    else:
+        _, nearest = cKDTree(rows[:m]).query(new)
+        prior, weight = known_colours[nearest], alpha * INTRA_COLOUR_WEIGHT
+    signal = np.vstack([known_colours, prior])
     temporal = []
     for cube, link in zip(inter, links):
         if cube.colours is not None:
@@ -568,7 +575,7 @@ def cube_colours(rows: np.ndarray, m: int, known_colours: np.ndarray, source: np
             temporal.append((cube.colours[counterpart], link.linked))
     known = np.zeros(len(rows), dtype=bool)
     known[:m] = True
-    return solve_cube(signal, signal, known, laplacian, alpha=alpha, gamma=gamma, beta=beta, temporal=temporal,
+    return solve_cube(signal, signal, known, laplacian, alpha=weight, gamma=gamma, beta=beta, temporal=temporal,
                       fix_known=True)[m:]
 
 
@@ -979,7 +986,7 @@ class _CubeGraphInpainting(InpaintingMethod):
                                  agtv_weight=self.agtv_weight, icp_iterations=self.icp_iterations,
                                  residual=self.temporal_source)
         source = None if intra is None else intra.aligned
-        source_colours = None if intra is None or ctx.colours is None else ctx.colours[intra.rows]
+        source_colours = None  # an intra-source cube's colours are another place's (`cube_colours`)
         if self.temporal_source and inter:
             # an inter-source cube of captured data that fits the target better than the
             # intra-source cube provides the new points
@@ -1008,7 +1015,7 @@ class _CubeGraphInpainting(InpaintingMethod):
                             temporal=[(link.counterpart, link.linked) for link in links], fix_known=fix_known)
         new = result[m:]
         colours = None
-        if local.colours is not None and source_colours is not None:
+        if local.colours is not None:
             colours = cube_colours(rows, m, local.colours[in_cube], source, source_colours, inter, links, laplacian,
                                    alpha=self.alpha, gamma=self.gamma, beta=beta)
         if self.drop_contradicted and links:

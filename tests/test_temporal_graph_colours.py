@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dpcbench.methods._graph import knn_laplacian, temporal_links
-from dpcbench.methods.temporal_graph import FuNonlocal, InterSource, TemporalGraph, cube_colours
+from dpcbench.methods.temporal_graph import INTRA_COLOUR_WEIGHT, FuNonlocal, InterSource, TemporalGraph, cube_colours
 from tests.test_temporal_graph import FAST, switch_case
 
 RED, GREEN, BLUE = (255, 0, 0), (0, 255, 0), (0, 0, 255)
@@ -54,21 +54,43 @@ def test_a_constant_colour_stays_constant_and_strong_temporal_terms_give_the_cou
     np.testing.assert_allclose(got, inter.colours[8:], atol=1e-3)  # each row's counterpart is its shifted self
 
 
-def test_the_solve_is_eq6_with_the_known_colours_fixed():
-    """Against a dense solve of (alpha Omega + beta D + gamma L) x = alpha c_s + beta D W c_g on the new rows,
-    the known rows' colours fixed (moved to the right-hand side)."""
+@pytest.mark.parametrize("source_kind", ["inter", "intra"])
+def test_the_solve_is_eq6_with_the_known_colours_fixed(source_kind):
+    """Against a dense solve of (w Omega + beta D + gamma L) x = w c_s + beta D W c_g on the new rows, the known
+    rows' colours fixed (moved to the right-hand side): from an inter-source cube c_s is its colours and w = alpha;
+    from an intra-source cube c_s is the nearest known row's colour and w = alpha * INTRA_COLOUR_WEIGHT."""
     rng = np.random.default_rng(2)
     rows, source, inter, link, laplacian = _cube(rng)
     known_colours = rng.random((8, 3)) * 255
-    source_colours = rng.random((len(source), 3)) * 255
     alpha, gamma, beta = 0.7, 2.0, 0.5
+    if source_kind == "inter":
+        source_colours = rng.random((len(source), 3)) * 255
+        prior, w = source_colours[:6], alpha  # the new rows are the first six source points
+    else:
+        source_colours = None
+        nearest = np.argmin(np.linalg.norm(rows[8:, None] - rows[None, :8], axis=2), axis=1)
+        prior, w = known_colours[nearest], alpha * INTRA_COLOUR_WEIGHT
     got = cube_colours(rows, 8, known_colours, source, source_colours, [inter], [link], laplacian,
                        alpha=alpha, gamma=gamma, beta=beta)
     dense = np.asarray(laplacian.todense())
-    a = alpha * np.eye(6) + beta * np.diag(link.linked[8:].astype(float)) + gamma * dense[8:, 8:]
+    a = w * np.eye(6) + beta * np.diag(link.linked[8:].astype(float)) + gamma * dense[8:, 8:]
     counterpart = inter.colours[np.argmin(np.linalg.norm(rows[:, None] - inter.aligned[None], axis=2), axis=1)]
-    b = alpha * source_colours[:6] + beta * counterpart[8:] - gamma * dense[8:, :8] @ known_colours
-    np.testing.assert_allclose(got, np.linalg.solve(a, b), rtol=1e-9, atol=1e-9)
+    b = w * prior + beta * counterpart[8:] - gamma * dense[8:, :8] @ known_colours
+    np.testing.assert_allclose(got, np.linalg.solve(a, b), rtol=1e-7, atol=1e-7)
+
+
+def test_from_an_intra_source_cube_the_colour_is_the_graph_s_harmonic_extension():
+    """Without temporal terms a new row from an intra-source cube takes no colour from that cube: its colour is
+    (up to the weak anchor) the harmonic extension of the known colours, L_uu x = -L_uk c_k; a colour linear along
+    the plane is reproduced inside the range of the known colours."""
+    rng = np.random.default_rng(5)
+    rows, source, inter, link, laplacian = _cube(rng)
+    known_colours = rng.random((8, 3)) * 255
+    got = cube_colours(rows, 8, known_colours, source, None, [], [], laplacian, alpha=1.0, gamma=0.5, beta=0.0)
+    dense = np.asarray(laplacian.todense())
+    harmonic = np.linalg.solve(dense[8:, 8:], -dense[8:, :8] @ known_colours)
+    np.testing.assert_allclose(got, harmonic, atol=0.5)
+    assert (got >= known_colours.min(axis=0) - 1e-6).all() and (got <= known_colours.max(axis=0) + 1e-6).all()
 
 
 # -- the methods ----------------------------------------------------------------------------------------------------
