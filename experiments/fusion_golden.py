@@ -3,13 +3,16 @@ can show that it leaves every output bit-identical.
 
     .venv/bin/python experiments/fusion_golden.py            # compute, compare with fusion_golden.json
     .venv/bin/python experiments/fusion_golden.py --write    # record the hashes (only at a trusted state)
+    .venv/bin/python experiments/fusion_golden.py --coloured # the same hashes through inpaint_with_colours
 
 Cases (about 4 CPU minutes in all): the embedded stand-ins at size "tiny" (the human and the bunny, 10-bit
 voxels, and the bunny sampled unvoxelized) with independent and coherent medium region holes and occlusion holes
 (`holes/`, seed 0, 3 frames), a one-frame case, a blind case (regions=None: `detect_holes` per frame), and
 3 frames of D-FAUST punching when ../shared/data holds it (skipped otherwise). The defaults run on every case;
 each switch of `TemporalFusion`, flipped once, runs on the cheap voxelized cases and the float coherent case.
-The hash is over, per frame, the output's shape and its float64 bytes in row order.
+The hash is over, per frame, the output's shape and its float64 bytes in row order. With ``--coloured`` every case
+runs through ``inpaint_with_colours`` (the colour-tracking path; the stand-ins' own colours, a colour made from the
+coordinates where a sequence has none) and its geometry must hash as ``inpaint``'s does.
 Exit status 1 when a hash differs from the recorded one."""
 
 from __future__ import annotations
@@ -47,15 +50,20 @@ def digest(outputs: list[np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
-    """case name -> (damaged frames, regions or None)."""
+def _coordinate_colours(frames: list[np.ndarray]) -> list[np.ndarray]:
+    """A deterministic colour per point made from its coordinates (for sequences without colour)."""
+    return [(np.abs(np.floor(f * 37.0)) % 256).astype(np.uint8) for f in frames]
+
+
+def inputs() -> dict[str, tuple[list[np.ndarray], list | None, list[np.ndarray]]]:
+    """case name -> (damaged frames, regions or None, damaged colours)."""
     from dpcbench.bench.data.standins import bunny, human
     from dpcbench.holes.registry import get_generator
 
     sequences = {
-        "human-tiny": [human.generate_frame(i, size="tiny")[0] for i in range(3)],
-        "bunny-tiny": [bunny.generate_frame(i, size="tiny")[0] for i in range(3)],
-        "bunny-tiny-float": [bunny.generate_frame(i, size="tiny", bit_depth=None)[0] for i in range(3)],
+        "human-tiny": [human.generate_frame(i, size="tiny")[:2] for i in range(3)],
+        "bunny-tiny": [bunny.generate_frame(i, size="tiny")[:2] for i in range(3)],
+        "bunny-tiny-float": [bunny.generate_frame(i, size="tiny", bit_depth=None)[:2] for i in range(3)],
     }
     holes = {
         "independent": ("region", dict(preset="medium")),
@@ -64,15 +72,16 @@ def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
         "occlusion": ("occlusion", dict(per_ring=3, seen_within=0)),
     }
     cases = {}
-    for seq_name, frames in sequences.items():
+    for seq_name, pairs in sequences.items():
+        frames, colours = [p for p, _ in pairs], [c for _, c in pairs]
         for hole_name, (generator, params) in holes.items():
-            damage = get_generator(generator, **params).damage(frames, 0)
-            cases[f"{seq_name}/{hole_name}"] = (damage.frames, damage.regions)
-    frames, regions = cases["human-tiny/independent"]
-    cases["human-tiny/one-frame"] = (frames[:1], regions[:1])
-    cases["human-tiny/blind"] = (frames, None)
-    frames, _ = cases["bunny-tiny-float/coherent"]
-    cases["bunny-tiny-float/blind"] = (frames, None)
+            damage = get_generator(generator, **params).damage(frames, 0, colors=colours)
+            cases[f"{seq_name}/{hole_name}"] = (damage.frames, damage.regions, damage.colors)
+    frames, regions, colours = cases["human-tiny/independent"]
+    cases["human-tiny/one-frame"] = (frames[:1], regions[:1], colours[:1])
+    cases["human-tiny/blind"] = (frames, None, colours)
+    frames, _, colours = cases["bunny-tiny-float/coherent"]
+    cases["bunny-tiny-float/blind"] = (frames, None, colours)
     if DFAUST.is_dir():
         from dpcbench.bench.data.sequences import load_sequence
 
@@ -81,7 +90,8 @@ def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
         for hole_name in ("independent", "coherent"):
             generator, params = holes[hole_name]
             damage = get_generator(generator, **params).damage(frames, 0)
-            cases[f"dfaust-punching/{hole_name}"] = (damage.frames, damage.regions)
+            cases[f"dfaust-punching/{hole_name}"] = (damage.frames, damage.regions,
+                                                     _coordinate_colours(damage.frames))
     return cases
 
 
@@ -89,7 +99,7 @@ def inputs() -> dict[str, tuple[list[np.ndarray], list | None]]:
 FLIP_CASES = ("human-tiny/independent", "human-tiny/coherent", "human-tiny/occlusion", "bunny-tiny-float/coherent")
 
 
-def run(only: str | None = None) -> dict[str, str]:
+def run(only: str | None = None, coloured: bool = False) -> dict[str, str]:
     from dpcbench.methods.temporal_fusion import TemporalFusion
 
     cases = inputs()
@@ -100,13 +110,17 @@ def run(only: str | None = None) -> dict[str, str]:
     for label, case, params in jobs:
         if only and only not in label:
             continue
-        frames, regions = cases[case]
+        frames, regions, colours = cases[case]
         params = {key: (not TemporalFusion().get_params()[key]) if value is None else value
                   for key, value in params.items()}
         start = time.process_time()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            outputs = TemporalFusion(**params).inpaint([f.copy() for f in frames], regions)
+            method = TemporalFusion(**params)
+            if coloured:
+                outputs, _ = method.inpaint_with_colours([f.copy() for f in frames], colours, regions)
+            else:
+                outputs = method.inpaint([f.copy() for f in frames], regions)
         hashes[label] = digest(outputs)
         added = sum(len(o) for o in outputs) - sum(len(f) for f in frames)
         print(f"{hashes[label][:16]}  {label}  (+{added} points, {time.process_time() - start:.1f} s CPU)", flush=True)
@@ -117,9 +131,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--write", action="store_true", help="record the hashes in fusion_golden.json")
     parser.add_argument("--only", help="run only the cases whose label contains this text")
+    parser.add_argument("--coloured", action="store_true",
+                        help="run through inpaint_with_colours (the geometry must hash the same)")
     args = parser.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    hashes = run(args.only)
+    if args.write and args.coloured:
+        parser.error("--write records inpaint's hashes: run it without --coloured")
+    hashes = run(args.only, args.coloured)
     if args.write:
         if args.only and GOLDEN.is_file():  # a subset is added to (or replaces its entries in) the record
             hashes = {**json.loads(GOLDEN.read_text(encoding="utf-8")), **hashes}

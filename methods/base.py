@@ -18,7 +18,11 @@ Colour (8-bit RGB per point, (N_f, 3) uint8 beside each frame) is a parallel arr
 generic fill (`methods._colour`: kept points keep their colour; new points take the colour of the
 source point the method reports, `inpaint_with_sources`, or the nearest input colour, or a harmonic
 interpolation from the hole's rim). So every method and adapter carries colour, and its geometry is
-exactly that of ``inpaint``.
+exactly that of ``inpaint``. A method whose colours are not one input point's each (temporal-fusion fuses
+several copies' colours and carries its previous frame's; temporal-graph and fu-nonlocal solve colour on
+their graph; meshlab takes MeshLab's interpolated vertex colours) overrides ``inpaint_with_colours`` itself
+(`colours_itself`): its geometry must stay exactly ``inpaint``'s, and the generic fills ("nearest",
+"harmonic") stay available through this base method.
 """
 
 from __future__ import annotations
@@ -77,20 +81,37 @@ class InpaintingMethod(Parameterized):
         "nearest" (each new point its nearest input point's colour), "harmonic" (graph-harmonic
         interpolation from the rim), "source" (the reported source point's colour, else nearest),
         "auto" (source where reported, else harmonic)."""
-        from dpcbench.methods._colour import FILLS, check_colour_frames, colour_outputs
+        from dpcbench.methods._colour import colour_outputs
+
+        checked, colours = self._check_colours(frames, colours, regions, fill)
+        outputs, sources = self.inpaint_with_sources(frames, regions)
+        return outputs, colour_outputs(checked, colours, outputs, sources, fill)
+
+    def _check_colours(self, frames: Sequence[np.ndarray], colours: Sequence[np.ndarray], regions: Regions,
+                       fill: str) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """(the frames as float64 (N_f, 3) views, ``colours`` as F (N_f, 3) uint8 arrays matching them); UserError
+        for an unknown ``fill`` or colours that do not match the frames (a method overriding
+        `inpaint_with_colours` checks its input with this)."""
+        from dpcbench.methods._colour import FILLS, check_colour_frames
 
         if fill not in FILLS:
             raise UserError(f"{self.name}: unknown colour fill {fill!r}; choose one of {', '.join(FILLS)}")
         checked, _ = check_sequence(frames, regions, method=self.name, needs_regions=False, detects_holes=True)
-        colours = check_colour_frames(checked, colours, self.name)
-        outputs, sources = self.inpaint_with_sources(frames, regions)
-        return outputs, colour_outputs(checked, colours, outputs, sources, fill)
+        return checked, check_colour_frames(checked, colours, self.name)
 
     # -- helpers shared by every method ------------------------------------------------------
     def _check_inputs(self, frames: Sequence[np.ndarray], regions: Regions) -> tuple[list[np.ndarray], list | None]:
         """Validate the sequence and regions; return float64 views (inputs are never written)."""
         return check_sequence(frames, regions, method=self.name, needs_regions=self.needs_regions,
                               detects_holes=self.detects_holes)
+
+
+def colours_itself(method) -> bool:
+    """Whether ``method`` colours its output itself (its class overrides `InpaintingMethod.inpaint_with_colours`,
+    as temporal-fusion does): a caller that has colours then asks it for them rather than colouring
+    ``inpaint_with_sources``' output with the generic fill."""
+    own = getattr(type(method), "inpaint_with_colours", None)
+    return own is not None and own is not InpaintingMethod.inpaint_with_colours
 
 
 class PerFrameMethod(InpaintingMethod):

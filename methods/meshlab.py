@@ -55,6 +55,13 @@ and close-holes puts only 9-100 faces in them (with or without its self-intersec
 maxholesize 1000 or 5000): holes-only then adds ~100 points a frame. A larger ``ball_radius`` or
 ``reconstruction="poisson"`` are the levers; not tuned yet.
 
+Colour (``inpaint_with_colours``, fill "auto" or "source"): the frame's colours go into the pymeshlab mesh as
+vertex colours (clustered frames: the mean colour of each cell's points), and MeshLab's colours come back:
+ball pivoting keeps the input points as vertices with their colours, screened Poisson interpolates its samples'
+colours at its vertices, close-holes adds faces between existing vertices. A sampled point takes its triangle's
+vertex colours interpolated with its barycentric weights (so a closing face blends the rim's colours); a kept
+input point (``holes-only``) keeps its own colour.
+
 Every pymeshlab failure becomes a `MeshlabError` naming the filter and MeshLab's message.
 Choices not in the paper: ``max_hole_size=1000`` (MeshLab's default 30 edges does not close a
 medium synthetic hole: radius 30 on a 1023-unit body is ~190 boundary edges at 10-bit spacing).
@@ -70,6 +77,7 @@ from scipy.spatial import cKDTree
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._geometry import sampling_step
 from dpcbench.methods.base import PerFrameMethod, Regions
+from dpcbench.methods.progress import frame_done
 from dpcbench.metrics.errors import UserError
 
 
@@ -82,7 +90,7 @@ class MeshlabFill(PerFrameMethod):
 
     name = "meshlab"
     summary = "MeshLab baseline: normals, ball-pivoting (or screened Poisson) mesh, close holes, resample (pymeshlab)"
-    version = "1"
+    version = "2"  # 2: MeshLab's vertex colours (inpaint_with_colours; the geometry unchanged)
     detects_holes = True
 
     def __init__(self, reconstruction: str = "ball-pivoting", output: str = "whole", normal_neighbours: int = 10,
@@ -122,15 +130,52 @@ class MeshlabFill(PerFrameMethod):
         self._validate_params()
         return super().inpaint(frames, regions)
 
+    def inpaint_with_colours(self, frames: list[np.ndarray], colours: Sequence[np.ndarray], regions: Regions = None,
+                             *, fill: str = "auto") -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """``inpaint``'s output with MeshLab's vertex colours interpolated at the sampled points (module docstring)
+        for ``fill`` "auto" or "source"; "nearest" and "harmonic" colour the new points by that fill alone
+        (`InpaintingMethod.inpaint_with_colours`)."""
+        if fill not in ("auto", "source"):
+            return super().inpaint_with_colours(frames, colours, regions, fill=fill)
+        self._validate_params()
+        _, checked_colours = self._check_colours(frames, colours, regions, fill)
+        frames, regions = self._check_inputs(frames, regions)
+        points_out, colours_out = [], []
+        for i, (frame, col) in enumerate(zip(frames, checked_colours)):
+            frame_regions = None if regions is None else regions[i]
+            if frame_regions is not None and len(frame_regions) == 0:
+                points, values = frame.copy(), col.copy()
+            else:
+                points, carried = self._mesh_frame(frame, frame_regions, col)
+                assert carried is not None
+                values = np.clip(np.rint(carried), 0, 255).astype(np.uint8)
+            points_out.append(points)
+            colours_out.append(values)
+            frame_done(i + 1, len(frames))
+        return points_out, colours_out
+
     def inpaint_frame(self, points: np.ndarray, regions: Sequence[HoleRegion] | None) -> np.ndarray:
+        return self._mesh_frame(points, regions)[0]
+
+    def _mesh_frame(self, points: np.ndarray, regions: Sequence[HoleRegion] | None,
+                    colours: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """The frame's output points (module docstring) and, given its ``colours`` (N, 3), their colours (float
+        0..255: MeshLab's, interpolated), else None."""
         import pymeshlab  # lazily: heavy import, only this method needs it
 
         if len(points) < 4:
             raise UserError(f"meshlab: a frame needs at least 4 points to build a mesh, got {len(points)}")
         step = sampling_step(points)
-        support = cluster_points(points, int(self.max_points), step) if self.max_points else points
+        support, support_colours = points, colours
+        if self.max_points:
+            support, support_colours = cluster_points(points, int(self.max_points), step, colours)
         ms = pymeshlab.MeshSet()
-        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(support, dtype=np.float64)))
+        if support_colours is None:
+            ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(support, dtype=np.float64)))
+        else:
+            rgba = np.column_stack([np.asarray(support_colours, dtype=np.float64) / 255.0, np.ones(len(support))])
+            ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(support, dtype=np.float64),
+                                       v_color_matrix=np.ascontiguousarray(rgba)))
         _apply(ms, "compute_normal_for_point_clouds", k=int(self.normal_neighbours))
         if self.reconstruction == "ball-pivoting":
             _apply(ms, "generate_surface_reconstruction_ball_pivoting",
@@ -157,39 +202,47 @@ class MeshlabFill(PerFrameMethod):
             far, _ = cKDTree(points).query(centroids, k=1, workers=-1)
             hole_faces |= far > step * len(points) ** 0.5 / len(support) ** 0.5  # the support's spacing
         areas = _triangle_areas(vertices, faces)
+        vertex_colours = None if colours is None else mesh.vertex_color_matrix()[:, :3] * 255.0
 
         rng = np.random.default_rng(self.seed)
         if self.output == "whole":
-            return sample_triangles(vertices, faces, len(points), rng, areas=areas)
+            return sample_triangles_with(vertices, faces, len(points), rng, areas=areas, values=vertex_colours)
 
         count = int(round(float(areas[hole_faces].sum()) / step ** 2))
+        own = None if colours is None else np.asarray(colours, dtype=np.float64)
         if count == 0:
-            return points.copy()
-        added = sample_triangles(vertices, faces[hole_faces], count, rng, areas=areas[hole_faces])
+            return points.copy(), own
+        added, added_colours = sample_triangles_with(vertices, faces[hole_faces], count, rng, areas=areas[hole_faces],
+                                                     values=vertex_colours)
         if regions is not None:
             near = np.zeros(len(added), dtype=bool)
             for region in regions:
                 near |= region.contains(added, margin=self.region_margin_spacings * step)
-            added = added[near]
-        return np.concatenate([points, added], axis=0)
+            added, added_colours = added[near], None if added_colours is None else added_colours[near]
+        out_colours = None if own is None or added_colours is None else np.concatenate([own, added_colours])
+        return np.concatenate([points, added], axis=0), out_colours
 
 
-def cluster_points(points: np.ndarray, max_points: int, step: float) -> np.ndarray:
+def cluster_points(points: np.ndarray, max_points: int, step: float, colours: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
     """At most ``max_points`` points (K, 3) describing the surface of ``points`` (N, 3): ``points`` itself
     when N <= max_points, else the means of the points in each occupied cell of a voxel grid (open3d
-    ``voxel_down_sample``). The cell starts at ``step * sqrt(N / max_points)`` (a surface's cell
-    count falls with the square of the cell size) and grows by the square root of the remaining
-    ratio, times 1.05, until the count fits."""
+    ``voxel_down_sample``), with the mean of their ``colours`` (N, 3; None: None). The cell starts at
+    ``step * sqrt(N / max_points)`` (a surface's cell count falls with the square of the cell size) and grows
+    by the square root of the remaining ratio, times 1.05, until the count fits."""
     if len(points) <= max_points:
-        return points
+        return points, colours
     import open3d as o3d
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.ascontiguousarray(points, dtype=np.float64)))
+    if colours is not None:
+        cloud.colors = o3d.utility.Vector3dVector(np.asarray(colours, dtype=np.float64) / 255.0)
     cell = step * np.sqrt(len(points) / max_points)
     for _ in range(20):
-        clustered = np.asarray(cloud.voxel_down_sample(float(cell)).points)
+        down = cloud.voxel_down_sample(float(cell))
+        clustered = np.asarray(down.points)
         if len(clustered) <= max_points:
-            return clustered
+            return clustered, None if colours is None else np.asarray(down.colors) * 255.0
         cell *= 1.05 * np.sqrt(len(clustered) / max_points)
     raise MeshlabError(f"meshlab: could not cluster {len(points)} points into at most {max_points}")
 
@@ -209,8 +262,16 @@ def sample_triangles(vertices: np.ndarray, faces: np.ndarray, count: int, rng: n
     """``count`` points (count, 3) uniform over the triangles ``faces`` (F, 3) of ``vertices``:
     face i drawn with probability area_i / sum(area); in it p = a + u (b - a) + v (c - a) with
     (u, v) uniform on the unit triangle (reflected when u + v > 1)."""
+    return sample_triangles_with(vertices, faces, count, rng, areas)[0]
+
+
+def sample_triangles_with(vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator,
+                          areas: np.ndarray | None = None, values: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray | None]:
+    """`sample_triangles`' points and, given per-vertex ``values`` (V, K) (MeshLab's vertex colours), each
+    sample's value interpolated with the same weights, x_a + u (x_b - x_a) + v (x_c - x_a) (None without)."""
     if count <= 0 or len(faces) == 0:
-        return np.empty((0, 3))
+        return np.empty((0, 3)), None if values is None else np.empty((0, values.shape[1]))
     areas = _triangle_areas(vertices, faces) if areas is None else areas
     total = float(areas.sum())
     if not total > 0:
@@ -220,7 +281,11 @@ def sample_triangles(vertices: np.ndarray, faces: np.ndarray, count: int, rng: n
     flip = u + v > 1.0
     u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
     a, b, c = (vertices[faces[chosen, i]] for i in range(3))
-    return a + u[:, None] * (b - a) + v[:, None] * (c - a)
+    points = a + u[:, None] * (b - a) + v[:, None] * (c - a)
+    if values is None:
+        return points, None
+    xa, xb, xc = (values[faces[chosen, i]] for i in range(3))
+    return points, xa + u[:, None] * (xb - xa) + v[:, None] * (xc - xa)
 
 
 def _triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -75,6 +75,21 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    the surface they sample (`voxelize_fill`: voxels within half a voxel of the local tangent plane),
    minus voxels already occupied.
 
+Colour (``inpaint_with_colours``, fill "auto"; the paper's future work, "attribute inpainting"): colour is a
+further signal on each target cube's graph (`cube_colours`). The same Eq. (5)-(6) system as the positions (the
+same rows, Omega, spatial Laplacian L, temporal links D_g and weights alpha, gamma, beta) is solved per colour
+channel, with c_t the known rows' colours and W_g c_g the colour of each row's counterpart in the inter-source
+cube of f-1 (its output colours) and f+1 (its input colours). c_s_hat: where the new rows come from an
+inter-source cube (the same surface in a neighbouring frame), their colours there; where they come from an
+intra-source cube (a patch elsewhere that matches the target's geometry, not its colour) only a weak anchor to the
+nearest known colour, so that the colour is the harmonic extension of the known colours on the cube's graph (the
+discrete Laplace equation of Lozes et al.'s colour PDE, on the paper's graph) pulled, in temporal-graph, towards
+the colours the same surface has in the neighbouring frames. Known points always keep their colour (Dirichlet
+rows, also where known_points="free" moves them: a captured colour is data). A voxel of step 10 takes the colour
+of its nearest new point (whose tangent plane chose it). Measured: with the intra-source cube's own colours as
+c_s_hat, hole-region colour fell far below the harmonic fill on a real capture (docs/colour.md). The geometry
+does not depend on colour.
+
 Code. Each step is a function or a small class: `normal_features` and `CandidateCubes` (step 4's
 features), `methods._cubes` (`hole_cells`, `region_groups`, `TargetCubeOrder`: steps 1-3),
 `intra_source`, `inter_source_window` / `inter_source` (steps 4 and 6),
@@ -152,13 +167,15 @@ class NeighbourFrame:
     points (N_g, 3): f-1's inpainted output, or f+1's damaged input. tree: cKDTree on ``points``.
     regions: hole regions of g whose points are still missing (those of f+1; none for the
     inpainted f-1): a row that maps into one has no counterpart in g. source_regions: the hole
-    regions of g's input (f-1's too): near one, g's points are not captured data.
+    regions of g's input (f-1's too): near one, g's points are not captured data. colours (N_g, 3)
+    float64: their RGB (f-1's output colours, f+1's input colours) when the run carries colour, else None.
     """
 
     points: np.ndarray
     tree: cKDTree
     regions: Sequence[HoleRegion]
     source_regions: Sequence[HoleRegion]
+    colours: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -243,6 +260,7 @@ class FrameContext:
     graph's Gaussian width in coordinates (sigma * u). candidates: its intra-source candidates.
     neighbours: the neighbouring frames (none without temporal terms). link: the longest temporal
     link (None without temporal terms). slot: side of a slot for new_points="empty-slots" (else None).
+    colours (N, 3) float64: the frame's RGB when the run carries colour (`cube_colours`), else None.
     """
 
     points: np.ndarray
@@ -256,17 +274,20 @@ class FrameContext:
     neighbours: tuple[NeighbourFrame, ...]
     link: float | None
     slot: float | None
+    colours: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
 class CubeFill:
     """What one target cube contributes. new (P, 3): its new points (after drop_contradicted).
     moved_rows (m,) and moved (m, 3): with known_points="free", the rows of `LocalPoints` that
-    the solve moved and where to; None with "fixed" or when nothing was solved."""
+    the solve moved and where to; None with "fixed" or when nothing was solved. colours (P, 3): the new
+    points' colours (`cube_colours`), None when the run carries no colour."""
 
     new: np.ndarray
     moved_rows: np.ndarray | None = None
     moved: np.ndarray | None = None
+    colours: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -276,15 +297,18 @@ class LocalPoints:
     points (L, 3): the frame's points in the group's box, then the points filled so far. normals
     (L, 3), agtv (L,): their features (NaN off the sample and for filled points). index (L,): row in
     the frame, -1 for a filled point. Filled points count as known for the later target cubes.
+    colours (L, 3): their RGB (the frame's, then the fills'), None when the run carries no colour.
     """
 
     points: np.ndarray
     normals: np.ndarray
     agtv: np.ndarray
     index: np.ndarray
+    colours: np.ndarray | None = None
 
     def apply(self, fill: CubeFill) -> LocalPoints:
-        """The state after ``fill``: its moved rows at their new positions, its new points appended."""
+        """The state after ``fill``: its moved rows at their new positions (their colours kept), its new
+        points (and their colours) appended."""
         points = self.points
         if fill.moved_rows is not None:
             points = points.copy()
@@ -292,19 +316,24 @@ class LocalPoints:
         if not len(fill.new):
             return replace(self, points=points)
         nan = np.full((len(fill.new), 3), np.nan)
+        colours = None
+        if self.colours is not None:
+            colours = np.vstack([self.colours, nan if fill.colours is None else fill.colours])
         return LocalPoints(np.vstack([points, fill.new]), np.vstack([self.normals, nan]),
                            np.concatenate([self.agtv, nan[:, 0]]),
-                           np.concatenate([self.index, np.full(len(fill.new), -1)]))
+                           np.concatenate([self.index, np.full(len(fill.new), -1)]), colours)
 
 
 @dataclass(frozen=True)
 class GroupFill:
     """What one group of holes contributes: moved_index (K,) rows of the frame moved to
-    moved_points (K, 3) (known_points="free" only), and the new points (P, 3)."""
+    moved_points (K, 3) (known_points="free" only), and the new points (P, 3) with their colours (P, 3; None
+    when the run carries no colour)."""
 
     moved_index: np.ndarray
     moved_points: np.ndarray
     new: np.ndarray
+    colours: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -314,7 +343,8 @@ class InterSource:
     aligned (S, 3) = source @ rotation.T + translation. residual: trimmed mean distance of the
     target's known points to ``aligned`` (`alignment_residual`). raw: no hole region of that
     frame's input lies within one cube of the target, so its points there are captured data.
-    regions: that frame's hole regions still missing (`NeighbourFrame.regions`).
+    regions: that frame's hole regions still missing (`NeighbourFrame.regions`). colours (S, 3): the
+    source points' colours in that frame (None when the run carries no colour).
     """
 
     aligned: np.ndarray
@@ -323,6 +353,7 @@ class InterSource:
     residual: float
     raw: bool
     regions: Sequence[HoleRegion]
+    colours: np.ndarray | None = None
 
 
 # -- steps --------------------------------------------------------------------------------------------
@@ -457,7 +488,8 @@ def inter_source(target: np.ndarray, lower: np.ndarray, neighbour: NeighbourFram
     # frame shrinks and drifts with the hole
     centre = lower + cube / 2.0
     raw = all(np.linalg.norm(r.center - centre) > r.bounding_radius + cube for r in neighbour.source_regions)
-    return InterSource(fit.aligned, fit.rotation, fit.translation, fit.residual, raw, neighbour.regions)
+    colours = None if neighbour.colours is None else neighbour.colours[window_idx]
+    return InterSource(fit.aligned, fit.rotation, fit.translation, fit.residual, raw, neighbour.regions, colours)
 
 
 def select_new_points(source: np.ndarray, target: np.ndarray, lower: np.ndarray, regions: Sequence[HoleRegion],
@@ -496,9 +528,55 @@ def select_new_points(source: np.ndarray, target: np.ndarray, lower: np.ndarray,
 def drop_contradicted_rows(new: np.ndarray, links: Sequence[TemporalLinks], m: int) -> np.ndarray:
     """The solved new rows (P, 3) (rows m.. of the cube) that no neighbour contradicts or that one
     supports: kept where any(supported) or not any(contradicted) over the ``links``."""
+    return new[uncontradicted(links, m)]
+
+
+def uncontradicted(links: Sequence[TemporalLinks], m: int) -> np.ndarray:
+    """Mask (P,) of the new rows (rows m.. of the cube) `drop_contradicted_rows` keeps."""
     supported = np.any([link.supported[m:] for link in links], axis=0)
     against = np.any([link.contradicted[m:] for link in links], axis=0)
-    return new[supported | ~against]
+    return supported | ~against
+
+
+#: weight of the colour data term of a new row whose source is an intra-source cube (a patch elsewhere in the frame
+#: that matches the target's geometry, not its colour), relative to alpha: small, so that the row's colour is the
+#: graph's harmonic extension of the known colours (and the temporal terms), only anchored (so that the system is
+#: never singular) to its nearest known row's colour. With the intra-source cube's own colours as c_s_hat (weight
+#: alpha) fu-nonlocal's hole-region cpsnr_y on MVUB ricardo9 fell from 29.82 (harmonic fill) to 15.15 dB
+#: (docs/colour.md)
+INTRA_COLOUR_WEIGHT = 1e-3
+
+
+def cube_colours(rows: np.ndarray, m: int, known_colours: np.ndarray, source: np.ndarray,
+                 source_colours: np.ndarray | None, inter: Sequence[InterSource], links: Sequence[TemporalLinks],
+                 laplacian, *, alpha: float, gamma: float, beta: float) -> np.ndarray:
+    """Colours (P, 3) float64 of a cube's new rows: colour as a further signal on the cube's graph (the paper's
+    future work), Eq. (5)-(6) solved per colour channel on the same rows, Omega, L and temporal links as the
+    positions (`methods._graph.solve_cube`): c_t the m known rows' colours ``known_colours`` (m, 3), kept
+    (Dirichlet rows: captured colours are data, whatever the variant does with the known positions); each
+    temporal term W_g c_g the colour of the row's nearest point in that inter-source cube (the counterpart its
+    position is linked to, with the same link mask). c_s_hat: where the new rows come from an inter-source cube
+    (``source_colours`` given: the same surface in a neighbouring frame) each row's colour there, weight alpha;
+    from an intra-source cube (``source_colours`` None: a patch elsewhere that matches the geometry, not the
+    colour) each row's nearest known row's colour with weight alpha * `INTRA_COLOUR_WEIGHT`, so that the colour is
+    the harmonic extension of the known colours on the graph, pulled towards the temporal counterparts."""
+    new = rows[m:]
+    if source_colours is not None:
+        _, nearest = cKDTree(source).query(new)
+        prior, weight = source_colours[nearest], alpha
+    else:
+        _, nearest = cKDTree(rows[:m]).query(new)
+        prior, weight = known_colours[nearest], alpha * INTRA_COLOUR_WEIGHT
+    signal = np.vstack([known_colours, prior])
+    temporal = []
+    for cube, link in zip(inter, links):
+        if cube.colours is not None:
+            _, counterpart = cKDTree(cube.aligned).query(rows)
+            temporal.append((cube.colours[counterpart], link.linked))
+    known = np.zeros(len(rows), dtype=bool)
+    known[:m] = True
+    return solve_cube(signal, signal, known, laplacian, alpha=weight, gamma=gamma, beta=beta, temporal=temporal,
+                      fix_known=True)[m:]
 
 
 def voxelize_fill(added: np.ndarray, regions: Sequence[HoleRegion]) -> np.ndarray:
@@ -682,9 +760,34 @@ class _CubeGraphInpainting(InpaintingMethod):
         Returns a new list of (N'_f, 3) frames: each frame's points (moved with known_points="free"),
         then its new points."""
         checked, regions = self._check_inputs(frames, regions)
-        return self._configured()._inpaint_sequence(checked, regions)
+        return self._configured()._inpaint_sequence(checked, regions)[0]
 
-    def _inpaint_sequence(self, frames: list[np.ndarray], regions: list | None) -> list[np.ndarray]:
+    def inpaint_with_colours(self, frames: list[np.ndarray], colours: Sequence[np.ndarray], regions: Regions = None,
+                             *, fill: str = "auto") -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """``inpaint``'s output with colour solved as a further signal on each target cube's graph (`cube_colours`;
+        known points keep their colour) for ``fill`` "auto" or "source"; "nearest" and "harmonic" colour the new
+        points by that fill alone (`InpaintingMethod.inpaint_with_colours`)."""
+        if fill not in ("auto", "source"):
+            return super().inpaint_with_colours(frames, colours, regions, fill=fill)
+        from dpcbench.methods._colour import colour_frame
+
+        _, checked_colours = self._check_colours(frames, colours, regions, fill)
+        checked, regions = self._check_inputs(frames, regions)
+        outputs, carried = self._configured()._inpaint_sequence(checked, regions, checked_colours)
+        assert carried is not None
+        out = []
+        for frame, col, points, values in zip(checked, checked_colours, outputs, carried):
+            # every row carries its colour (a row the solve left without one, if any, takes the fill's)
+            sources = np.full((len(points), 3), -1, dtype=np.int16)
+            known = np.isfinite(values).all(axis=1)
+            sources[known] = np.clip(np.rint(values[known]), 0, 255).astype(np.int16)
+            out.append(colour_frame(frame, col, points, fill, sources))
+        return outputs, out
+
+    def _inpaint_sequence(self, frames: list[np.ndarray], regions: list | None,
+                          colours: list[np.ndarray] | None = None) -> tuple[list[np.ndarray], list | None]:
+        """(outputs, their colours (N'_f, 3) float64 or None): the frames in order (module docstring); colours
+        carried when the frames' ``colours`` are given."""
         self._validate()
         trees: dict[int, cKDTree] = {}  # k-d tree of each input frame, built once, dropped once behind
 
@@ -715,12 +818,15 @@ class _CubeGraphInpainting(InpaintingMethod):
             warnings.warn(f"{self.name}: a one-frame sequence has no neighbouring frames; "
                           "using the spatial terms only (as fu-nonlocal)", stacklevel=2)
         outputs: list[np.ndarray] = []
+        out_colours: list[np.ndarray] = []
         output_tree = None
         for f, frame in enumerate(frames):
             for old in [k for k in trees if k < f - 1]:
                 del trees[old]
             if not regions[f]:
                 outputs.append(frame.copy())
+                if colours is not None:
+                    out_colours.append(np.asarray(colours[f], dtype=np.float64))
                 output_tree = None  # same points as the input: its tree serves
                 frame_done(f + 1, len(frames))
                 continue
@@ -729,14 +835,21 @@ class _CubeGraphInpainting(InpaintingMethod):
                 if f > 0:
                     # already inpainted: no holes left
                     prev_tree = output_tree if output_tree is not None else tree_of(f - 1)
-                    neighbours.append(NeighbourFrame(outputs[f - 1], prev_tree, [], regions[f - 1]))
+                    neighbours.append(NeighbourFrame(outputs[f - 1], prev_tree, [], regions[f - 1],
+                                                     out_colours[f - 1] if colours is not None else None))
                 if f + 1 < len(frames):
-                    neighbours.append(NeighbourFrame(frames[f + 1], tree_of(f + 1), regions[f + 1], regions[f + 1]))
-            outputs.append(self._inpaint_frame(frame, tree_of(f), regions[f], tuple(neighbours), unit, voxelized,
-                                               link_distance, slot))
+                    neighbours.append(NeighbourFrame(frames[f + 1], tree_of(f + 1), regions[f + 1], regions[f + 1],
+                                                     None if colours is None else
+                                                     np.asarray(colours[f + 1], dtype=np.float64)))
+            output, output_colours = self._inpaint_frame(frame, tree_of(f), regions[f], tuple(neighbours), unit,
+                                                         voxelized, link_distance, slot,
+                                                         None if colours is None else colours[f])
+            outputs.append(output)
+            if output_colours is not None:
+                out_colours.append(output_colours)
             output_tree = cKDTree(outputs[f]) if beta > 0 and f + 1 < len(frames) and regions[f + 1] else None
             frame_done(f + 1, len(frames))
-        return outputs
+        return outputs, (out_colours if colours is not None else None)
 
     def _link_distance(self, frame: np.ndarray, tree: cKDTree, unit: float, integer: bool) -> float:
         """Longest temporal link: ``link_radius`` point spacings, each at least one unit.
@@ -766,9 +879,11 @@ class _CubeGraphInpainting(InpaintingMethod):
 
     # -- one frame --------------------------------------------------------------------------
     def _inpaint_frame(self, points: np.ndarray, tree: cKDTree, regions: list, neighbours: tuple[NeighbourFrame, ...],
-                       unit: float, voxelized: bool, link_distance: float | None, slot: float | None = None
-                       ) -> np.ndarray:
-        """Steps 1-10 of the module docstring on one frame (N, 3); returns the output frame."""
+                       unit: float, voxelized: bool, link_distance: float | None, slot: float | None = None,
+                       colours: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Steps 1-10 of the module docstring on one frame (N, 3); returns the output frame and, given the frame's
+        ``colours`` (N, 3), the output's colours (the known points' own, the new points' `cube_colours`; a voxel of
+        step 10 its nearest new point's, whose tangent plane chose it), else None."""
         cube = self.cube_size * unit
         per = self.cells_per_cube
         cell = cube / per
@@ -777,15 +892,24 @@ class _CubeGraphInpainting(InpaintingMethod):
         grid = CellGrid(points.min(axis=0), points.max(axis=0), cell, per, pad=per)
         candidates = CandidateCubes.build(grid, points, normals, agtv, regions, min_known_points=self.min_known_points,
                                           hole_free=self.hole_free_candidates, agtv_weight=self.agtv_weight)
-        ctx = FrameContext(points, tree, grid, cube, cell, unit, sigma, candidates, neighbours, link_distance, slot)
+        ctx = FrameContext(points, tree, grid, cube, cell, unit, sigma, candidates, neighbours, link_distance, slot,
+                           None if colours is None else np.asarray(colours, dtype=np.float64))
         out = points.copy()
-        new_points = []
+        new_points, new_colours = [], []
         for group in region_groups(regions, cube + cell):
             fill = self._fill_group(group, normals, agtv, ctx)
             out[fill.moved_index] = fill.moved_points
             new_points.append(fill.new)
+            new_colours.append(np.full((len(fill.new), 3), np.nan) if fill.colours is None else fill.colours)
         added = np.vstack(new_points) if new_points else np.empty((0, 3))
-        return finish_frame(out, added, regions, voxelized=voxelized, round_known=self.known_points == "free")
+        result = finish_frame(out, added, regions, voxelized=voxelized, round_known=self.known_points == "free")
+        if colours is None:
+            return result, None
+        new = result[len(out):]
+        carried = np.vstack(new_colours) if new_colours else np.empty((0, 3))
+        if len(new) and (len(new) != len(added) or not np.array_equal(new, added)):
+            carried = carried[cKDTree(added).query(new)[1]]  # step 10's voxels
+        return result, np.vstack([np.asarray(colours, dtype=np.float64), carried])
 
     def _fill_group(self, regions: list, normals: np.ndarray, agtv: np.ndarray, ctx: FrameContext) -> GroupFill:
         """Fill one group of holes from the boundary inward (`methods._cubes.TargetCubeOrder`),
@@ -803,7 +927,8 @@ class _CubeGraphInpainting(InpaintingMethod):
         window = tuple(slice(a, b) for a, b in zip(a0, a1))
         box_lower, box_upper = grid.cube_lower(a0), grid.cube_lower(a1)
         local_index = np.flatnonzero(((points >= box_lower) & (points < box_upper)).all(axis=1))
-        local = LocalPoints(points[local_index].copy(), normals[local_index], agtv[local_index], local_index.copy())
+        local = LocalPoints(points[local_index].copy(), normals[local_index], agtv[local_index], local_index.copy(),
+                            None if ctx.colours is None else ctx.colours[local_index])
         order = TargetCubeOrder(hole_cells(grid, regions)[window].copy(), grid.bin(points[local_index])[window].copy(),
                                 per, self.min_known_points, self.rim_centred)
         fix_known = self.known_points == "fixed"
@@ -819,9 +944,10 @@ class _CubeGraphInpainting(InpaintingMethod):
         # the new points as they are now: with known_points="free" a later target cube that holds
         # a point filled earlier solves it as a known row and may move it
         new = local.points[~original].copy()
+        colours = None if local.colours is None else local.colours[~original]
         if fix_known:
-            return GroupFill(np.empty(0, dtype=np.int64), np.empty((0, 3)), new)
-        return GroupFill(local.index[original], local.points[original], new)
+            return GroupFill(np.empty(0, dtype=np.int64), np.empty((0, 3)), new, colours)
+        return GroupFill(local.index[original], local.points[original], new, colours)
 
     def _fill_cube(self, lower: np.ndarray, regions: list, pending: np.ndarray, a0: np.ndarray, local: LocalPoints,
                    ctx: FrameContext, fix_known: bool) -> CubeFill:
@@ -860,13 +986,14 @@ class _CubeGraphInpainting(InpaintingMethod):
                                  agtv_weight=self.agtv_weight, icp_iterations=self.icp_iterations,
                                  residual=self.temporal_source)
         source = None if intra is None else intra.aligned
+        source_colours = None  # an intra-source cube's colours are another place's (`cube_colours`)
         if self.temporal_source and inter:
             # an inter-source cube of captured data that fits the target better than the
             # intra-source cube provides the new points
             best = np.inf if intra is None else intra.residual
             for candidate in inter:
                 if candidate.raw and candidate.residual < best:
-                    source, best = candidate.aligned, candidate.residual
+                    source, best, source_colours = candidate.aligned, candidate.residual, candidate.colours
         if source is None:
             return CubeFill(np.empty((0, 3)))
 
@@ -887,11 +1014,16 @@ class _CubeGraphInpainting(InpaintingMethod):
         result = solve_cube(rows, rows, known, laplacian, alpha=self.alpha, gamma=self.gamma, beta=beta,
                             temporal=[(link.counterpart, link.linked) for link in links], fix_known=fix_known)
         new = result[m:]
+        colours = None
+        if local.colours is not None:
+            colours = cube_colours(rows, m, local.colours[in_cube], source, source_colours, inter, links, laplacian,
+                                   alpha=self.alpha, gamma=self.gamma, beta=beta)
         if self.drop_contradicted and links:
-            new = drop_contradicted_rows(new, links, m)
+            keep = uncontradicted(links, m)
+            new, colours = new[keep], None if colours is None else colours[keep]
         if fix_known:
-            return CubeFill(new)
-        return CubeFill(new, in_cube, result[:m])
+            return CubeFill(new, colours=colours)
+        return CubeFill(new, in_cube, result[:m], colours)
 
 
 class TemporalGraph(_CubeGraphInpainting):
@@ -1021,8 +1153,9 @@ class TemporalGraph(_CubeGraphInpainting):
 
     name = "temporal-graph"
     summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
-    version = "6"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
-    # 5: ICP pairs independent of the CPU; 6: paper variant known points fixed + snap (variant literal added)
+    version = "7"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
+    # 5: ICP pairs independent of the CPU; 6: paper variant known points fixed + snap (variant literal added);
+    # 7: colours solved on the cube's graph (`cube_colours`; the geometry unchanged)
     uses_neighbour_frames = True
     _temporal = True
 
@@ -1074,8 +1207,8 @@ class FuNonlocal(_CubeGraphInpainting):
 
     name = "fu-nonlocal"
     summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
-    version = "4"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
-    # 4: paper variant known points fixed + snap (variant literal added)
+    version = "5"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
+    # 4: paper variant known points fixed + snap (variant literal added); 5: colours solved on the cube's graph
     uses_neighbour_frames = False
     _temporal = False
     # not parameters: the temporal terms are off by definition, so there is no temporal evidence

@@ -317,8 +317,9 @@ def test_meshlab_whole_resamples_the_same_count_on_the_surface(holed_sphere):
 
 def test_cluster_points_caps_the_count_and_stays_on_the_surface():
     sphere = fibonacci_sphere(20000, 50.0)
-    assert cluster_points(sphere, 20000, 1.2) is sphere  # small frames are used as they are
-    clustered = cluster_points(sphere, 4000, sampling_step(sphere))
+    assert cluster_points(sphere, 20000, 1.2)[0] is sphere  # small frames are used as they are
+    clustered, none = cluster_points(sphere, 4000, sampling_step(sphere))
+    assert none is None
     assert 2500 < len(clustered) <= 4000
     assert np.abs(np.linalg.norm(clustered, axis=1) - 50.0).max() < 0.5  # cell means lie on the sphere
     assert cKDTree(clustered).query(sphere)[0].max() < 3 * sampling_step(clustered)  # and cover it
@@ -381,3 +382,30 @@ def test_blind_lozes_and_temporal_copy_fill_the_detected_hole():
     added = out[1][len(damaged[1]):]
     assert len(added) > 0.8 * hole.sum()
     assert cKDTree(frames[1]).query(added)[0].max() < 0.5 * sampling_step(frames[1])
+
+
+def _gradient(points: np.ndarray) -> np.ndarray:
+    """A colour linear in the coordinates (of a sphere of radius 50 round the origin), float 0..255."""
+    return np.clip(np.column_stack([127.5 + 2.4 * points[:, 0], 127.5 + 2.4 * points[:, 1], 127.5 + 2.4 * points[:, 2]]),
+                   0, 255)
+
+
+@pytest.mark.parametrize("output, max_points", [("whole", 120_000), ("holes-only", 120_000), ("whole", 4000)])
+def test_meshlab_colours_are_meshlab_s_vertex_colours_interpolated(output, max_points):
+    """A colour linear in position: MeshLab's vertex colours (the input's, or the clustered cells' means)
+    interpolated at the samples reproduce it to a few levels (linear interpolation of a linear function on
+    triangles that lie on the sphere), kept points keep theirs, and the geometry is ``inpaint``'s."""
+    sphere = fibonacci_sphere(8000, 50.0)
+    region = HoleRegion.ball(sphere[np.argmax(sphere @ np.array([0.3, 0.5, 0.8]))], 9.0)
+    damaged = sphere[~region.contains(sphere)]
+    colours = np.rint(_gradient(damaged)).astype(np.uint8)
+    method = MeshlabFill(output=output, max_points=max_points)
+    points, cols = method.inpaint_with_colours([damaged], [colours], [[region]])
+    np.testing.assert_array_equal(points[0], MeshlabFill(output=output, max_points=max_points).inpaint(
+        [damaged], [[region]])[0])
+    assert cols[0].shape == (len(points[0]), 3) and cols[0].dtype == np.uint8
+    error = np.abs(cols[0].astype(float) - _gradient(points[0]))
+    assert error.mean() < 0.6 and error.max() < 3  # nearest-input colours: 0.97 / 17.4 here
+    if output == "holes-only":
+        np.testing.assert_array_equal(cols[0][:len(damaged)], colours)
+        assert len(points[0]) > len(damaged)

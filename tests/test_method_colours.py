@@ -110,6 +110,35 @@ def test_every_method_output_carries_colour():
         get_method("none").inpaint_with_colours(damaged, dcol, regions, fill="magic")
 
 
+BUILT_INS = ("none", "temporal-copy", "lozes-pde", "meshlab", "fu-nonlocal", "temporal-graph", "temporal-fusion")
+
+
+@pytest.mark.parametrize("name", BUILT_INS)
+def test_every_built_in_method_carries_colour_with_its_own_geometry(name):
+    """Every built-in method, by each fill: one (N', 3) uint8 colour per output point, the geometry exactly
+    ``inpaint``'s, kept points (when the method keeps them) with their own colour."""
+    import warnings
+
+    from dpcbench.methods.registry import METHODS
+
+    assert set(BUILT_INS) <= set(METHODS)
+    frames = [_plane(30, 0.0) + [s, 0.0, 0.0] for s in (0.0, 1.0, 2.0)]  # a plane moving along x
+    regions = [[], [HoleRegion.ball([16.0, 15.0, 0.0], 4.5)], []]  # a hole in the middle frame
+    keep = [~r[0].contains(f) if r else np.ones(len(f), dtype=bool) for f, r in zip(frames, regions)]
+    damaged = [f[k] for f, k in zip(frames, keep)]
+    dcol = [_ramp(f)[k] for f, k in zip(frames, keep)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        geometry = get_method(name).inpaint(damaged, regions)
+        for fill in ("auto", "nearest"):
+            points, cols = get_method(name).inpaint_with_colours(damaged, dcol, regions, fill=fill)
+            for p, c, g, d, dc in zip(points, cols, geometry, damaged, dcol):
+                assert np.array_equal(p, g)
+                assert c.shape == (len(p), 3) and c.dtype == np.uint8
+                kept = kept_index(d, p)
+                assert np.array_equal(c[kept >= 0], dc[kept[kept >= 0]])
+
+
 def test_temporal_copy_reports_its_sources_and_carries_their_colours():
     """Frame 1's hole is copied from frame 0, which is the same plane shifted by (0.5, 0, 0): every
     copied point is a frame-0 point moved by the alignment, and takes that point's colour."""

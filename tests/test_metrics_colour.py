@@ -245,6 +245,47 @@ def test_longdress_recoloured(shared_dir):
     assert yuv["c[0], F"] == pytest.approx(float(np.mean((d[:, 0] * d[:, 0]).astype(np.float64))), rel=1e-9)
 
 
+#: pc_error 0.14.2's symmetric colour PSNRs (c[0..2],PSNRF, ``--color=1 --mseSpace=S``) on real frames against
+#: the processed copies of `tests.colour_pairs` (printed by tests/benchmarks/pc_error_compare.py with a pc_error
+#: built from mpeg-pcc-dmetric release-v0.14.2)
+PC_ERROR_REAL = {
+    "longdress/damaged/space1": (36.4087351, 44.8267665, 44.734357),
+    "longdress/damaged/space0": (34.7390198, 36.2513794, 36.3597534),
+    "longdress/filled/space1": (36.5186056, 44.9249674, 44.78363),
+    "longdress/filled/space0": (34.8560842, 36.352728, 36.4437931),
+    "longdress/recoloured/space1": (35.0694354, 36.4168212, 35.9555665),
+    "longdress/recoloured/space0": (32.5746729, 32.5613556, 32.5804896),
+    "ricardo9/damaged/space1": (59.667805, 68.8389485, 68.2934304),
+    "ricardo9/damaged/space0": (60.0983887, 59.0456328, 57.9303471),
+    "ricardo9/filled/space1": (59.9286895, 68.8317035, 68.3352082),
+    "ricardo9/filled/space0": (60.3157045, 59.2896667, 58.1266471),
+    "ricardo9/recoloured/space1": (35.3797447, 36.8800579, 36.6175307),
+    "ricardo9/recoloured/space0": (33.4383815, 32.8658917, 33.0522311),
+}
+
+
+@pytest.mark.parametrize("frame", ["longdress", "ricardo9"])
+def test_real_frames_match_pc_error(shared_dir, frame):
+    """cpsnr_y/u/v (and R/G/B) of a real 8i / MVUB frame against a damaged, a filled (duplicates included) and a
+    recoloured copy, within 1e-4 relative of the figures pc_error printed (printed to 7 digits: 1e-6 here)."""
+    from tests.colour_pairs import FRAMES, processed_copies
+
+    path = shared_dir / "data" / FRAMES[frame]
+    if not path.is_file():
+        pytest.skip(f"{path} not present")
+    cloud = read_ply(path)
+    for kind, (points, colours) in processed_copies(cloud.points, cloud.colors).items():
+        for space in (1, 0):
+            ours = pc_error_colour(cloud.points, points, cloud.colors, colours, mse_space=space)
+            for k, want in enumerate(PC_ERROR_REAL[f"{frame}/{kind}/space{space}"]):
+                assert ours[f"c[{k}],PSNRF"] == pytest.approx(want, rel=1e-6), (frame, kind, space, k)
+    names = ["cpsnr_y", "cpsnr_u", "cpsnr_v"]
+    points, colours = processed_copies(cloud.points, cloud.colors)["filled"]
+    values, _ = metrics.score_pair(metrics.make_pair(cloud.points, points, None, cloud.colors, colours), names)
+    want = PC_ERROR_REAL[f"{frame}/filled/space1"]
+    assert [values[n] for n in names] == pytest.approx(list(want), rel=1e-6)
+
+
 # -- dpcbench score ----------------------------------------------------------------------------------
 
 def test_score_command_adds_colour_psnr(capsys):

@@ -115,32 +115,48 @@ def process_cpu_s() -> float:
 
 
 # -- producing the frames ----------------------------------------------------------------------
-def _inpaint_timed(method, frames: list[np.ndarray], regions) -> tuple[list[np.ndarray], list | None, list[dict], dict]:
+def _inpaint_timed(method, frames: list[np.ndarray], regions, colours: list[np.ndarray] | None = None,
+                   fill: str = "auto") -> tuple[list[np.ndarray], list | None, list[dict], dict, list | None]:
     """Run the method (`inpaint_with_sources`: ``inpaint``'s output and the source of each copied point, which the
-    colour fill needs); per-frame timing for frame-independent methods, one timing otherwise.
+    colour fill needs; `inpaint_with_colours` when ``colours`` are given and the method colours its output itself,
+    `methods.base.colours_itself`, its time then including its colours); per-frame timing for frame-independent
+    methods, one timing otherwise.
 
-    Returns (outputs, sources or None, per-frame timings, total timing)."""
+    Returns (outputs, sources or None, per-frame timings, total timing, the method's colours or None)."""
+    from dpcbench.methods.base import colours_itself
+
+    own = colours is not None and colours_itself(method)
+
+    def call(frames_, regions_, colours_):
+        if own:
+            out_, cols_ = method.inpaint_with_colours(frames_, colours_, regions_, fill=fill)
+            return out_, None, cols_
+        return (*method.inpaint_with_sources(frames_, regions_), None)
+
     per_frame: list[dict] = []
     if not getattr(method, "uses_neighbour_frames", False):
-        out, sources = [], []
+        out, sources, cols = [], [], []
         for i, frame in enumerate(frames):
             _reset_peak_rss()
             c0, t0 = process_cpu_s(), time.perf_counter()
-            result, source = method.inpaint_with_sources([frame], None if regions is None else [regions[i]])
+            result, source, col = call([frame], None if regions is None else [regions[i]],
+                                       None if colours is None else [colours[i]])
             per_frame.append({"frame": i, "time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0,
                               "peak_mem_mb": peak_rss_mb()})
             out.append(result[0])
+            cols.append(None if col is None else col[0])
             # a one-frame call's source frame 0 is frame i of the sequence
             sources.append(None if source is None or source[0] is None
                            else (np.where(source[0][0] >= 0, i, -1), source[0][1]))
         total = {"time_s": sum(p["time_s"] for p in per_frame), "cpu_time_s": sum(p["cpu_time_s"] for p in per_frame),
                  "peak_mem_mb": max(p["peak_mem_mb"] for p in per_frame)}
-        return out, (sources if any(s is not None for s in sources) else None), per_frame, total
+        return out, (sources if any(s is not None for s in sources) else None), per_frame, total, \
+            (cols if own else None)
     _reset_peak_rss()
     c0, t0 = process_cpu_s(), time.perf_counter()
-    out, sources = method.inpaint_with_sources(frames, regions)
+    out, sources, cols = call(frames, regions, colours)
     total = {"time_s": time.perf_counter() - t0, "cpu_time_s": process_cpu_s() - c0, "peak_mem_mb": peak_rss_mb()}
-    return list(out), sources, per_frame, total
+    return list(out), sources, per_frame, total, cols
 
 
 def _check_output(out: list, frames: list, name: str) -> list[np.ndarray]:
@@ -152,6 +168,20 @@ def _check_output(out: list, frames: list, name: str) -> list[np.ndarray]:
         if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0 or not np.isfinite(arr).all():
             raise ValueError(f"method {name} returned an invalid frame {i} (shape {arr.shape}, must be (N>0, 3) finite)")
         checked.append(arr)
+    return checked
+
+
+def _check_colours(colours: list, outputs: list[np.ndarray], name: str) -> list[np.ndarray]:
+    """The colours a method returned for its ``outputs``, as (N'_f, 3) uint8; ValueError when they do not match."""
+    if len(colours) != len(outputs):
+        raise ValueError(f"method {name} returned colours for {len(colours)} frames, points for {len(outputs)}")
+    checked = []
+    for i, (col, points) in enumerate(zip(colours, outputs)):
+        col = np.asarray(col)
+        if col.shape != (len(points), 3) or col.dtype != np.uint8:
+            raise ValueError(f"method {name} returned invalid colours for frame {i} (shape {col.shape}, dtype "
+                             f"{col.dtype}; must be ({len(points)}, 3) uint8)")
+        checked.append(col)
     return checked
 
 
@@ -177,17 +207,19 @@ def produce_frames(spec: RunSpec, truth, run_dir: Path) -> None:
     else:
         regions = None
     method = import_entry(spec.method["entry"])(**spec.method["params"])
-    inpainted, sources, per_frame, total = _inpaint_timed(method, damage.frames, regions)
+    colour_fill = spec.protocol.get("colour_fill", "auto")
+    inpainted, sources, per_frame, total, inpainted_colors = _inpaint_timed(method, damage.frames, regions,
+                                                                             damage.colors, colour_fill)
     inpainted = _check_output(inpainted, damage.frames, spec.method["name"])
-    inpainted_colors = None
-    if damage.colors is not None:
+    if inpainted_colors is not None:
+        inpainted_colors = _check_colours(inpainted_colors, inpainted, spec.method["name"])
+    elif damage.colors is not None:
         # the method's colours as `dpcbench inpaint --colour` gives them (the experiment's colour_fill, default
         # "auto": kept points keep theirs, copied points their source's, the rest a harmonic fill from the rim)
         from dpcbench.methods._colour import colour_outputs
 
         t0 = time.perf_counter()
-        inpainted_colors = colour_outputs(damage.frames, damage.colors, inpainted, sources,
-                                          spec.protocol.get("colour_fill", "auto"))
+        inpainted_colors = colour_outputs(damage.frames, damage.colors, inpainted, sources, colour_fill)
         total = {**total, "colour_time_s": time.perf_counter() - t0}
 
     holes = regions_to_json(damage.regions, generator=spec.holes["generator"], params=spec.holes["params"],

@@ -75,7 +75,7 @@ def run(frames: list[np.ndarray], holes: dict, seed: int) -> list[dict]:
     setattr(configured, "_inpaint_frame", frame_hook)  # noqa: B010
     tg.inter_source, tg.temporal_links, tg.select_new_points = inter, links, select
     try:
-        proposed = configured._inpaint_sequence([f.copy() for f in damage.frames], damage.regions)
+        proposed = configured._inpaint_sequence([f.copy() for f in damage.frames], damage.regions)[0]
     finally:
         tg.inter_source, tg.temporal_links, tg.select_new_points = original_inter, original_links, original_select
 

@@ -28,6 +28,10 @@ left open (back-fill takes frame f+1's). For frame f and each hole region R (giv
    points in an occlusion box, one point per voxel.
 8. `back_fill`: once all frames are done, last to first, a hole left open takes frame f+1's fill moved back.
 
+Colour (``inpaint_with_colours``, `colours`): each new point carries the colour of what decided its position (a
+copy its source point's, a voxel the mean of the copies that chose it, a reused or back-filled point its colour in
+the frame it came from); the rim fill and the spatial cascade get the harmonic fill of `methods._colour`.
+
 Every step is vectorised over points; the per-hole work runs on crops of size O(r^2 / s^2), so the time is
 linear in the points and in the holes. The parameters, their ranges and reasons are `config.FusionConfig`; the
 switches that only restore an older behaviour are `config.ABLATIONS`. Shared geometry comes from

@@ -31,7 +31,7 @@ from dpcbench.methods.temporal_fusion.motion import (
     rim_displacement,
     seen_rim_residual,
 )
-from dpcbench.methods.temporal_fusion.records import Alignments, Candidate, Crop, Motion, SequenceData
+from dpcbench.methods.temporal_fusion.records import Aligned, Alignments, Candidate, Crop, Motion, SequenceData
 
 #: most source points an ICP call pairs: a rigid motion has 6 unknowns, and 2000 evenly spread
 #: pairs pin it down as well as the 10-20k of a large hole's shell on an 800k-point frame (the
@@ -44,12 +44,11 @@ def align_frame(cfg: FusionConfig, seq: SequenceData, g: int, region: HoleRegion
     """Frame g's points round where R lies in g, moved onto frame f's crop. One point-to-point ICP round of g's
     shell per pair reach in ``schedule``, from the motion ``init`` (frame g -> f); with ``follow`` the crop of g is
     taken again round where R lies in g under each round's motion. ``plane_cache`` holds the crop's `plane_target`
-    (one normal estimate per hole). Returns (source (K, 3), its k-d tree, rotation, translation, rim residual),
-    None when g has fewer than 6 points there."""
+    (one normal estimate per hole). Returns the `Aligned` source, None when g has fewer than 6 points there."""
     spacing, local, rim, shell = seq.spacing, crop.local, crop.rim, crop.shell
     reach = region.bounding_radius + 2 * shell
     rotation, translation = init
-    source = None
+    source, idx = None, np.zeros(0, dtype=np.int64)
     for max_distance in schedule:
         if source is None or follow:
             centre_g = (region.center - translation) @ rotation
@@ -81,7 +80,7 @@ def align_frame(cfg: FusionConfig, seq: SequenceData, g: int, region: HoleRegion
         refined_residual = alignment_residual(source_tree, rim, *refined)
         if refined_residual <= residual:
             (rotation, translation), residual = refined, refined_residual
-    return source, source_tree, rotation, translation, residual
+    return Aligned(source, source_tree, rotation, translation, residual, idx)
 
 
 def has_own_hole(region: HoleRegion, centre_g: np.ndarray, regions_g, shell: float) -> bool:
@@ -99,13 +98,14 @@ def _retry(cfg, seq, g, region, init, centre_g, own_hole, aligned, crop, plane_c
     retried = align_frame(cfg, seq, g, region, init, schedule, True, crop, plane_cache)
     # kept only where it found R farther from the start than the shell: within it, the first
     # alignment could reach the patch, and a lower residual there is one more local minimum
-    moved_far = retried is not None and np.linalg.norm((region.center - retried[3]) @ retried[2] - centre_g) > shell
-    if moved_far and retried[-1] < aligned[-1]:
+    moved_far = retried is not None and \
+        np.linalg.norm((region.center - retried.translation) @ retried.rotation - centre_g) > shell
+    if moved_far and retried.residual < aligned.residual:
         if not own_hole:
             return retried, None
-        if retried[-1] <= cfg.accept_spacings * seq.spacing:
+        if retried.residual <= cfg.accept_spacings * seq.spacing:
             # g has its own hole near R: its coarse motion only starts the farther frames' alignment
-            return aligned, retried[2:4]
+            return aligned, (retried.rotation, retried.translation)
     return aligned, None
 
 
@@ -137,12 +137,12 @@ def align_sources(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegi
         beyond = g + (1 if g > f else -1)
         # an own-hole frame's retry only starts the frame beyond it: none within the window, no retry
         retry_useful = not own_hole or (abs(beyond - f) <= int(cfg.window) and 0 <= beyond < len(frames))
-        if cfg.coarse_retry and retry_useful and aligned[-1] > cfg.accept_spacings * spacing:
+        if cfg.coarse_retry and retry_useful and aligned.residual > cfg.accept_spacings * spacing:
             aligned, start = _retry(cfg, seq, g, region, (rotation0, translation0), centre_g, own_hole, aligned,
                                     crop, plane_cache)
             if start is not None:
                 starts[g] = start
-        source, source_tree, rotation, translation, residual = aligned
+        source, source_tree, rotation, translation, residual, rows = aligned
         carries_only = False
         if residual > cfg.accept_spacings * spacing:
             # f-1 (f+1) with its own hole there: judged again on the rim it saw, its motion carries its fill
@@ -165,6 +165,7 @@ def align_sources(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegi
             continue
         motions[g] = motion
         if inside.any() and (not own_hole or cfg.partial_sources):
-            copy = Candidate(residual, abs(g - f), g, deformed(moved[inside], field, cfg.deform_neighbours))
+            colours = None if seq.colours is None else seq.colours[g][rows[inside]]
+            copy = Candidate(residual, abs(g - f), g, deformed(moved[inside], field, cfg.deform_neighbours), colours)
             (partial if own_hole else candidates).append(copy)
     return Alignments(tuple(candidates), tuple(partial), motions, carried, next_motion)

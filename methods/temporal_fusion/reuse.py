@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill import far_from, grown_agreeing
+from dpcbench.methods.temporal_fusion.colours import masked, no_colour, stacked
 from dpcbench.methods.temporal_fusion.config import FusionConfig
 from dpcbench.methods.temporal_fusion.fuse import fusion_order
 from dpcbench.methods.temporal_fusion.motion import deformed
@@ -27,40 +28,49 @@ from dpcbench.methods.temporal_fusion.surface import disagreeing
 
 
 def reuse_previous(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegion, crop: Crop,
-                   accepted: np.ndarray, previous_fill: np.ndarray, alignments: Alignments) -> np.ndarray:
-    """``accepted`` (A, 3) followed by the points of ``previous_fill`` (M, 3; frame f-1's reusable fill) moved to
-    frame f that fill what is still open in ``region``."""
+                   accepted: np.ndarray, previous_fill: np.ndarray, alignments: Alignments
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The points of ``previous_fill`` (M, 3; frame f-1's reusable fill) moved to frame f that fill what the copies
+    ``accepted`` (A, 3) leave open in ``region``: (moved points (P, 3), their rows in ``previous_fill`` (P,)), so
+    each carries its previous-frame colour."""
     spacing = seq.spacing
     carrying = alignments.motions.get(f - 1, alignments.carried)
-    if cfg.reuse_previous and len(previous_fill) and carrying is not None:
-        rotation, translation, field = carrying
-        moved = previous_fill @ rotation.T + translation
-        moved = deformed(moved[region.contains(moved)], field, cfg.deform_neighbours)
-        moved = moved[far_from(moved, crop.tree, cfg.gap_spacings * spacing)]
-        if len(accepted):
-            moved = moved[far_from(moved, cKDTree(accepted), cfg.fill_gap_spacings * spacing)]
-        # the moved fill must still fit the rim: points off the rim's local plane are dropped
-        # (what they covered is filled afresh below)
-        moved = moved[~disagreeing(moved, crop.rim, 3 * spacing, cfg.accept_spacings * spacing)]
-        if len(moved):
-            accepted = np.vstack([accepted, moved])
-    return accepted
+    rows = np.zeros(0, dtype=np.intp)
+    if not (cfg.reuse_previous and len(previous_fill) and carrying is not None):
+        return np.zeros((0, 3)), rows
+    rotation, translation, field = carrying
+    moved = previous_fill @ rotation.T + translation
+    rows = np.flatnonzero(region.contains(moved))
+    moved = deformed(moved[rows], field, cfg.deform_neighbours)
+    keep = far_from(moved, crop.tree, cfg.gap_spacings * spacing)
+    if len(accepted):
+        keep &= far_from(moved, cKDTree(accepted), cfg.fill_gap_spacings * spacing)
+    moved, rows = moved[keep], rows[keep]
+    # the moved fill must still fit the rim: points off the rim's local plane are dropped
+    # (what they covered is filled afresh below)
+    keep = ~disagreeing(moved, crop.rim, 3 * spacing, cfg.accept_spacings * spacing)
+    return moved[keep], rows[keep]
 
 
 def partial_copies(cfg: FusionConfig, seq: SequenceData, crop: Crop, accepted: np.ndarray,
-                   partial: tuple[Candidate, ...]) -> np.ndarray:
-    """The points (P, 3) of the partial copies that fill what ``accepted`` (A, 3) leaves open."""
+                   partial: tuple[Candidate, ...]) -> tuple[np.ndarray, np.ndarray | None]:
+    """The points (P, 3) of the partial copies that fill what ``accepted`` (A, 3) leaves open, and their colours
+    (P, 3; None without colour)."""
     spacing = seq.spacing
     seen = np.zeros((0, 3))
-    for residual, _, _, points in fusion_order(partial, spacing):
-        points = points[far_from(points, crop.tree, cfg.gap_spacings * spacing)]
+    seen_colours = None if seq.colours is None else no_colour(0)
+    for candidate in fusion_order(partial, spacing):
+        points, colours = candidate.points, candidate.colours
+        keep = far_from(points, crop.tree, cfg.gap_spacings * spacing)
         known = np.vstack([accepted, seen])
         if len(known):
-            points = points[far_from(points, cKDTree(known), cfg.fill_gap_spacings * spacing)]
+            keep &= far_from(points, cKDTree(known), cfg.fill_gap_spacings * spacing)
+        points, colours = points[keep], masked(colours, keep)
         # the agreement rule, widened by this copy's own misfit at the rim (its points near the rim sit
         # that far off the rim's surface however well the rest of it fits)
-        points = points[grown_agreeing(points, np.vstack([crop.rim, known]), 3 * spacing,
-                                       cfg.accept_spacings * spacing + residual)]
-        if len(points):
-            seen = np.vstack([seen, points])
-    return seen
+        keep = grown_agreeing(points, np.vstack([crop.rim, known]), 3 * spacing,
+                              cfg.accept_spacings * spacing + candidate.residual)
+        if keep.any():
+            seen_colours = stacked([seen_colours, masked(colours, keep)], [len(seen), int(keep.sum())])
+            seen = np.vstack([seen, points[keep]])
+    return seen, seen_colours

@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill import even_subset, over_captured_surface, unique_voxels
+from dpcbench.methods.temporal_fusion.colours import pooled, rounded
 from dpcbench.methods.temporal_fusion.config import FusionConfig
 from dpcbench.methods.temporal_fusion.records import Crop, SequenceData
 from dpcbench.methods.temporal_fusion.surface import mls_project
@@ -33,12 +34,17 @@ FLOAT_LAYER_SPACINGS = 0.5
 #: off the plane, 4 voxels and 50 at most 4, while 97-100 % of a layer one voxel above is read as one)
 VOXEL_LAYER_REACH = 4.0
 VOXEL_LAYER_NEIGHBOURS = 50
+#: the reach within which `voxels.surface_voxels` chooses the settled points' voxels (its default, sqrt 3): a
+#: settled voxel's colour is the mean of the moved points within it
+SETTLE_REACH = float(np.sqrt(3.0))
 
 
 def project_new(cfg: FusionConfig, seq: SequenceData, region: HoleRegion, crop: Crop, accepted: np.ndarray,
-                copied: int) -> np.ndarray:
+                copied: int, colours: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """``accepted`` (A, 3; its first ``copied`` rows copies, the rest reused) projected (all rows on float input,
-    the reused ones on voxelized input, where the reused ones are then re-voxelized): a new array."""
+    the reused ones on voxelized input, where the reused ones are then re-voxelized): a new array, and the colours
+    of its rows (``colours`` (A, 3) carried: a projected point keeps its colour, a re-voxelized voxel takes the
+    mean of the projected points within the reach that chose it, `colours.pooled`; None stays None)."""
     accepted = accepted.copy()
     local = crop.local
     # on voxelized data the copies are voxels of a captured surface already: projecting them
@@ -53,17 +59,23 @@ def project_new(cfg: FusionConfig, seq: SequenceData, region: HoleRegion, crop: 
         bound = rim_crossing_threshold(even_subset(crop.rim, CALIBRATION_POINTS), region, local, crop.tree, k)
         occupied = cKDTree(np.vstack([local, accepted[:copied]])) if copied else crop.tree
         reused = surface_voxels(accepted[copied:], region, np.vstack([local, accepted]), occupied, k, bound)
+        if colours is not None:
+            colours = np.vstack([colours[:copied], pooled(accepted[copied:], colours[copied:], reused, SETTLE_REACH)])
         accepted = np.vstack([accepted[:copied], reused])
     elif seq.voxelized and copied < len(accepted):
-        accepted = np.vstack([accepted[:copied], unique_voxels(np.floor(accepted[copied:] + 0.5))])
-    return accepted
+        reused = unique_voxels(np.floor(accepted[copied:] + 0.5))
+        if colours is not None:
+            colours = np.vstack([colours[:copied], rounded(accepted[copied:], colours[copied:], reused)])
+        accepted = np.vstack([accepted[:copied], reused])
+    return accepted, colours
 
 
 def settle(cfg: FusionConfig, seq: SequenceData, points: np.ndarray, fixed: np.ndarray, region: HoleRegion,
-           crop: Crop) -> np.ndarray:
+           crop: Crop, colours: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Moved points (``points`` (P, 3), beside the new points ``fixed`` of R) onto the MLS surface of frame f's crop
     and all new points, then, on voxelized data, re-voxelized with the rim's bound, never on a voxel of the crop or
-    of ``fixed``."""
+    of ``fixed``; with the settled points' colours from the moved points' ``colours`` (P, 3) as `project_new`
+    carries them (None stays None)."""
     local = crop.local
     support = np.vstack([local, fixed, points])
     if seq.projection_neighbours >= 6:
@@ -72,10 +84,12 @@ def settle(cfg: FusionConfig, seq: SequenceData, points: np.ndarray, fixed: np.n
         k = max(seq.projection_neighbours, 6)
         bound = rim_crossing_threshold(even_subset(crop.rim, CALIBRATION_POINTS), region, local, crop.tree, k)
         occupied = cKDTree(np.vstack([local, fixed])) if len(fixed) else crop.tree
-        points = surface_voxels(points, region, support, occupied, k, bound)
-    elif seq.voxelized:
-        points = unique_voxels(np.floor(points + 0.5))
-    return points
+        voxels = surface_voxels(points, region, support, occupied, k, bound)
+        return voxels, pooled(points, colours, voxels, SETTLE_REACH)
+    if seq.voxelized:
+        voxels = unique_voxels(np.floor(points + 0.5))
+        return voxels, rounded(points, colours, voxels)
+    return points, colours
 
 
 def over_captured(fill: np.ndarray, tree: cKDTree, spacing: float, voxelized: bool) -> np.ndarray:

@@ -7,7 +7,8 @@
 Each sequence (an embedded name such as ``human``, with ``--frames`` frames at ``--size``, or a folder
 of coloured PLY frames) is damaged with ``region`` holes (preset medium, seed 0, coherent unless ``--independent``), every
 method fills it (``inpaint_with_colours``, once per fill in ``--fills``: the geometry is computed once,
-the fills recolour it), and the mean over frames of the hole-region cpsnr_y / cpsnr_u / cpsnr_v (pc_error
+the fills recolour it; a method that colours its output itself, `methods.base.colours_itself`, runs once per fill
+and its fill's CPU seconds include the method), and the mean over frames of the hole-region cpsnr_y / cpsnr_u / cpsnr_v (pc_error
 BT.709, `metrics.colour`) against the undamaged frames is printed as a Markdown table, with the CPU
 seconds of each method and of each fill.
 """
@@ -39,6 +40,7 @@ def main() -> int:
     from dpcbench.bench.data.sequences import load_sequence
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods._colour import colour_outputs
+    from dpcbench.methods.base import colours_itself
     from dpcbench.methods.registry import get_method
 
     if Path(args.sequence).exists():
@@ -69,7 +71,10 @@ def main() -> int:
         ys, cpu, last = [], [], None
         for fill in fills:
             start = time.process_time()
-            colours = colour_outputs(damage.frames, damage.colors, outputs, sources, fill)
+            if colours_itself(method):
+                outputs, colours = method.inpaint_with_colours(damage.frames, damage.colors, damage.regions, fill=fill)
+            else:
+                colours = colour_outputs(damage.frames, damage.colors, outputs, sources, fill)
             cpu.append(time.process_time() - start)
             scores = metrics.score_sequence(
                 [f.points for f in truth], outputs, ["cpsnr_y", "cpsnr_u", "cpsnr_v"], regions=damage.regions,

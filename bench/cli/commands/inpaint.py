@@ -10,9 +10,10 @@ output point carries one: a kept point its input normal, a new point a PCA norma
 its nearest input point's (`methods._normals`), so renders of the input, the result and the ground truth are
 shaded alike; when the input has colours,
 every output point carries one: the method's colours, `InpaintingMethod.inpaint_with_colours`, with the
-fill chosen by ``--colour``: captured points keep theirs, new points take their source point's colour
-where the method reports one (temporal-copy), else a harmonic interpolation from the hole's rim;
-``--colour nearest`` gives every new point its nearest input point's colour) and ``inpaint.json``
+fill chosen by ``--colour``: captured points keep theirs, new points take the colour the method gives them
+(temporal-copy its source point's, temporal-fusion its copies' fused colours, temporal-graph and fu-nonlocal
+colour solved on their graph, meshlab MeshLab's vertex colours), else a harmonic interpolation from the
+hole's rim; ``--colour nearest`` gives every new point its nearest input point's colour) and ``inpaint.json``
 (method, parameters, input, regions file, colour fill, seconds per frame). DIR may not be INPUT, nor
 lie inside it.
 """
@@ -46,8 +47,8 @@ def register(subparsers) -> None:
                         help="hole regions per frame (holes.json of `dpcbench damage`); omit for the blind protocol")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (not INPUT)")
     parser.add_argument("--colour", default="auto", choices=["auto", "nearest", "harmonic", "source"],
-                        help="colour of the new points when the input has colours: auto (the source point's colour "
-                             "where the method reports one, else harmonic; default), nearest (nearest input point), "
+                        help="colour of the new points when the input has colours: auto (the method's own colour "
+                             "where it gives one, else harmonic; default), nearest (nearest input point), "
                              "harmonic (graph-harmonic interpolation from the hole's rim), source (source, else "
                              "nearest)")
     parser.add_argument("--overwrite", action="store_true",
