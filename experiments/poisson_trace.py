@@ -37,9 +37,9 @@ def _trace(log: list) -> None:
     samples, holds_out = poisson._poisson_samples, poisson._holds_out
     state = {"role": "fill"}
 
-    def traced_samples(support, grid):
+    def traced_samples(support, grid, *args, **kwargs):
         start = time.process_time()
-        out = samples(support, grid)
+        out = samples(support, grid, *args, **kwargs)
         extent = float(np.ptp(support, axis=0).max())
         depth = int(np.clip(np.ceil(np.log2(max(common.POISSON_SCALE * extent / grid, 2.0))), 1,
                             common.POISSON_MAX_DEPTH))
