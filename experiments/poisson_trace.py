@@ -21,8 +21,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "benchmarks"))
-from fusion_cases import CASES  # noqa: E402  (tests/benchmarks is no package)
-from fusion_golden import digest  # noqa: E402  (the sibling script)
+from fusion_cases import CASES, digest  # noqa: E402  (tests/benchmarks is no package)
 
 from dpcbench.methods._spatial_fill import common, poisson  # noqa: E402
 from dpcbench.methods.registry import get_method  # noqa: E402

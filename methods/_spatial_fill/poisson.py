@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
+    POISSON_CELL_STEPS,
     POISSON_MAX_DEPTH,
     POISSON_SCALE,
     SURFACE_POINTS,
@@ -62,8 +63,8 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     body has c inside). Surface: open3d's screened
     Poisson reconstruction (Kazhdan and Hoppe 2013; one thread, so the mesh does not depend on the
     thread count) on an octree whose finest cell is at most the fill's grid step g (``spacing`` on
-    voxelized data, else ``step``): depth = ceil(log2(1.1 e / g)), e the support's bounding-box side,
-    1.1 open3d's default margin. Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
+    voxelized data, else ``step``; `POISSON_CELL_STEPS` g): depth = ceil(log2(1.1 e / g)), e the support's
+    bounding-box side, 1.1 open3d's default margin. Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
     voxels on voxelized data (unique), else thinned to one a cubic cell of edge g; inside ``region``,
     not covered, and attached to the support (`grown_agreeing` with reach 3 s and no plane test: a
     sheet the reconstruction closes across the crop's open sides, not touching the captured surface,
@@ -289,8 +290,8 @@ def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, f
     normals, octree depth from the grid step ``grid``), sampled at ``grid`` / 2 (`sample_triangles`):
     (S, 3), all of it, or with ``near`` = (region, margin) the samples of the triangles that can reach the
     region grown by margin (`_triangles_near`: every sample there, in the same order, none far from it);
-    (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's surface
-    reaches far past R: sampling it all and testing every sample was a fifth of a Longdress frame's time."""
+    (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's closed surface
+    reaches far past R."""
     import open3d as o3d
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(support))
@@ -303,7 +304,8 @@ def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, f
     cloud.normals = o3d.utility.Vector3dVector(
         orient_along_surface(support, np.asarray(cloud.normals), support.mean(axis=0), 16))
     extent = float(np.ptp(support, axis=0).max())
-    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / grid, 2.0))), 1, POISSON_MAX_DEPTH))
+    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (POISSON_CELL_STEPS * grid), 2.0))), 1,
+                        POISSON_MAX_DEPTH))
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _native_stderr_silenced():
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE,
                                                                             n_threads=1)
@@ -436,15 +438,23 @@ def orient_along_surface(points: np.ndarray, normals: np.ndarray, centre: np.nda
         children = order[1:]
         up[children] = parent[children]
         odd[children] = np.einsum("ij,ij->i", normals[children], normals[parent[children]]) < 0
-    # the sign of a node is the product of the flips on its path to the root (+1 at the root): their parity by
-    # pointer jumping, each round doubling the reach of ``up`` (log2 of the tree's depth rounds)
-    while True:
-        further = up[up]
-        if np.array_equal(further, up):
-            break
-        odd = odd ^ odd[up]
-        up = further
-    oriented = normals * np.where(odd, -1.0, 1.0)[:, None]
+    # the sign of a node: the product of the flips on its path to the root (+1 at the root)
+    oriented = normals * np.where(_path_parity(up, odd), -1.0, 1.0)[:, None]
     outward = np.sign(np.einsum("ij,ij->i", points - centre, oriented))
     votes = np.bincount(labels, weights=outward, minlength=components)
     return oriented * np.where(votes[labels] < 0, -1.0, 1.0)[:, None]
+
+
+def _path_parity(up: np.ndarray, odd: np.ndarray) -> np.ndarray:
+    """Mask (N,): whether an odd number of the edges on each node's path to its root are flagged, for a forest
+    given by ``up`` (N,) (each node's parent; a root is its own) and ``odd`` (N,) (the edge to the parent flagged;
+    False at a root). Pointer jumping: after each round ``up`` reaches twice as far up and ``odd`` holds the parity
+    of the edges it skipped: log2 of the depth rounds, each a few array operations, where a walk in breadth-first
+    order sets one node at a time."""
+    up, odd = np.asarray(up), np.asarray(odd, dtype=bool)
+    while True:
+        further = up[up]
+        if np.array_equal(further, up):
+            return odd
+        odd = odd ^ odd[up]
+        up = further

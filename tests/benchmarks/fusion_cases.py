@@ -8,12 +8,19 @@ Each case is a function returning ``(truth, damaged frames, regions)``: lists of
                          holes a frame (seed 0): no frame sees another's holes, every hole goes to the spatial fills
   longdress-region       the real 858k-point Longdress frame of ../shared ($DPCBENCH_SHARED; 10-bit), 4 medium region holes (seed 0)
   longdress-occlusion    the same frame with the occlusion rig's boxes (seed 0)
+
+``digest(outputs)``: experiments/fusion_golden.py's sha256 of a run's output points, so that a benchmark or a
+trace shows that two revisions give the same points.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "experiments"))
+from fusion_golden import digest  # noqa: E402,F401  (the golden hashes' sha256 of a run's output points)
 
 SIZES = {
     "100k": dict(size="small"),
