@@ -1,0 +1,78 @@
+"""Two versions of one method in one results store, row by row: whole-frame D1 / D2 / NSHD of each and of no fill,
+and the paired difference (new - old) over the row's (frame, seed) pairs with its 95% interval
+(`bench.results.stats.paired`: paired bootstrap and Wilcoxon), so a change of output is judged against noise.
+
+    dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # at the old version
+    dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # again at the new one
+    .venv/bin/python experiments/compare_versions.py q.sqlite --method temporal-fusion --old 42 --new 43
+
+A row is a sequence and a kind of holes (all its seeds); "beyond noise" when the interval excludes 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sqlite3
+from collections import defaultdict
+
+from dpcbench.bench.results.stats import paired
+
+METRICS = (("gpsnr_d1", "D1"), ("gpsnr_d2", "D2"), ("nshd", "NSHD"))
+
+
+def _values(connection, method: str, version: str | None, experiment: str) -> dict:
+    """(sequence, holes) -> metric -> {(seed, frame): value} of the done runs of ``method`` (at ``version``)."""
+    query = ("select r.sequence, r.holes, r.seed, s.frame, s.metric, s.value from runs r "
+             "join results s on s.run_id = r.run_id join experiment_runs e on e.run_id = r.run_id "
+             "where r.status = 'done' and r.method = ? and e.experiment = ? and s.scope = 'frame'")
+    args: list = [method, experiment]
+    if version is not None:
+        query += " and r.method_version = ?"
+        args.append(version)
+    out: dict = defaultdict(lambda: defaultdict(dict))
+    for sequence, holes, seed, frame, metric, value in connection.execute(query, args):
+        out[(sequence, holes)][metric][(seed, frame)] = value
+    return out
+
+
+def _mean(values: dict) -> float:
+    return sum(values.values()) / len(values) if values else float("nan")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("store")
+    parser.add_argument("--method", default="temporal-fusion")
+    parser.add_argument("--old", required=True, help="the old method_version")
+    parser.add_argument("--new", required=True, help="the new method_version")
+    parser.add_argument("--experiment", default="speed-quality")
+    args = parser.parse_args(argv)
+    connection = sqlite3.connect(f"file:{args.store}?mode=ro", uri=True)
+    old = _values(connection, args.method, args.old, args.experiment)
+    new = _values(connection, args.method, args.new, args.experiment)
+    none = _values(connection, "none", None, args.experiment)
+    print("| row | n | " + " | ".join(f"{label} old / new / no fill | {label} new - old [95% interval]"
+                                      for _, label in METRICS) + " |")
+    print("|---|---|" + "---|---|" * len(METRICS))
+    for row in sorted(set(old) & set(new)):
+        cells = []
+        for metric, _ in METRICS:
+            a, b, floor = new[row][metric], old[row][metric], none[row][metric]
+            comparison = paired(a, b, higher_is_better=True)  # new - old as it stands (no sign flip)
+            scale = 1e9 if metric == "nshd" else 1.0
+
+            cells.append(" / ".join(f"{_mean(v) * scale:.2f}" for v in (b, a, floor)))
+            if comparison.n < 2:
+                cells.append(f"{comparison.mean_difference * scale:+.3f} (one pair: no interval)")
+                continue
+            beyond = "beyond noise" if comparison.low > 0 or comparison.high < 0 else "within noise"
+            cells.append(f"{comparison.mean_difference * scale:+.3f} [{comparison.low * scale:+.3f}, "
+                         f"{comparison.high * scale:+.3f}] {beyond}")
+        n = len(set(old[row]["gpsnr_d1"]) & set(new[row]["gpsnr_d1"]))
+        print(f"| {row[0]}, {row[1]} | {n} | " + " | ".join(cells) + " |")
+    print("NSHD in 1e-9; n = (frame, seed) pairs; lower NSHD is better")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
