@@ -26,10 +26,8 @@ SHEET_MIN_ALIGNMENT = 0.75
 #: cube, and the largest octree depth (2^10 cells a side: a crop of 1000 grid steps, far above a hole's)
 POISSON_SCALE = 1.1
 POISSON_MAX_DEPTH = 10
-#: screened Poisson's finest octree cell, in grid steps g (the fill's sampling step): 2 since temporal-fusion
-#: version 43 (1 before; docs/temporal-fusion.md, "Speed at paper scale": one level fewer, the same D1 / D2 within
-#: noise on the rows step 6c fills, 1.6-2.7x less time a reconstruction)
-POISSON_CELL_STEPS = 2
+#: screened Poisson's finest octree cell, in grid steps g (the fill's sampling step)
+POISSON_CELL_STEPS = 1
 
 
 def even_subset(points: np.ndarray, count: int) -> np.ndarray:

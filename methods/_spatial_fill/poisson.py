@@ -62,11 +62,9 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     from the support's centroid c, sign((p_i - c) . n_i) (a crop round a limb, a neck or a convex patch of a
     body has c inside). Surface: open3d's screened
     Poisson reconstruction (Kazhdan and Hoppe 2013; one thread, so the mesh does not depend on the
-    thread count) on an octree whose finest cell is at most two grid steps, 2 g (`POISSON_CELL_STEPS`; g the
-    fill's grid step, ``spacing`` on voxelized data, else ``step``): depth = ceil(log2(1.1 e / 2 g)), e the
-    support's bounding-box side, 1.1 open3d's default margin. The fill lies where the support has no samples,
-    and there the octree is coarse at any depth; the finest level only refines the surface along the captured
-    points, where nothing is added (they cover it). Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
+    thread count) on an octree whose finest cell is at most the fill's grid step g (``spacing`` on
+    voxelized data, else ``step``; `POISSON_CELL_STEPS` g): depth = ceil(log2(1.1 e / g)), e the support's
+    bounding-box side, 1.1 open3d's default margin. Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
     voxels on voxelized data (unique), else thinned to one a cubic cell of edge g; inside ``region``,
     not covered, and attached to the support (`grown_agreeing` with reach 3 s and no plane test: a
     sheet the reconstruction closes across the crop's open sides, not touching the captured surface,
