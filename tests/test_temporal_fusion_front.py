@@ -304,7 +304,7 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     limb hole, with the bound just above and just below the exact miss (the inner ring's RMS distance to
     the held-out surface's samples, in full, less in quadrature its RMS distance to the surface of all
     the points), it passes and fails."""
-    from dpcbench.methods._spatial_fill import _holds_out, _poisson_points
+    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _holds_out, _poisson_points
 
     limb = cylinder(8.0, 60.0)
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
@@ -312,7 +312,7 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     ring = 2.0
     inner = region.contains(kept, margin=ring)
     held = _poisson_points(kept[~inner], lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
-                           surface=True)
+                           surface=True, cell_steps=POISSON_HOLDOUT_CELL_STEPS)
     whole = _poisson_points(kept, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
                             surface=True)
     scatter = np.mean(cKDTree(whole).query(kept[inner])[0] ** 2)
@@ -351,9 +351,10 @@ def test_the_hold_out_allows_for_the_capture_s_own_scatter():
 
 
 def _poisson_points_for_test(points, region, ring):
-    from dpcbench.methods._spatial_fill import _poisson_points
+    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _poisson_points
 
-    return _poisson_points(points, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0, surface=True)
+    return _poisson_points(points, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0, surface=True,
+                           cell_steps=POISSON_HOLDOUT_CELL_STEPS)
 
 
 def test_native_stderr_is_silenced_for_the_block_only(capfd):

@@ -24,6 +24,7 @@ from dpcbench.methods._spatial_fill.cap import (
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
     POISSON_CELL_STEPS,
+    POISSON_HOLDOUT_CELL_STEPS,
     POISSON_MAX_DEPTH,
     POISSON_SCALE,
     SHEET_MIN_ALIGNMENT,
@@ -68,8 +69,8 @@ from dpcbench.methods._spatial_fill.spline import (
 )
 
 #: every name of the former single module, private helpers included (tests import them from here)
-__all__ = ["MAX_STEEP", "POISSON_CELL_STEPS", "POISSON_MAX_DEPTH", "POISSON_SCALE", "SHEET_MIN_ALIGNMENT",
-           "SURFACE_POINTS", "_bodies", "_flat_anchors", "_holds_out", "_link_components", "_native_stderr_silenced",
+__all__ = ["MAX_STEEP", "POISSON_CELL_STEPS", "POISSON_HOLDOUT_CELL_STEPS", "POISSON_MAX_DEPTH", "POISSON_SCALE",
+           "SHEET_MIN_ALIGNMENT", "SURFACE_POINTS", "_bodies", "_flat_anchors", "_holds_out", "_link_components", "_native_stderr_silenced",
            "_open_radius", "_path_parity", "_poisson_points", "_poisson_samples", "_sheet_bounded", "_triangles_near",
            "_voxel_keys", "_within_hull_of", "between_layers", "cap_fill", "cap_walled", "even_subset", "far_from",
            "first_in_cells", "fit_height_field", "grown_agreeing", "harmonic_height_field", "limb_ends",

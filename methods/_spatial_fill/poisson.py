@@ -14,6 +14,7 @@ from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
     POISSON_CELL_STEPS,
+    POISSON_HOLDOUT_CELL_STEPS,
     POISSON_MAX_DEPTH,
     POISSON_SCALE,
     SURFACE_POINTS,
@@ -79,7 +80,9 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
 
     Hold-out test (when ``ring`` > 0; step 6's test, with the same bound), per body whose surface adds points
     (elsewhere its decision changes nothing, and it costs a second reconstruction): the support points within
-    ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed, and
+    ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed (its
+    finest cell 2 g, `POISSON_HOLDOUT_CELL_STEPS`: the test asks whether the surface continues across the
+    ring, which the octree's last level does not decide, at a fraction of the fill's reconstruction), and
     the inner ring's RMS distance m to it (to its samples at g / 2 in the region grown by ``ring``) must be
     at most ``max_holdout_spacings`` spacings once the ring's scatter e is taken out, sqrt(m^2 - e^2) <= bound,
     e its RMS distance to the surface of the whole body (the one the fill is taken from, sampled over the
@@ -261,7 +264,7 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
         return True
     outer = support[~inner]
     held = _poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing,
-                           voxelized, grid, surface=True, near=(region, ring))
+                           voxelized, grid, surface=True, near=(region, ring), cell_steps=POISSON_HOLDOUT_CELL_STEPS)
     if not len(held):
         return False
     ring_points = support[inner]
@@ -285,9 +288,11 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     return float(np.mean(distance ** 2)) <= bound_sq
 
 
-def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, float] | None = None) -> np.ndarray:
+def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, float] | None = None,
+                     cell_steps: int = POISSON_CELL_STEPS) -> np.ndarray:
     """The screened Poisson surface of ``support`` (K, 3) (`poisson_surface_fill`'s docstring: oriented PCA
-    normals, octree depth from the grid step ``grid``), sampled at ``grid`` / 2 (`sample_triangles`):
+    normals, octree depth from the finest cell ``cell_steps`` * ``grid``, at least 2, open3d's least),
+    sampled at ``grid`` / 2 (`sample_triangles`):
     (S, 3), all of it, or with ``near`` = (region, margin) the samples of the triangles that can reach the
     region grown by margin (`_triangles_near`: every sample there, in the same order, none far from it);
     (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's closed surface
@@ -304,7 +309,7 @@ def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, f
     cloud.normals = o3d.utility.Vector3dVector(
         orient_along_surface(support, np.asarray(cloud.normals), support.mean(axis=0), 16))
     extent = float(np.ptp(support, axis=0).max())
-    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (POISSON_CELL_STEPS * grid), 2.0))), 1,
+    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
                         POISSON_MAX_DEPTH))
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _native_stderr_silenced():
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE,
@@ -336,15 +341,15 @@ def _triangles_near(vertices: np.ndarray, triangles: np.ndarray, region: HoleReg
 
 
 def _poisson_points(support, inside, covered, free, spacing, voxelized, grid, surface=False,
-                    samples=None, near=None) -> np.ndarray:
+                    samples=None, near=None, cell_steps=POISSON_CELL_STEPS) -> np.ndarray:
     """`poisson_surface_fill`'s surface and points (its docstring), without the hold-out test: ``inside``
     a mask function of (P, 3) points, ``free`` the distance from ``covered`` a new point keeps. With
     ``surface``: the surface's samples at g / 2 inside, neither rounded to voxels nor thinned nor tested
     (the hold-out test measures the distance to the surface, not to a sampling of it: one sample a cell
     of g lies up to ~g / 2 beside a held-out point that is on the surface). ``samples``: the surface's
-    samples (`_poisson_samples` of ``support``) when already made; ``near``: `_poisson_samples`'s, a region and
-    margin that hold every point ``inside`` keeps."""
-    points = _poisson_samples(support, grid, near) if samples is None else samples
+    samples (`_poisson_samples` of ``support``) when already made; ``near``, ``cell_steps``: `_poisson_samples`'s
+    (``near`` a region and margin that hold every point ``inside`` keeps)."""
+    points = _poisson_samples(support, grid, near, cell_steps) if samples is None else samples
     if not len(points):
         return np.zeros((0, 3))
     if surface:
