@@ -6,7 +6,8 @@ and the paired difference (new - old) over the row's (frame, seed) pairs with it
     dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # again at the new one
     .venv/bin/python experiments/compare_versions.py q.sqlite --method temporal-fusion --old 42 --new 43
 
-A row is a sequence and a kind of holes (all its seeds); "beyond noise" when the interval excludes 0.
+A row is a sequence and a kind of holes (all its seeds, every experiment of the store); "beyond noise" when the
+interval excludes 0.
 """
 
 from __future__ import annotations
@@ -20,12 +21,11 @@ from dpcbench.bench.results.stats import paired
 METRICS = (("gpsnr_d1", "D1"), ("gpsnr_d2", "D2"), ("nshd", "NSHD"))
 
 
-def _values(connection, method: str, version: str | None, experiment: str) -> dict:
+def _values(connection, method: str, version: str | None) -> dict:
     """(sequence, holes) -> metric -> {(seed, frame): value} of the done runs of ``method`` (at ``version``)."""
     query = ("select r.sequence, r.holes, r.seed, s.frame, s.metric, s.value from runs r "
-             "join results s on s.run_id = r.run_id join experiment_runs e on e.run_id = r.run_id "
-             "where r.status = 'done' and r.method = ? and e.experiment = ? and s.scope = 'frame'")
-    args: list = [method, experiment]
+             "join results s on s.run_id = r.run_id where r.status = 'done' and r.method = ? and s.scope = 'frame'")
+    args: list = [method]
     if version is not None:
         query += " and r.method_version = ?"
         args.append(version)
@@ -45,12 +45,11 @@ def main(argv=None) -> int:
     parser.add_argument("--method", default="temporal-fusion")
     parser.add_argument("--old", required=True, help="the old method_version")
     parser.add_argument("--new", required=True, help="the new method_version")
-    parser.add_argument("--experiment", default="speed-quality")
     args = parser.parse_args(argv)
     connection = sqlite3.connect(f"file:{args.store}?mode=ro", uri=True)
-    old = _values(connection, args.method, args.old, args.experiment)
-    new = _values(connection, args.method, args.new, args.experiment)
-    none = _values(connection, "none", None, args.experiment)
+    old = _values(connection, args.method, args.old)
+    new = _values(connection, args.method, args.new)
+    none = _values(connection, "none", None)
     print("| row | n | " + " | ".join(f"{label} old / new / no fill | {label} new - old [95% interval]"
                                       for _, label in METRICS) + " |")
     print("|---|---|" + "---|---|" * len(METRICS))
