@@ -7,14 +7,17 @@ and the paired difference (new - old) over the row's (frame, seed) pairs with it
     .venv/bin/python experiments/compare_versions.py q.sqlite --method temporal-fusion --old 42 --new 43
 
 A row is a sequence and a kind of holes (all its seeds, every experiment of the store); "beyond noise" when the
-interval excludes 0.
+interval excludes 0; "inpainted frames identical" when both versions wrote the same PLY bytes in every run of the
+row (the run folders must still be there).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import sqlite3
 from collections import defaultdict
+from pathlib import Path
 
 from dpcbench.bench.results.stats import paired
 
@@ -35,6 +38,18 @@ def _values(connection, method: str, version: str | None) -> dict:
     return out
 
 
+def _frames_digest(connection, method: str, version: str) -> dict:
+    """(sequence, holes) -> sha256 over the inpainted PLY files of every done run of the row (seeds in order),
+    read from the run folders: equal digests mean the two versions wrote the same bytes."""
+    query = ("select sequence, holes, seed, output_dir from runs where status = 'done' and method = ? and "
+             "method_version = ? order by sequence, holes, seed")
+    digests: dict = defaultdict(hashlib.sha256)
+    for sequence, holes, _seed, folder in connection.execute(query, (method, version)):
+        for path in sorted(Path(folder, "inpainted").glob("*.ply")):
+            digests[(sequence, holes)].update(hashlib.sha256(path.read_bytes()).digest())
+    return {row: digest.hexdigest() for row, digest in digests.items()}
+
+
 def _mean(values: dict) -> float:
     return sum(values.values()) / len(values) if values else float("nan")
 
@@ -50,9 +65,10 @@ def main(argv=None) -> int:
     old = _values(connection, args.method, args.old)
     new = _values(connection, args.method, args.new)
     none = _values(connection, "none", None)
+    frames = [_frames_digest(connection, args.method, version) for version in (args.old, args.new)]
     print("| row | n | " + " | ".join(f"{label} old / new / no fill | {label} new - old [95% interval]"
-                                      for _, label in METRICS) + " |")
-    print("|---|---|" + "---|---|" * len(METRICS))
+                                      for _, label in METRICS) + " | inpainted frames |")
+    print("|---|---|" + "---|---|" * len(METRICS) + "---|")
     for row in sorted(set(old) & set(new)):
         cells = []
         for metric, _ in METRICS:
@@ -68,7 +84,8 @@ def main(argv=None) -> int:
             cells.append(f"{comparison.mean_difference * scale:+.3f} [{comparison.low * scale:+.3f}, "
                          f"{comparison.high * scale:+.3f}] {beyond}")
         n = len(set(old[row]["gpsnr_d1"]) & set(new[row]["gpsnr_d1"]))
-        print(f"| {row[0]}, {row[1]} | {n} | " + " | ".join(cells) + " |")
+        same = frames[0].get(row) is not None and frames[0].get(row) == frames[1].get(row)
+        print(f"| {row[0]}, {row[1]} | {n} | " + " | ".join(cells) + f" | {'identical' if same else 'differ'} |")
     print("NSHD in 1e-9; n = (frame, seed) pairs; lower NSHD is better")
     return 0
 
