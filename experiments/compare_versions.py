@@ -72,7 +72,9 @@ def main(argv=None) -> int:
     for row in sorted(set(old) & set(new)):
         cells = []
         for metric, _ in METRICS:
-            a, b, floor = new[row][metric], old[row][metric], none[row][metric]
+            shared = set(new[row][metric]) & set(old[row][metric])  # the means over the pairs compared
+            a, b, floor = ({key: values[key] for key in shared if key in values}
+                           for values in (new[row][metric], old[row][metric], none[row][metric]))
             comparison = paired(a, b, higher_is_better=True)  # new - old as it stands (no sign flip)
             scale = 1e9 if metric == "nshd" else 1.0
 
