@@ -95,6 +95,12 @@ Version 42 (step 6e also after step 6c in an occlusion box; region holes unchang
 coherent 800k 36.8 s for 3 frames (12.3 s a frame, over the target's 10 s: 12.3 s of a 31 s profile is open3d's
 Poisson, 18 reconstructions single-threaded, none of them repeated), whose frame D2 is 18.22 / 20.82 / 18.10 against
 no fill's 17.48 / 16.37 / 19.43; Longdress region 8.1 s, occlusion 83.6 s (1 frame).
+Version 43 (step 6c samples only the mesh near R and orients by pointer jumping, the same output; its hold-out on an
+octree one level coarser), 2026-12-05, `-k "coherent_800k or longdress"`, CPU, two rounds back to back with c4acd0d
+(version 42) and cdbba71 (the same-output changes alone), every output the same (sha256 in extra_info): coherent
+800k 24.22 / 25.96 -> 25.72 / 25.74 -> 22.38 / 22.39 s for 3 frames (target 5 s a frame: not met), Longdress
+occlusion 65.91 / 72.81 -> 60.10 / 60.56 -> 45.25 / 49.19 s (target 15 s: not met), region 6.28 / 6.82 -> 5.81 /
+5.74 -> 4.48 / 4.64 s (docs/temporal-fusion.md, "Speed at paper scale").
 """
 
 from __future__ import annotations
