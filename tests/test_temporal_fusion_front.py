@@ -243,7 +243,8 @@ def test_sampling_near_a_region_keeps_every_sample_the_region_holds_in_order():
     vertices = (centres[:, None, :] + sizes * rng.normal(size=(400, 3, 3))).reshape(-1, 3)
     triangles = np.arange(len(vertices)).reshape(-1, 3)
     rotation = Rotation.from_rotvec([0.3, -0.5, 0.8]).as_matrix()
-    for region in (HoleRegion.ball([5.0, -3.0, 2.0], 17.0), HoleRegion.box([0.0, 4.0, -2.0], [20.0, 6.0, 11.0], rotation)):
+    regions = (HoleRegion.ball([5.0, -3.0, 2.0], 17.0), HoleRegion.box([0.0, 4.0, -2.0], [20.0, 6.0, 11.0], rotation))
+    for region in regions:
         for margin in (0.0, 2.5):
             near = _triangles_near(vertices, triangles, region, margin)
             assert 0 < near.sum() < len(triangles) - 50

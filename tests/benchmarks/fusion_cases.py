@@ -6,7 +6,8 @@ Each case is a function returning ``(truth, damaged frames, regions)``: lists of
 
   coherent-800k          3 frames of the 800k-point human (11-bit grid, height 1040), 5 medium coherent region
                          holes a frame (seed 0): no frame sees another's holes, every hole goes to the spatial fills
-  longdress-region       the real 858k-point Longdress frame of ../shared ($DPCBENCH_SHARED; 10-bit), 4 medium region holes (seed 0)
+  longdress-region       the real 858k-point Longdress frame of ../shared ($DPCBENCH_SHARED; 10-bit), 4 medium
+                         region holes (seed 0)
   longdress-occlusion    the same frame with the occlusion rig's boxes (seed 0)
 
 ``digest(outputs)``: experiments/fusion_golden.py's sha256 of a run's output points, so that a benchmark or a
