@@ -30,7 +30,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "benchmar
 from fusion_cases import CASES  # noqa: E402  (tests/benchmarks is no package)
 
 from dpcbench.methods._spatial_fill import POISSON_MAX_DEPTH, POISSON_SCALE  # noqa: E402
-from dpcbench.methods._spatial_fill.poisson import _bodies, orient_along_surface  # noqa: E402
+from dpcbench.methods._spatial_fill.poisson import (  # noqa: E402
+    _bodies,
+    _native_stderr_silenced,
+    orient_along_surface,
+)
 from dpcbench.methods.registry import get_method  # noqa: E402
 from dpcbench.methods.temporal_fusion import spatial  # noqa: E402
 
@@ -49,7 +53,7 @@ def reconstruction_cpu(points: np.ndarray, grid: float, cell_steps: int) -> tupl
     depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 1,
                         POISSON_MAX_DEPTH))
     start = time.process_time()
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _native_stderr_silenced():
         o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE, n_threads=1)
     return depth, time.process_time() - start
 
