@@ -119,10 +119,39 @@ def columns_caption() -> str:
 #: embedded stand-ins used when the paper's data is not given -> row label (always says stand-in)
 STANDINS = {"human": "Human (stand-in)", "bunny": "Bunny (stand-in)"}
 
-#: real captured motion added as an extra row when its data is found (bench.data.datasets.MESHES) -> row label
-REAL_MOTION = {"samba": "Samba (real captured motion, not one of the paper's sequences)"}
-#: its points per frame by stand-in size (None: fill the 10-bit grid, ~790k points, like an 8i capture)
+#: real captured motion added as extra rows when its data is found -> row label: a registered mesh sequence
+#: (bench.data.datasets.MESHES, sampled at `REAL_MOTION_POINTS`) or a key of `REAL_MOTION_FOLDERS`
+REAL_MOTION = {"dfaust": "D-FAUST punching (real captured motion, not one of the paper's sequences)",
+               "samba": "Samba (real captured motion, not one of the paper's sequences)"}
+#: the mesh sequences' points per frame by stand-in size (None: fill the 10-bit grid, ~790k points, like an 8i capture)
 REAL_MOTION_POINTS = {"tiny": 20_000, "small": 100_000, "default": None}
+#: real captured motion stored as a folder of PLY point clouds (read as captured, whatever the size: D-FAUST
+#: punching is 17 frames of 100k unvoxelized points), looked up by folder name under the data folder
+REAL_MOTION_FOLDERS = {"dfaust": "dfaust_50004_punching"}
+
+
+def real_motion_rows(data_dir, frames, points: int | None) -> list[dict]:
+    """The experiment's ``[[sequences]]`` entries of `REAL_MOTION`, each optional (skipped with a message
+    when its data is missing): a mesh sequence by name with ``points`` a frame, a point-cloud folder by
+    path, found under ``data_dir`` (else $DPCBENCH_DATA_DIR, else `default_data_dirs`, as the mesh
+    sequences are); a folder found nowhere is listed at its first candidate path, so the skip names it."""
+    from dpcbench.bench.data.sources import (
+        data_dir_from,
+        meshes,  # its default_data_dirs, looked up at call time
+    )
+
+    rows = []
+    roots = [r for r in [data_dir_from(data_dir)] if r is not None] + meshes.default_data_dirs()
+    for name, label in REAL_MOTION.items():
+        entry: dict = {"frames": frames, "label": label, "optional": True}
+        folder = REAL_MOTION_FOLDERS.get(name)
+        if folder is None:
+            rows.append({"name": name, **entry, "params": {} if points is None else {"points": points}})
+            continue
+        found = [root / folder for root in roots if (root / folder).is_dir()]
+        if found or roots:
+            rows.append({"path": str((found or [roots[0] / folder])[0]), **entry})
+    return rows
 
 
 def paper_table(metric: str) -> dict[str, dict[str, float]]:
@@ -253,9 +282,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
     # real captured motion (a mesh sequence with exact correspondences), when its data is found; an
     # optional sequence, so it is skipped with a message otherwise
     points = REAL_MOTION_POINTS[size or ("tiny" if quick else "default")]
-    for name, label in REAL_MOTION.items():
-        synthetic_cfg["sequences"].append({"name": name, "frames": frames, "label": label, "optional": True,
-                                           "params": {} if points is None else {"points": points}})
+    synthetic_cfg["sequences"] += real_motion_rows(data_dir, frames, points)
     synthetic = parse_config(synthetic_cfg, source=f"preset {preset}").expand()
     real = parse_config(real_cfg, source=f"preset {preset} (real holes)").expand()
     return PaperProtocol(preset, standins, synthetic, real, synthetic_cfg)
