@@ -107,6 +107,27 @@ def ablation_markdown(results: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def readings_against_hu(results: pd.DataFrame, targets: dict[str, float]) -> list[str]:
+    """One sentence per (sequence, holes) block of ``results`` (`ablation_markdown`'s input) that has Hu's
+    paper row and Proposed rows: each Proposed row's D1 minus Hu (paper), and which rows reach the block's
+    target (``targets``: "independent" / "coherent" -> dB, chosen by "coherent" in the holes label)."""
+    sentences = []
+    for (sequence, holes), block in results.groupby(["sequence", "holes"], sort=False):
+        hu = block[(block["method"] == "fu-nonlocal") & (block["row"] == "paper")]["d1"]
+        proposed = block[block["method"] == "temporal-graph"]
+        if hu.empty or proposed.empty:
+            continue
+        base = float(hu.mean())
+        target = targets["coherent" if "coherent" in str(holes).lower() else "independent"]
+        gaps = [(str(r["row"]), float(r["d1"]) - base) for _, r in proposed.iterrows()]
+        reach = [row for row, gap in gaps if gap >= target]
+        listed = ", ".join(f"{row} {gap:+.2f}" for row, gap in gaps)
+        sentences.append(f"{sequence}, {holes}: Proposed minus Hu (paper, {base:.2f} dB) is {listed} dB; "
+                         + (f"reaching the target ({target:+.0f} dB): {', '.join(reach)}" if reach
+                            else f"no reading reaches the target ({target:+.0f} dB)"))
+    return sentences
+
+
 def row_of(method: str, params: dict) -> str | None:
     """The `ROWS` label of a run of ``method`` with ``params`` (as given or as resolved by
     `get_params`), "none" for no fill and "lozes" for Lozes; None when the run is not an ablation row."""

@@ -119,7 +119,9 @@ def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, 
 
     # the ablation of the paper configuration (`dpcbench run paper-ablation`), where this store holds it
     ablation = store.results_frame("paper-ablation")
-    ablation_md = ablation_markdown(ablation_frame(ablation)) if len(ablation) else ""
+    table = ablation_frame(ablation) if len(ablation) else None
+    ablation_md = ablation_markdown(table) if table is not None else ""
     write_paper_report(df, run_rows, out, standins=protocol.standins, preset=protocol.preset,
                        command=command, elapsed_s=time.perf_counter() - t0, figure_notes=figure_notes,
-                       real_df=real_df, store_path=store.path, computed=computed, ablation_md=ablation_md)
+                       real_df=real_df, store_path=store.path, computed=computed, ablation_md=ablation_md,
+                       ablation=table)
