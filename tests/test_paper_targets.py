@@ -159,3 +159,30 @@ def test_the_command_prints_the_targets_of_a_store(tmp_path, capsys):
     assert len(lines) == 2 and "coherent=True" in lines[1]
     assert "| 9 | +3.00 [" in lines[0] and "reached" in lines[0] and "| +10.00 [" in lines[0]
     assert "| 9 | -2.00 [" in lines[1] and "not reached" in lines[1]
+
+
+def test_no_run_tabulates_what_the_store_holds_of_the_protocol(tmp_path, monkeypatch, capsys):
+    """`reproduce-paper --no-run` computes nothing: on an empty store it has nothing to tabulate; on a store holding
+    one of the protocol's two runs it writes REPORT.md and says one run is missing."""
+    from dpcbench.bench.cli import main as cli_main
+    from dpcbench.bench.execution.runner import run_experiment
+    from dpcbench.bench.experiment.config import parse_config
+
+    cfg = {"experiment": {"name": "paper-quick"},
+           "sequences": [{"name": "human", "params": {"size": "tiny"}, "frames": 2, "label": "Human (stand-in)"}],
+           "holes": [{"generator": "region", "params": {"preset": "paper"}, "seed": 0}],
+           "methods": [{"name": "none"}, {"name": "lozes-pde"}],
+           "metrics": {"names": ["gpsnr_d1", "nshd"], "peaks": ["intrinsic"], "scopes": ["frame"]}}
+    specs = parse_config(cfg).expand()
+    monkeypatch.setattr(paper, "paper_protocol", lambda *a, **k: paper.PaperProtocol("paper-quick", True, specs, [], cfg))
+    monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    store, out = tmp_path / "s.sqlite", tmp_path / "r"
+    command = ["reproduce-paper", "--quick", "--no-run", "--store", str(store), "--out", str(out)]
+    assert cli_main(command) == 2 and "nothing to tabulate" in capsys.readouterr().err
+    assert ResultsStore(store).runs_frame().empty  # nothing was run
+    run_experiment(specs[:1], ResultsStore(store), executor="serial", quiet=True)
+    assert cli_main(command) == 0
+    assert "0 run(s) done, 0 cached, 0 failed, 1 of the protocol's 2 not in the store (--no-run)" in capsys.readouterr().out
+    assert len(ResultsStore(store).runs_frame()) == 1
+    text = (out / "REPORT.md").read_text()
+    assert "**1 runs of the protocol are not in the store**" in text and "--no-run" in text

@@ -279,8 +279,8 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
         real_cfg["sequences"] = [first]
         real_cfg["holes"] = [{"generator": "occlusion", "params": dict(STANDIN_OCCLUSION), "seed": 0}]
         real_cfg["experiment"]["detection"] = dict(STANDIN_DETECTION)
-    # real captured motion (a mesh sequence with exact correspondences), when its data is found; an
-    # optional sequence, so it is skipped with a message otherwise
+    # real captured motion (D-FAUST punching, read as captured; samba, a mesh sequence with exact
+    # correspondences), when its data is found; optional sequences, so each is skipped with a message otherwise
     points = REAL_MOTION_POINTS[size or ("tiny" if quick else "default")]
     synthetic_cfg["sequences"] += real_motion_rows(data_dir, frames, points)
     synthetic = parse_config(synthetic_cfg, source=f"preset {preset}").expand()

@@ -147,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="write the Markdown table here too")
     args = parser.parse_args(argv)
     table = store_table(args.store, args.experiment)
-    text = targets_markdown(target_rows(table))
+    text = targets_markdown(target_rows(table, sorted(table.rows)))  # by sequence, then kind and size of holes
     print(text)
     if args.out:
         args.out.write_text(text)

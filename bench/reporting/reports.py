@@ -488,10 +488,11 @@ def real_motion_markdown(t1: ComparisonTable, ablation: pd.DataFrame | None = No
 
 
 # -- provenance -------------------------------------------------------------------------------------
-def provenance_markdown(runs: pd.DataFrame, run_ids, *, store_path=None, computed=None) -> str:
+def provenance_markdown(runs: pd.DataFrame, run_ids, *, store_path=None, computed=None, missing: int = 0) -> str:
     """One line: of the report's runs, how many were computed by this command (``computed``: their
     ids; None when the command computed nothing, as `dpcbench report`) and how many were read from
-    the store, with the code versions (git commit) that made each group, and where the store is."""
+    the store, with the code versions (git commit) that made each group, and where the store is;
+    ``missing``: runs of the protocol not in the store (a report of a partial sweep), said when > 0."""
     chosen = runs[runs["run_id"].isin(set(run_ids))].drop_duplicates("run_id")
     computed = set(computed or ())
 
@@ -507,8 +508,10 @@ def provenance_markdown(runs: pd.DataFrame, run_ids, *, store_path=None, compute
     if len(stored):
         parts.append(f"{len(stored)} read from the store, computed before (code {versions(stored)})")
     where = f"results store `{store_path}`" if store_path else "the results store"
+    gap = (f" **{missing} runs of the protocol are not in the store** (not run: the report of a partial sweep; "
+           "their cells are missing or hold fewer frames and seeds)." if missing else "")
     return (f"Provenance: {len(chosen)} runs in this report: {'; '.join(parts) or 'none'}; {where}. "
-            "Runs read from the store were not timed by this command.")
+            "Runs read from the store were not timed by this command." + gap)
 
 
 # -- REPORT.md of reproduce-paper: one function per section -------------------------------------------
@@ -592,11 +595,12 @@ def _files_section(runs: pd.DataFrame) -> str:
 def paper_report_sections(df: pd.DataFrame, runs: pd.DataFrame, t1: ComparisonTable, t2: ComparisonTable, *,
                           standins: bool, label: str, preset: str, command: str, elapsed_s: float,
                           figure_notes: dict[str, str], variants: list[ComparisonTable], normals_note: str,
-                          store_path=None, computed=None, ablation: pd.DataFrame | None = None) -> dict[str, str]:
+                          store_path=None, computed=None, ablation: pd.DataFrame | None = None,
+                          missing: int = 0) -> dict[str, str]:
     """REPORT.md of `reproduce-paper` as named sections, in order (name -> Markdown); a new section is
     one more entry (`write_paper_report` joins them). ``ablation``: the store's ablation
     (`paper_ablation.ablation_frame`), or None."""
-    provenance = provenance_markdown(runs, set(df["run_id"]), store_path=store_path, computed=computed)
+    provenance = provenance_markdown(runs, set(df["run_id"]), store_path=store_path, computed=computed, missing=missing)
     return {
         "header": _header_section(standins, label, command, preset, elapsed_s, provenance, normals_note),
         "protocol": _protocol_section(df, runs),
@@ -617,11 +621,12 @@ def paper_report_sections(df: pd.DataFrame, runs: pd.DataFrame, t1: ComparisonTa
 def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path, *, standins: bool,
                        preset: str, command: str, elapsed_s: float, figure_notes: dict[str, str],
                        real_df: pd.DataFrame | None = None, store_path=None, computed=None,
-                       ablation_md: str = "", ablation: pd.DataFrame | None = None) -> Path:
+                       ablation_md: str = "", ablation: pd.DataFrame | None = None, missing: int = 0) -> Path:
     """The tables (several conventions), charts, curves and REPORT.md of `reproduce-paper`
     (``computed``: ids of the runs this command computed, for the provenance line; ``ablation_md``: the
     ablation section, `bench.reporting.paper_ablation.ablation_markdown`, or '' when the store has no ablation;
-    ``ablation``: its table, `paper_ablation.ablation_frame`, for the real-motion section's reasons)."""
+    ``ablation``: its table, `paper_ablation.ablation_frame`, for the real-motion section's reasons; ``missing``:
+    the protocol's runs not in the store, for the provenance line)."""
     out = Path(out_dir)
     tables_dir, fig_dir = out / "tables", out / "figures"
     tables_dir.mkdir(parents=True, exist_ok=True)
@@ -666,7 +671,7 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
     sections = paper_report_sections(df, runs, t1, t2, standins=standins, label=label, preset=preset,
                                      command=command, elapsed_s=elapsed_s, figure_notes=figure_notes,
                                      variants=variants, normals_note=normals_note, store_path=store_path,
-                                     computed=computed, ablation=ablation)
+                                     computed=computed, ablation=ablation, missing=missing)
     if ablation_md:  # after the variants, before the failed runs and the files
         keys = list(sections)
         at = keys.index("failed")

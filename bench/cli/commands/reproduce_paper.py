@@ -46,6 +46,9 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="redo every run")
     p.add_argument("--retry-failed", action="store_true", help="redo runs that failed before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--no-run", action="store_true",
+                   help="run nothing: tabulate the protocol's runs the store already holds (e.g. a sweep stopped "
+                        "part-way); missing cells print as '-' and REPORT.md counts the missing runs")
     p.set_defaults(func=main)
 
 
@@ -85,8 +88,13 @@ def main(args) -> int:
         where = "embedded STAND-INS (not the paper's data)" if protocol.standins else "the paper's sequences"
         print(f"reproduce-paper ({protocol.preset}): {len(protocol.synthetic)} synthetic-hole runs and "
               f"{len(protocol.real)} real-hole runs on {where}; store {store.path}", file=sys.stderr)
-    summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
-                             force=args.force, retry_failed=args.retry_failed, quiet=quiet)
+    if args.no_run:
+        from dpcbench.bench.execution.runner import RunSummary
+
+        summary = RunSummary()
+    else:
+        summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
+                                 force=args.force, retry_failed=args.retry_failed, quiet=quiet)
     results = store.results_frame()
     runs = store.runs_frame()
     synthetic_ids = {s.run_id for s in protocol.synthetic}
@@ -97,16 +105,19 @@ def main(args) -> int:
     if df.empty:
         raise UserError("no synthetic-hole run finished, so there is nothing to tabulate; see the failed runs above "
                         f"and their logs in {Path(store.path).parent / 'runs' / 'logs'}")
+    missing = len((synthetic_ids | real_ids) - set(results["run_id"]))
     with guard.staged(out) as staged:  # written aside, moved in once no file of the user's would be replaced
-        _write_outputs(args, protocol, store, staged, df, run_rows, real_df, t0, computed=set(summary.done))
-    print(f"{len(summary.done)} run(s) done, {len(summary.cached)} cached, {len(summary.failed)} failed")
+        _write_outputs(args, protocol, store, staged, df, run_rows, real_df, t0, computed=set(summary.done),
+                       missing=missing)
+    print(f"{len(summary.done)} run(s) done, {len(summary.cached)} cached, {len(summary.failed)} failed"
+          + (f", {missing} of the protocol's {len(specs)} not in the store (--no-run)" if args.no_run else ""))
     print((out / "tables" / "table1_gpsnr.md").read_text())
     print((out / "tables" / "table2_nshd.md").read_text())
     print(f"report: {out / 'REPORT.md'}")
     return 1 if summary.failed else 0
 
 
-def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, computed=None) -> None:
+def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, computed=None, missing: int = 0) -> None:
     from dpcbench.bench.reporting import paper
     from dpcbench.bench.reporting.reports import write_paper_report
 
@@ -114,7 +125,8 @@ def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, 
     command = "dpcbench reproduce-paper" + "".join(
         f" {flag}" + ("" if value is True else f" {shlex.quote(str(value))}")
         for flag, value in [("--quick", args.quick), ("--data-dir", args.data_dir), ("--size", args.size),
-                            ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out)] if value)
+                            ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out),
+                            ("--no-run", args.no_run)] if value)
     from dpcbench.bench.reporting.paper_ablation import ablation_frame, ablation_markdown
 
     # the ablation of the paper configuration (`dpcbench run paper-ablation`), where this store holds it
@@ -124,4 +136,4 @@ def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, 
     write_paper_report(df, run_rows, out, standins=protocol.standins, preset=protocol.preset,
                        command=command, elapsed_s=time.perf_counter() - t0, figure_notes=figure_notes,
                        real_df=real_df, store_path=store.path, computed=computed, ablation_md=ablation_md,
-                       ablation=table)
+                       ablation=table, missing=missing)
