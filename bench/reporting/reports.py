@@ -521,7 +521,9 @@ def _header_section(standins: bool, label: str, command: str, preset: str, elaps
     if standins:
         text += ["> **Stand-in data.** The paper's sequences (8i Longdress, Loot, Redandblack, Soldier; UlliWegner) "
                  "are licensed and not shipped. Every number below is measured on dpcbench's embedded stand-ins "
-                 "(a procedural voxelized human in motion and a deforming Stanford bunny). Absolute values are not "
+                 "(a procedural voxelized human in motion and a deforming Stanford bunny), except the rows labelled "
+                 "'real captured motion' (real captures found under the data folder, not the paper's sequences "
+                 "either). Absolute values are not "
                  "comparable with the paper's; the ranking of the methods and the size of the gaps are. Run "
                  "`dpcbench reproduce-paper --data-dir DIR` with local copies for the paper's rows.", ""]
     text += [f"Command: `{command}` (preset `{preset}`); wall time of this command {elapsed_s / 60:.1f} min.", "",

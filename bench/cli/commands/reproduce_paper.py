@@ -26,7 +26,8 @@ def register(subparsers) -> None:
                     "Holm at 0.05), plus 3 frames with acquisition holes for the real-hole figure (target: "
                     "under 10 minutes on 2 cores; MeshLab dominates). The full preset (two stand-ins of 570-640k "
                     "points, 10 frames, 3 seeds: 84 runs) took 1 h 19 min on 2 cores (measured; "
-                    "bench/presets/paper.toml), plus the samba rows when its data is found.",
+                    "bench/presets/paper.toml), plus the real-captured-motion rows (D-FAUST punching, samba) when their "
+                    "data is found (the D-FAUST rows about double the quick preset's CPU time).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--data-dir", default=None, help="folder holding local copies of the paper's sequences")
     p.add_argument("--quick", action="store_true", help="the small preset (paper-quick.toml)")
