@@ -8,6 +8,7 @@ The paper's own facts (sequences, column labels, published Tables 1-2, headline 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dpcbench.bench.core.canonical import sorted_json
 from dpcbench.bench.core.errors import UserError
@@ -22,6 +23,9 @@ from dpcbench.bench.core.paper_facts import (  # noqa: F401  (re-exported: bench
     TABLE1_GPSNR,
     TABLE2_NSHD_E7,
 )
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: The columns of reproduce-paper's Tables 1-2, in order: (registry name, column label, parameters,
 #: role). role "paper": the paper's four columns, each run in its paper configuration (MeshLab's
@@ -76,6 +80,15 @@ def column_label(method: str, params) -> str:
 def table_methods() -> list[dict]:
     """`TABLE_COLUMNS` as experiment-config [[methods]] tables."""
     return [{"name": name, "params": dict(params), "label": label} for name, label, params, _ in TABLE_COLUMNS]
+
+
+def paper_column(df: pd.DataFrame) -> pd.Series:
+    """The table column of each row: `bench.reporting.paper.column_label` of its method and parameters (so the
+    paper configuration of temporal-graph is "Proposed" and our tuned one its own column)."""
+    import pandas as pd
+
+    params = df["method_params"] if "method_params" in df else pd.Series("{}", index=df.index)
+    return pd.Series([column_label(m, p) for m, p in zip(df["method"], params)], index=df.index, dtype=object)
 
 
 def column_descriptions(with_all_params: bool = False) -> list[dict]:

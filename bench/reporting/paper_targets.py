@@ -122,8 +122,8 @@ def targets_markdown(records: list[TargetRow]) -> str:
 def store_table(store_path, experiment: str):
     """The whole-frame D1 (intrinsic peak) `ComparisonTable` of ``experiment`` in the results store at
     ``store_path``, rows = sequence · holes, columns as `reproduce-paper` labels them."""
-    from dpcbench.bench.reporting.reports import hole_rows, paper_column
-    from dpcbench.bench.reporting.tables import comparison_table
+    from dpcbench.bench.reporting.paper import paper_column
+    from dpcbench.bench.reporting.tables import comparison_table, hole_rows
     from dpcbench.bench.results.compare import with_cells
     from dpcbench.bench.results.store import ResultsStore
 

@@ -15,12 +15,13 @@ import pandas as pd
 
 from dpcbench.bench.core.errors import UserError
 from dpcbench.bench.reporting import figures, paper
+from dpcbench.bench.reporting.paper import paper_column  # noqa: F401  (re-exported: reports.paper_column is public)
 from dpcbench.bench.reporting.tables import (
     ComparisonTable,
     comparison_table,
-    config_labels,
     d2_normals_note,
     given_labels,
+    hole_rows,  # noqa: F401  (re-exported: reports.hole_rows is public)
     md_escape,
     method_labels,
     runtime_table,
@@ -147,25 +148,7 @@ def rename_methods(labels: pd.Series, display_names: dict[str, str]) -> pd.Serie
     return labels.map(lambda label: display_names.get(label, label))
 
 
-def hole_rows(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
-    """With more than one hole configuration in ``df``, a table row is a sequence and a hole
-    configuration (``Human · coherent holes``: the config's label, else the generator and its
-    distinguishing parameters), so that different damage is never averaged together."""
-    df = df.copy()
-    holes = config_labels(df["holes"], df["holes_params"], given=given_labels(runs, "holes"))
-    if holes.nunique() > 1:
-        df["sequence"] = df["sequence"] + " · " + holes
-    return df
-
-
 # -- reproduce-paper ---------------------------------------------------------------------------
-def paper_column(df: pd.DataFrame) -> pd.Series:
-    """The table column of each row: `bench.reporting.paper.column_label` of its method and parameters (so the
-    paper configuration of temporal-graph is "Proposed" and our tuned one its own column)."""
-    params = df["method_params"] if "method_params" in df else pd.Series("{}", index=df.index)
-    return pd.Series([paper.column_label(m, p) for m, p in zip(df["method"], params)], index=df.index, dtype=object)
-
-
 def _rank_line(table: ComparisonTable, row: str, columns: list[str] | None = None) -> str:
     values = {c: table.mean[(row, c)] for c in (columns or table.columns) if (row, c) in table.mean}
     assert table.higher_is_better is not None  # the claims rank tables of a metric with a direction
