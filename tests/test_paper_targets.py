@@ -87,6 +87,13 @@ def test_the_report_section_judges_the_real_motion_rows_and_says_why():
             "skip_hole_links -0.50 dB; no reading reaches the target (+0 dB)") in text
     reached = real_motion_markdown(_table({k: v for k, v in offsets.items() if k[0] == indep}))
     assert "Verdict: **reproduced** (1 of 1 rows" in reached and REAL_MOTION_WHY not in reached
+    # above the target by the mean but within noise: not decided, and no reasons for falling short
+    wobble = _table({(coh, "Hu"): 0, (coh, "Proposed"): 0})
+    wobble.observations[(coh, "Proposed")] = {k: v + d for (k, v), d in zip(
+        wobble.observations[(coh, "Hu")].items(), [0.5, -0.4, 0.3, -0.2, 0.1, 0.0, 0.2, -0.3, 0.1])}  # mean +0.033
+    undecided = real_motion_markdown(wobble)
+    assert "Verdict: **not decided at this n**" in undecided and f"{coh}: +0.03 dB over, within noise" in undecided
+    assert REAL_MOTION_WHY not in undecided
     assert real_motion_markdown(_table({("Human (stand-in) · coherent holes", "Hu"): 0,
                                         ("Human (stand-in) · coherent holes", "Proposed"): 1})) == ""
 
