@@ -193,3 +193,25 @@ def test_no_run_tabulates_what_the_store_holds_of_the_protocol(tmp_path, monkeyp
     assert len(ResultsStore(store).runs_frame()) == 1
     text = (out / "REPORT.md").read_text()
     assert "**1 runs of the protocol are not in the store**" in text and "--no-run" in text
+
+
+def test_a_reversal_on_a_row_with_enough_pairs_is_not_reproduced_whatever_the_other_rows_n():
+    """The ranking claim on a table whose rows have 9 and 3 pairs (a one-frame row beside a sequence): Hu above
+    Proposed beyond noise on the 9-pair row decides "not reproduced"; without it the 3-pair row leaves it not
+    testable."""
+    from dpcbench.bench.reporting.reports import ranking_claim
+
+    order = {"Proposed": -1, "Hu": 0, "Lozes": -3, "Meshlab": -6}  # Hu > Proposed, then the claimed order
+    table = _table({("Seq · independent holes", c): off for c, off in order.items()})
+    one = {("Frame · independent holes", c): {(0, s): 20.0 + off + 0.1 * s for s in range(3)} for c, off in order.items()}
+    table.observations.update(one)
+    table.rows.append("Frame · independent holes")
+    empty = ComparisonTable("t2", "nshd", "frame", "", False, [], [], {}, {}, {})
+    claim = ranking_claim(table, empty)
+    assert claim["verdict"] == "not reproduced" and "Hu > Proposed beyond the interval on 1 GPSNR D1 rows" in claim["why"]
+    assert "on the rows with fewer pairs: n = 3 pairs is too small" in claim["why"]
+    fair = {**order, "Proposed": 1}
+    table = _table({("Seq · independent holes", c): off for c, off in fair.items()})
+    table.observations.update(one)
+    table.rows.append("Frame · independent holes")
+    assert ranking_claim(table, empty)["verdict"] == "not testable at this n"
