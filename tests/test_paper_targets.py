@@ -210,6 +210,7 @@ def test_a_reversal_on_a_row_with_enough_pairs_is_not_reproduced_whatever_the_ot
     claim = ranking_claim(table, empty)
     assert claim["verdict"] == "not reproduced" and "Hu > Proposed beyond the interval on 1 GPSNR D1 rows" in claim["why"]
     assert "on the rows with fewer pairs: n = 3 pairs is too small" in claim["why"]
+    assert "(n = 3 to 9 pairs a row, Holm" in claim["measured"]
     fair = {**order, "Proposed": 1}
     table = _table({("Seq · independent holes", c): off for c, off in fair.items()})
     table.observations.update(one)

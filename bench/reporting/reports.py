@@ -290,7 +290,9 @@ def ranking_claim(t1: ComparisonTable, t2: ComparisonTable) -> dict:
         verdict = "not decided at this n"
     rows_ok = sum(all(t[4].distinguishable for t in tests if t[0] is table and t[1] == row)
                   for table in (t1, t2) for row in table.rows)
-    measured = (f"{len(holds)} of {len(tests)} claimed pairs hold, {len(reversed_)} reversed (n = {n} pairs each, "
+    most = max(t[4].n for t in tests)
+    pairs = f"n = {n} pairs each" if most == n else f"n = {n} to {most} pairs a row"
+    measured = (f"{len(holds)} of {len(tests)} claimed pairs hold, {len(reversed_)} reversed ({pairs}, "
                 f"Holm over each row's {len(order) - 1} pairs); the full order holds on {rows_ok} of "
                 f"{len(t1.rows) + len(t2.rows)} table rows")
     why = []
