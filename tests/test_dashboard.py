@@ -385,6 +385,11 @@ def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypat
     if shutil.which("chromium") is None and shutil.which("chromium-browser") is None:
         pytest.skip("chromium is not installed (Debian: apt-get install chromium; ./install.sh --dev installs it)")
     monkeypatch.setenv("DPCBENCH_QUIET", "1")
+    from dpcbench.bench.reporting import paper
+
+    # without the D-FAUST rows (100k points a frame: they would double this test's time; tests/test_paper_targets.py
+    # covers them); samba stays when ../shared holds it
+    monkeypatch.setattr(paper, "REAL_MOTION", {k: v for k, v in paper.REAL_MOTION.items() if k != "dfaust"})
     store = str(tmp_path / "results.sqlite")
     code = cli_main(["reproduce-paper", "--quick", "--frames", "2", "--seeds", "0", "--out", str(tmp_path / "r"), "--store", store])
     out = capsys.readouterr().out
@@ -399,7 +404,9 @@ def test_reproduce_paper_then_dashboard_in_headless_chromium(tmp_path, monkeypat
                     tmp_path / "profile")
     assert r["errors"] == [] and r["resources"] == [] and r["wide"] == []
     assert "Against the paper" in dom
-    assert "D2 (point-to-plane): normals from file" in dom  # the stand-ins' own normals
+    # the stand-ins' own normals (per sequence when a real capture without normals, D-FAUST punching, is a row too)
+    assert ("D2 (point-to-plane): normals from file" in dom
+            or all(f"{s} (stand-in): normals from file" in dom for s in ("Bunny", "Human"))), dom
     gaps = dom[dom.index("class=\"gaps\"") if 'class="gaps"' in dom else dom.index("class='gaps'"):]
     gaps = gaps[:gaps.index("</table>")]
     rows = re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td><td>([^<]*)</td>", gaps)

@@ -8,6 +8,7 @@ The paper's own facts (sequences, column labels, published Tables 1-2, headline 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dpcbench.bench.core.canonical import sorted_json
 from dpcbench.bench.core.errors import UserError
@@ -22,6 +23,9 @@ from dpcbench.bench.core.paper_facts import (  # noqa: F401  (re-exported: bench
     TABLE1_GPSNR,
     TABLE2_NSHD_E7,
 )
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: The columns of reproduce-paper's Tables 1-2, in order: (registry name, column label, parameters,
 #: role). role "paper": the paper's four columns, each run in its paper configuration (MeshLab's
@@ -78,6 +82,15 @@ def table_methods() -> list[dict]:
     return [{"name": name, "params": dict(params), "label": label} for name, label, params, _ in TABLE_COLUMNS]
 
 
+def paper_column(df: pd.DataFrame) -> pd.Series:
+    """The table column of each row: `bench.reporting.paper.column_label` of its method and parameters (so the
+    paper configuration of temporal-graph is "Proposed" and our tuned one its own column)."""
+    import pandas as pd
+
+    params = df["method_params"] if "method_params" in df else pd.Series("{}", index=df.index)
+    return pd.Series([column_label(m, p) for m, p in zip(df["method"], params)], index=df.index, dtype=object)
+
+
 def column_descriptions(with_all_params: bool = False) -> list[dict]:
     """Per column: label, role, registry method, the parameters given, the method's version and,
     with ``with_all_params``, every parameter as the method resolves it (`get_params`, switches of
@@ -119,10 +132,39 @@ def columns_caption() -> str:
 #: embedded stand-ins used when the paper's data is not given -> row label (always says stand-in)
 STANDINS = {"human": "Human (stand-in)", "bunny": "Bunny (stand-in)"}
 
-#: real captured motion added as an extra row when its data is found (bench.data.datasets.MESHES) -> row label
-REAL_MOTION = {"samba": "Samba (real captured motion, not one of the paper's sequences)"}
-#: its points per frame by stand-in size (None: fill the 10-bit grid, ~790k points, like an 8i capture)
+#: real captured motion added as extra rows when its data is found -> row label: a registered mesh sequence
+#: (bench.data.datasets.MESHES, sampled at `REAL_MOTION_POINTS`) or a key of `REAL_MOTION_FOLDERS`
+REAL_MOTION = {"dfaust": "D-FAUST punching (real captured motion, not one of the paper's sequences)",
+               "samba": "Samba (real captured motion, not one of the paper's sequences)"}
+#: the mesh sequences' points per frame by stand-in size (None: fill the 10-bit grid, ~790k points, like an 8i capture)
 REAL_MOTION_POINTS = {"tiny": 20_000, "small": 100_000, "default": None}
+#: real captured motion stored as a folder of PLY point clouds (read as captured, whatever the size: D-FAUST
+#: punching is 17 frames of 100k unvoxelized points), looked up by folder name under the data folder
+REAL_MOTION_FOLDERS = {"dfaust": "dfaust_50004_punching"}
+
+
+def real_motion_rows(data_dir, frames, points: int | None) -> list[dict]:
+    """The experiment's ``[[sequences]]`` entries of `REAL_MOTION`, each optional (skipped with a message
+    when its data is missing): a mesh sequence by name with ``points`` a frame, a point-cloud folder by
+    path, found under ``data_dir`` (else $DPCBENCH_DATA_DIR, else `default_data_dirs`, as the mesh
+    sequences are); a folder found nowhere is listed at its first candidate path, so the skip names it."""
+    from dpcbench.bench.data.sources import (
+        data_dir_from,
+        meshes,  # its default_data_dirs, looked up at call time
+    )
+
+    rows = []
+    roots = [r for r in [data_dir_from(data_dir)] if r is not None] + meshes.default_data_dirs()
+    for name, label in REAL_MOTION.items():
+        entry: dict = {"frames": frames, "label": label, "optional": True}
+        folder = REAL_MOTION_FOLDERS.get(name)
+        if folder is None:
+            rows.append({"name": name, **entry, "params": {} if points is None else {"points": points}})
+            continue
+        found = [root / folder for root in roots if (root / folder).is_dir()]
+        if found or roots:
+            rows.append({"path": str((found or [roots[0] / folder])[0]), **entry})
+    return rows
 
 
 def paper_table(metric: str) -> dict[str, dict[str, float]]:
@@ -250,12 +292,10 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
         real_cfg["sequences"] = [first]
         real_cfg["holes"] = [{"generator": "occlusion", "params": dict(STANDIN_OCCLUSION), "seed": 0}]
         real_cfg["experiment"]["detection"] = dict(STANDIN_DETECTION)
-    # real captured motion (a mesh sequence with exact correspondences), when its data is found; an
-    # optional sequence, so it is skipped with a message otherwise
+    # real captured motion (D-FAUST punching, read as captured; samba, a mesh sequence with exact
+    # correspondences), when its data is found; optional sequences, so each is skipped with a message otherwise
     points = REAL_MOTION_POINTS[size or ("tiny" if quick else "default")]
-    for name, label in REAL_MOTION.items():
-        synthetic_cfg["sequences"].append({"name": name, "frames": frames, "label": label, "optional": True,
-                                           "params": {} if points is None else {"points": points}})
+    synthetic_cfg["sequences"] += real_motion_rows(data_dir, frames, points)
     synthetic = parse_config(synthetic_cfg, source=f"preset {preset}").expand()
     real = parse_config(real_cfg, source=f"preset {preset} (real holes)").expand()
     return PaperProtocol(preset, standins, synthetic, real, synthetic_cfg)

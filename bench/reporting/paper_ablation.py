@@ -107,6 +107,27 @@ def ablation_markdown(results: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def readings_against_hu(results: pd.DataFrame, targets: dict[str, float]) -> list[str]:
+    """One sentence per (sequence, holes) block of ``results`` (`ablation_markdown`'s input) that has Hu's
+    paper row and Proposed rows: each Proposed row's D1 minus Hu (paper), and which rows reach the block's
+    target (``targets``: "independent" / "coherent" -> dB, chosen by "coherent" in the holes label)."""
+    sentences = []
+    for (sequence, holes), block in results.groupby(["sequence", "holes"], sort=False):
+        hu = block[(block["method"] == "fu-nonlocal") & (block["row"] == "paper")]["d1"]
+        proposed = block[block["method"] == "temporal-graph"]
+        if hu.empty or proposed.empty:
+            continue
+        base = float(hu.mean())
+        target = targets["coherent" if "coherent" in str(holes).lower() else "independent"]
+        gaps = [(str(r["row"]), float(r["d1"]) - base) for _, r in proposed.iterrows()]
+        reach = [row for row, gap in gaps if gap >= target]
+        listed = ", ".join(f"{row} {gap:+.2f}" for row, gap in gaps)
+        sentences.append(f"{sequence}, {holes}: Proposed minus Hu (paper, {base:.2f} dB) is {listed} dB; "
+                         + (f"reaching the target ({target:+.0f} dB): {', '.join(reach)}" if reach
+                            else f"no reading reaches the target ({target:+.0f} dB)"))
+    return sentences
+
+
 def row_of(method: str, params: dict) -> str | None:
     """The `ROWS` label of a run of ``method`` with ``params`` (as given or as resolved by
     `get_params`), "none" for no fill and "lozes" for Lozes; None when the run is not an ablation row."""
@@ -147,24 +168,25 @@ def ablation_frame(results: pd.DataFrame) -> pd.DataFrame:
 
 # -- direct runner (the measurement docs/paper-reading.md quotes) -----------------------------------
 
-def _cases(data_dir: Path, which: set[str]) -> list[tuple[str, Callable[[], list[np.ndarray]]]]:
-    """(label, loader) of each sequence present: a loader returns the list of (N, 3) frames."""
+def _cases(data_dir: Path, which: set[str], frames: int = 3) -> list[tuple[str, Callable[[], list[np.ndarray]]]]:
+    """(label, loader) of each sequence present: a loader returns the list of (N, 3) frames (the first
+    ``frames`` of each multi-frame sequence)."""
     from dpcbench.bench.data.datasets import load_dataset
 
     cases = []
     if "human" in which:
-        cases.append(("Human tiny (stand-in), 3 frames",
-                      lambda: load_dataset("human", frames=3, progress=False, size="tiny").points))
+        cases.append((f"Human tiny (stand-in), {frames} frames",
+                      lambda: load_dataset("human", frames=frames, progress=False, size="tiny").points))
     if "bunny" in which:
-        cases.append(("Bunny tiny (stand-in), 3 frames",
-                      lambda: load_dataset("bunny", frames=3, progress=False, size="tiny").points))
+        cases.append((f"Bunny tiny (stand-in), {frames} frames",
+                      lambda: load_dataset("bunny", frames=frames, progress=False, size="tiny").points))
     if "samba" in which and (data_dir / "mit_samba").is_dir():
-        cases.append(("Samba 100k 10-bit, 3 frames",
-                      lambda: load_dataset("samba", frames=3, data_dir=data_dir, progress=False,
+        cases.append((f"Samba 100k 10-bit, {frames} frames",
+                      lambda: load_dataset("samba", frames=frames, data_dir=data_dir, progress=False,
                                            points=100000, bit_depth=10).points))
     if "dfaust" in which and (data_dir / "dfaust_50004_punching").is_dir():
-        cases.append(("D-FAUST punching, 3 frames",
-                      lambda: load_dataset(data_dir / "dfaust_50004_punching", frames=3, progress=False).points))
+        cases.append((f"D-FAUST punching, {frames} frames",
+                      lambda: load_dataset(data_dir / "dfaust_50004_punching", frames=frames, progress=False).points))
     if "longdress" in which and (data_dir / "8i_longdress_1300").is_dir():
         cases.append(("Longdress 1300 (one real frame)",
                       lambda: load_dataset(data_dir / "8i_longdress_1300", progress=False).points))
@@ -172,7 +194,7 @@ def _cases(data_dir: Path, which: set[str]) -> list[tuple[str, Callable[[], list
 
 
 def run_direct(data_dir: Path, which: set[str], rows: list[str], holes: list[tuple[str, dict]], seed: int,
-               methods: list[str], with_lozes: bool) -> pd.DataFrame:
+               methods: list[str], with_lozes: bool, n_frames: int = 3) -> pd.DataFrame:
     """Every (sequence, holes, row, method) of the ablation, run in this process; one row per run."""
     from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
@@ -180,7 +202,7 @@ def run_direct(data_dir: Path, which: set[str], rows: list[str], holes: list[tup
     from dpcbench.metrics.neighbours import point_spacing
 
     records = []
-    for label, load in _cases(data_dir, which):
+    for label, load in _cases(data_dir, which, n_frames):
         frames = [np.asarray(f, dtype=np.float64) for f in load()]
         for holes_label, holes_params in holes:
             damage = get_generator("region", **holes_params).damage(frames, seed)
@@ -272,6 +294,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--holes", default="independent,coherent", help="independent, coherent or both")
     parser.add_argument("--preset", default="medium", help="region hole preset")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--frames", type=int, default=3, help="frames of each multi-frame sequence (the first ones)")
     parser.add_argument("--lozes", action="store_true", help="add a Lozes row")
     parser.add_argument("--out", type=Path, help="write the Markdown table here too")
     parser.add_argument("--calibrate", metavar="COUNTxRADIUS,...",
@@ -297,7 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     holes = [(f"{kind} {args.preset}", {"preset": args.preset, "coherent": kind == "coherent"})
              for kind in args.holes.split(",")]
     frame = run_direct(args.data_dir, set(args.sequences.split(",")), rows, holes, args.seed,
-                       args.methods.split(","), args.lozes)
+                       args.methods.split(","), args.lozes, args.frames)
     text = ablation_markdown(frame)
     print(text)
     if args.out:

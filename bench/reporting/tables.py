@@ -394,3 +394,14 @@ def write_table(table: ComparisonTable, out_dir: Path, stem: str) -> dict[str, P
     paths["tex"].write_text(table.latex())
     paths["csv"].write_text(table.csv())
     return paths
+
+
+def hole_rows(df: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
+    """With more than one hole configuration in ``df``, a table row is a sequence and a hole
+    configuration (``Human · coherent holes``: the config's label, else the generator and its
+    distinguishing parameters), so that different damage is never averaged together."""
+    df = df.copy()
+    holes = config_labels(df["holes"], df["holes_params"], given=given_labels(runs, "holes"))
+    if holes.nunique() > 1:
+        df["sequence"] = df["sequence"] + " · " + holes
+    return df

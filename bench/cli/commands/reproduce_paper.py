@@ -26,7 +26,8 @@ def register(subparsers) -> None:
                     "Holm at 0.05), plus 3 frames with acquisition holes for the real-hole figure (target: "
                     "under 10 minutes on 2 cores; MeshLab dominates). The full preset (two stand-ins of 570-640k "
                     "points, 10 frames, 3 seeds: 84 runs) took 1 h 19 min on 2 cores (measured; "
-                    "bench/presets/paper.toml), plus the samba rows when its data is found.",
+                    "bench/presets/paper.toml), plus the real-captured-motion rows (D-FAUST punching, samba) when their "
+                    "data is found (the D-FAUST rows about double the quick preset's CPU time).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--data-dir", default=None, help="folder holding local copies of the paper's sequences")
     p.add_argument("--quick", action="store_true", help="the small preset (paper-quick.toml)")
@@ -46,6 +47,9 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="redo every run")
     p.add_argument("--retry-failed", action="store_true", help="redo runs that failed before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--no-run", action="store_true",
+                   help="run nothing: tabulate the protocol's runs the store already holds (e.g. a sweep stopped "
+                        "part-way); missing cells print as '-' and REPORT.md counts the missing runs")
     p.set_defaults(func=main)
 
 
@@ -85,8 +89,13 @@ def main(args) -> int:
         where = "embedded STAND-INS (not the paper's data)" if protocol.standins else "the paper's sequences"
         print(f"reproduce-paper ({protocol.preset}): {len(protocol.synthetic)} synthetic-hole runs and "
               f"{len(protocol.real)} real-hole runs on {where}; store {store.path}", file=sys.stderr)
-    summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
-                             force=args.force, retry_failed=args.retry_failed, quiet=quiet)
+    if args.no_run:
+        from dpcbench.bench.execution.runner import RunSummary
+
+        summary = RunSummary()
+    else:
+        summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
+                                 force=args.force, retry_failed=args.retry_failed, quiet=quiet)
     results = store.results_frame()
     runs = store.runs_frame()
     synthetic_ids = {s.run_id for s in protocol.synthetic}
@@ -97,16 +106,19 @@ def main(args) -> int:
     if df.empty:
         raise UserError("no synthetic-hole run finished, so there is nothing to tabulate; see the failed runs above "
                         f"and their logs in {Path(store.path).parent / 'runs' / 'logs'}")
+    missing = len((synthetic_ids | real_ids) - set(results["run_id"]))
     with guard.staged(out) as staged:  # written aside, moved in once no file of the user's would be replaced
-        _write_outputs(args, protocol, store, staged, df, run_rows, real_df, t0, computed=set(summary.done))
-    print(f"{len(summary.done)} run(s) done, {len(summary.cached)} cached, {len(summary.failed)} failed")
+        _write_outputs(args, protocol, store, staged, df, run_rows, real_df, t0, computed=set(summary.done),
+                       missing=missing)
+    print(f"{len(summary.done)} run(s) done, {len(summary.cached)} cached, {len(summary.failed)} failed"
+          + (f", {missing} of the protocol's {len(specs)} not in the store (--no-run)" if args.no_run else ""))
     print((out / "tables" / "table1_gpsnr.md").read_text())
     print((out / "tables" / "table2_nshd.md").read_text())
     print(f"report: {out / 'REPORT.md'}")
     return 1 if summary.failed else 0
 
 
-def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, computed=None) -> None:
+def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, computed=None, missing: int = 0) -> None:
     from dpcbench.bench.reporting import paper
     from dpcbench.bench.reporting.reports import write_paper_report
 
@@ -114,12 +126,15 @@ def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, 
     command = "dpcbench reproduce-paper" + "".join(
         f" {flag}" + ("" if value is True else f" {shlex.quote(str(value))}")
         for flag, value in [("--quick", args.quick), ("--data-dir", args.data_dir), ("--size", args.size),
-                            ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out)] if value)
+                            ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out),
+                            ("--no-run", args.no_run)] if value)
     from dpcbench.bench.reporting.paper_ablation import ablation_frame, ablation_markdown
 
     # the ablation of the paper configuration (`dpcbench run paper-ablation`), where this store holds it
     ablation = store.results_frame("paper-ablation")
-    ablation_md = ablation_markdown(ablation_frame(ablation)) if len(ablation) else ""
+    table = ablation_frame(ablation) if len(ablation) else None
+    ablation_md = ablation_markdown(table) if table is not None else ""
     write_paper_report(df, run_rows, out, standins=protocol.standins, preset=protocol.preset,
                        command=command, elapsed_s=time.perf_counter() - t0, figure_notes=figure_notes,
-                       real_df=real_df, store_path=store.path, computed=computed, ablation_md=ablation_md)
+                       real_df=real_df, store_path=store.path, computed=computed, ablation_md=ablation_md,
+                       ablation=table, missing=missing)
