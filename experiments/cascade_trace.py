@@ -4,7 +4,7 @@ Runs `TemporalFusion.inpaint` on the damaged frame(s) of a `dpcbench damage` fol
 every strategy of `methods.temporal_fusion.spatial.CASCADE` that ran and how many points it added (0 = it refused or
 found nothing open). Usage (after experiments/one_frame.sh has written OUTDIR/damaged):
 
-    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged
+    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged [--param best_surface=false ...]
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
 
+from dpcbench.bench.core.params import parse_params
 from dpcbench.methods.temporal_fusion import spatial
 from dpcbench.methods.temporal_fusion.method import TemporalFusion
 
@@ -39,6 +40,8 @@ def _traced(strategy, log):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="a temporal-fusion parameter (repeatable), e.g. best_surface=false")
     args = parser.parse_args(argv)
     loaded = read_damage_output(args.damaged)
     if loaded is None:
@@ -48,7 +51,7 @@ def main(argv=None) -> int:
     log: list = []
     for strategy in spatial.CASCADE:
         strategy.fill = _traced(strategy, log)
-    out = TemporalFusion().inpaint(frames, regions)
+    out = TemporalFusion(**parse_params(args.param)).inpaint(frames, regions)
     for centre, radius, name, added, cpu in log:
         print(f"region at {centre} r={radius:.1f}: {name:14s} +{added:6d} points ({cpu:.1f} s CPU)")
     print(f"added {sum(len(o) - len(f) for o, f in zip(out, frames))} points in all")

@@ -16,8 +16,8 @@ For frame f with input points P (N, 3) and colours C (N, 3) uint8, and the metho
      graph, the discrete Laplace equation of Lozes et al.'s colour PDE with p = 2: nodes are the
      unknown new points U, and the known points K (input points, kept and source-coloured points);
      each u in U is joined to its ``k`` nearest nodes with weight w = exp(-d^2 / s^2), s^2 the median
-     squared edge length; U-U weights are symmetrised ((W + W^T) / 2). The colours x_U solve, per
-     channel, (D - W_UU) x_U = W_UK x_K with D the weighted degree (sum of all weights of u), i.e.
+     squared edge length (edges lighter than 1e-9 dropped); U-U weights are symmetrised ((W + W^T) / 2).
+     The colours x_U solve, per channel, (D - W_UU) x_U = W_UK x_K with D the weighted degree (sum of all weights of u), i.e.
      each unknown colour is the weighted mean of its neighbours' colours, known colours fixed (the
      minimiser of sum w_ij (x_i - x_j)^2). A group of new points with no edge to a known point is
      anchored with weight 1 to each point's nearest input colour (else the system is singular).
@@ -44,6 +44,8 @@ FILLS = ("auto", "nearest", "harmonic", "source")
 HARMONIC_NEIGHBOURS = 8
 #: the most unknowns solved by sparse LU; more are solved by Jacobi-preconditioned conjugate gradients
 _DIRECT_MAX = 200_000
+#: the lightest edge of the harmonic fill's graph (weights exp(-d^2 / s^2) are at most 1): lighter ones are dropped
+_MIN_WEIGHT = 1e-9
 #: new points closer than this many median input spacings to an input point take its colour
 _SURFACE_SPACINGS = 0.5
 
@@ -120,11 +122,16 @@ def harmonic_colours(known_points: np.ndarray, known_colours: np.ndarray, unknow
     sq = dist * dist
     scale = float(np.median(sq[sq > 0])) if np.any(sq > 0) else 1.0
     weight = np.exp(-sq / scale).ravel()
+    # an edge lighter than this is no edge: a part of a group joined to the rest only by such links would count as
+    # reaching the known colours and yet be free in all but name (the system singular to rounding: seen, a constant
+    # colour came out 229 of 255 at ten points)
+    weight[weight < _MIN_WEIGHT] = 0.0
     rows = np.repeat(np.arange(nu), k_eff - 1)
     cols = idx.ravel()
     to_u = cols < nu
     w_uu = sp.coo_matrix((weight[to_u], (rows[to_u], cols[to_u])), shape=(nu, nu)).tocsr()
     w_uu = ((w_uu + w_uu.T) * 0.5).tocsr()
+    w_uu.eliminate_zeros()
     w_uk = sp.coo_matrix((weight[~to_u], (rows[~to_u], cols[~to_u] - nu)), shape=(nu, nk)).tocsr()
     to_known = np.asarray(w_uk.sum(axis=1)).ravel()
     rhs = w_uk @ known_colours.astype(np.float64)

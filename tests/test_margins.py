@@ -326,6 +326,46 @@ def test_oracle_command(tmp_path, capsys):
     assert payload["variants"]["surface"]["frame"]["gpsnr_d2"] == DEFAULT_MAX_PSNR
     assert main(argv[:-1] + ["--variant", "jitter"]) == 2
     assert "give its sigma with --jitter SIGMA" in capsys.readouterr().err
+    # the break-even on a flat hole: no fill's D2 is the ceiling there, so it is 0
+    assert main(argv + ["--variant", "none", "--break-even"]) == 0
+    assert json.loads(capsys.readouterr().out)["d2_break_even"]["sigma"] == 0.0
+    assert main(argv[:-1] + ["--variant", "none", "--break-even"]) == 0
+    assert "D2 break-even: a complete fill within 0 units" in capsys.readouterr().out
+
+
+def _sphere_with_hole(radius: float = 20.0, hole: float = 6.0):
+    import numpy as np
+
+    n = 4000
+    i = np.arange(n) + 0.5
+    polar, azimuth = np.arccos(1.0 - 2.0 * i / n), np.pi * (1.0 + 5.0 ** 0.5) * i
+    truth = radius * np.column_stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
+    mask = np.linalg.norm(truth - [0.0, 0.0, radius], axis=1) <= hole
+    return truth, truth[~mask], mask
+
+
+def test_d2_break_even_brackets_no_fill_s_d2_and_is_zero_on_a_flat_hole():
+    """On a sphere the jitter oracle at the break-even sigma scores no fill's D2 (within the bisection's steps):
+    at half of it more, at twice less. On a plane an open hole's point-to-plane error is exactly 0 (every hidden
+    point lies in its rim neighbour's tangent plane), so no jitter reaches it: sigma 0."""
+    import numpy as np
+
+    from dpcbench import metrics
+    from dpcbench.bench.results.oracle import d2_break_even, oracle_fill
+
+    truth, damaged, mask = _sphere_with_hole()
+    even = d2_break_even([truth], [damaged], masks=[mask])
+    sigma = even["sigma"]
+    assert 0 < sigma < np.inf
+    assert even["jitter_d2"] >= even["none_d2"] and even["jitter_d2"] - even["none_d2"] < 0.1
+
+    def d2(s):
+        return metrics.score_frame(truth, oracle_fill(truth, damaged, "jitter", mask=mask, sigma=s), ["gpsnr_d2"])[
+            "gpsnr_d2"]
+
+    assert d2(sigma / 2) > even["none_d2"] > d2(2 * sigma)
+    flat, flat_damaged, flat_mask = _plane_with_hole()
+    assert d2_break_even([flat], [flat_damaged], masks=[flat_mask])["sigma"] == 0.0
 
 
 def test_a_row_out_of_reach_by_measurement():

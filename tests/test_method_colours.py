@@ -33,6 +33,20 @@ def test_kept_index_is_exact_matching():
         assert idx[i] == (same[0] if same.size else -1)
 
 
+def test_harmonic_colours_keep_a_constant_colour_where_a_part_hangs_on_by_a_negligible_edge():
+    """A harmonic fill of a constant colour is that colour (the maximum principle). Five unknown points beside the
+    known ones, five more 8 units off them, joined to the first five by edges of weight exp(-64 / s^2) ~ 1e-28: that
+    part is anchored to its nearest input colour like one with no edge at all, not left free in all but name (the
+    LU solve then returned 229 for 255)."""
+    g = np.arange(5, dtype=float)
+    known = np.column_stack([g, np.zeros(5), np.zeros(5)])
+    near = known + [0.0, 1.0, 0.0]
+    far = near + [0.0, 8.0, 0.0]
+    green = np.tile([0.0, 255.0, 0.0], (5, 1))
+    got = harmonic_colours(known, green, np.vstack([near, far]), np.tile([0.0, 255.0, 0.0], (10, 1)), k=8)
+    np.testing.assert_allclose(got, np.tile([0.0, 255.0, 0.0], (10, 1)), atol=1e-6)
+
+
 @pytest.mark.parametrize("direct", [True, False], ids=["lu", "cg"])
 def test_harmonic_matches_a_dense_solve(monkeypatch, direct):
     from dpcbench.methods import _colour

@@ -136,8 +136,8 @@ def test_front_fill_on_voxels_gives_integer_surface_voxels():
 
 def test_a_hole_round_a_limb_is_refused_by_the_spline_and_filled_on_the_surface_by_the_front():
     """A cylinder of radius 8 (a limb) with a ball hole of radius 7 on its side: the rim wraps round
-    it (not one height field, step 6 refuses it), so without steps 6c and 6b it stays open (step 6e's
-    membrane would lie 2 spacings inside the cylinder: its sag bound refuses it); with
+    it (not one height field, step 6 refuses it), so without steps 6c and 6b (and the last resort) it stays open
+    (step 6e's membrane would lie 2 spacings inside the cylinder: its sag bound refuses it); with
     ``front`` (step 6c off) the hole's edge is filled, within a fit radius of the rim, on the cylinder."""
     limb = cylinder()
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
@@ -149,7 +149,7 @@ def test_a_hole_round_a_limb_is_refused_by_the_spline_and_filled_on_the_surface_
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = TemporalFusion(window=0, poisson=False, front=True).inpaint(frames, regions)
-        off = TemporalFusion(window=0, poisson=False).inpaint(frames, regions)
+        off = TemporalFusion(window=0, poisson=False, best_surface=False).inpaint(frames, regions)
     new = out[1][len(kept):]
     assert len(off[1]) == len(kept)
     assert len(new) > 0.3 * region.contains(limb).sum()
@@ -229,6 +229,51 @@ def test_sample_triangles_spacing_and_corners():
     assert cKDTree(samples).query(probes)[0].max() <= 0.5
 
 
+def test_sampling_near_a_region_keeps_every_sample_the_region_holds_in_order():
+    """`_triangles_near` (step 6c samples only the mesh near R): on random triangles of every size round a ball
+    and a rotated box, the samples of the kept triangles that lie in the region grown by the margin are exactly
+    those of all the triangles, in the same order (the fill is the same points); far triangles are dropped."""
+    from scipy.spatial.transform import Rotation
+
+    from dpcbench.methods._spatial_fill import _triangles_near
+
+    rng = np.random.default_rng(4)
+    centres = rng.uniform(-60.0, 60.0, (400, 3))
+    sizes = rng.choice([0.5, 3.0, 15.0], 400)[:, None, None]
+    vertices = (centres[:, None, :] + sizes * rng.normal(size=(400, 3, 3))).reshape(-1, 3)
+    triangles = np.arange(len(vertices)).reshape(-1, 3)
+    rotation = Rotation.from_rotvec([0.3, -0.5, 0.8]).as_matrix()
+    regions = (HoleRegion.ball([5.0, -3.0, 2.0], 17.0), HoleRegion.box([0.0, 4.0, -2.0], [20.0, 6.0, 11.0], rotation))
+    for region in regions:
+        for margin in (0.0, 2.5):
+            near = _triangles_near(vertices, triangles, region, margin)
+            assert 0 < near.sum() < len(triangles) - 50
+            every = sample_triangles(vertices, triangles, 0.5)
+            kept = sample_triangles(vertices, triangles[near], 0.5)
+            np.testing.assert_array_equal(every[region.contains(every, margin=margin)],
+                                          kept[region.contains(kept, margin=margin)])
+
+
+def test_path_parity_is_the_product_of_the_flips_up_to_the_root():
+    """`orient_along_surface`'s sign propagation by pointer jumping against a walk up each node's path, on a
+    random forest (a long chain among its trees)."""
+    from dpcbench.methods._spatial_fill import _path_parity
+
+    rng = np.random.default_rng(5)
+    count = 3000
+    up = np.array([i if i in (0, 700) or i < 3 else int(rng.integers(max(0, i - 40), i)) for i in range(count)])
+    up[1500:2500] = np.arange(1499, 2499)  # a chain 1000 edges deep
+    odd = rng.random(count) < 0.5
+    odd[up == np.arange(count)] = False
+    expected = np.zeros(count, dtype=bool)
+    for node in range(count):
+        walk = node
+        while up[walk] != walk:
+            expected[node] ^= odd[walk]
+            walk = up[walk]
+    np.testing.assert_array_equal(_path_parity(up, odd), expected)
+
+
 def test_orient_along_surface_points_every_body_outwards_like_the_analytic_normals():
     """Normals of random sign on two spheres and a torus (analytic outward normals known): after the
     spanning-tree propagation and the per-component majority away from the centre, every normal is the
@@ -260,7 +305,7 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     limb hole, with the bound just above and just below the exact miss (the inner ring's RMS distance to
     the held-out surface's samples, in full, less in quadrature its RMS distance to the surface of all
     the points), it passes and fails."""
-    from dpcbench.methods._spatial_fill import _holds_out, _poisson_points
+    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _holds_out, _poisson_points
 
     limb = cylinder(8.0, 60.0)
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
@@ -268,7 +313,7 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     ring = 2.0
     inner = region.contains(kept, margin=ring)
     held = _poisson_points(kept[~inner], lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
-                           surface=True)
+                           surface=True, cell_steps=POISSON_HOLDOUT_CELL_STEPS)
     whole = _poisson_points(kept, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
                             surface=True)
     scatter = np.mean(cKDTree(whole).query(kept[inner])[0] ** 2)
@@ -307,9 +352,10 @@ def test_the_hold_out_allows_for_the_capture_s_own_scatter():
 
 
 def _poisson_points_for_test(points, region, ring):
-    from dpcbench.methods._spatial_fill import _poisson_points
+    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _poisson_points
 
-    return _poisson_points(points, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0, surface=True)
+    return _poisson_points(points, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0, surface=True,
+                           cell_steps=POISSON_HOLDOUT_CELL_STEPS)
 
 
 def test_native_stderr_is_silenced_for_the_block_only(capfd):

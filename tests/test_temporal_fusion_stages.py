@@ -157,7 +157,7 @@ def test_the_cascade_runs_in_order_and_stops_at_the_first_fill_it_trusts():
     """On a flat float plane the spline (first in the cascade) fills the hole on the plane; no later strategy
     applies once it did; nothing runs where a copy saw the whole region or with ``fallback`` off."""
     assert [s.__name__ for s in CASCADE] == ["SurfaceSpline", "SheetSpline", "WalledCap", "ClosedSurface", "Cap",
-                                             "Membrane", "Front"]
+                                             "Membrane", "Front", "BestSurface"]
     assert all(s.trust for s in CASCADE)
     plane = voxel_plane() + np.array([0.25, 0.25, 0.0])
     region = HoleRegion.ball([0.0, 0.0, 0.0], 4.0)

@@ -17,6 +17,12 @@ the damaged frame's spacing from every damaged point) and returns ``damaged ∪ 
                method would score if its only error were that;
 - ``truth``:   the missing truth points themselves: the ceiling (the result equals the truth).
 
+`d2_break_even` finds the jitter oracle's sigma at which its D2 equals no fill's: the off-surface error
+(RMS along the truth's normal) below which a complete fill scores at least no fill's D2 and above
+which even a complete fill scores less. An open hole's point-to-plane error is small where the
+surface round it is flat (each hidden point's nearest rim point lies in its tangent plane), so this
+bound is often well under a spacing: a D2 target above no fill asks that much of a fill.
+
 `off_surface_rms` measures a method's off-surface error: the RMS over its fill points (result
 points farther than 1% of the spacing from every damaged point) of ``|(p - q) . n_q|``, q the
 nearest truth point and n_q the truth's PCA normal there (D2's point-to-plane distance).
@@ -111,6 +117,51 @@ def off_surface_rms(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
     normals = estimate_normals(truth, k, queries=truth[nearest], tree=tree)
     distance = np.einsum("ij,ij->i", fill - truth[nearest], normals)
     return float(np.sqrt(np.mean(distance ** 2))), len(fill)
+
+
+def d2_break_even(truth: list[np.ndarray], damaged: list[np.ndarray], *, masks: list | None = None,
+                  seed: int = 0, peak="intrinsic", reference_normals=None, iterations: int = 12) -> dict:
+    """The jitter oracle's sigma (coordinate units) at which the mean whole-frame D2 over the frames equals no
+    fill's (module docstring), found by bisection on log sigma (the jitter of frame f uses seed ``seed + f``, as
+    `score_oracles`; with its noise directions fixed its D2 falls as sigma grows). Returns {"sigma", "spacing"
+    (the damaged frames' mean `metrics.neighbours.point_spacing`: median 8th-neighbour distance / sqrt 2, one voxel
+    on voxelized data, the unit of temporal-fusion's bounds), "none_d2", "jitter_d2" (at sigma)}; sigma is 0 when no
+    fill already scores infinite D2 (nothing missing, or a flat hole whose hidden points all lie in their rim
+    neighbours' tangent planes) and inf when even 100 spacings keep the jitter at or above it."""
+    from dpcbench import metrics as metrics_pkg
+    from dpcbench.metrics.neighbours import point_spacing
+
+    if len(truth) != len(damaged):
+        raise UserError(f"{len(truth)} truth frame(s) and {len(damaged)} damaged frame(s); give sequences of the "
+                        "same length")
+    normals = reference_normals or [None] * len(truth)
+
+    def mean_d2(sigma: float | None) -> float:
+        values = []
+        for f, (t, d) in enumerate(zip(truth, damaged)):
+            filled = d if sigma is None else oracle_fill(t, d, "jitter", mask=None if masks is None else masks[f],
+                                                         sigma=sigma, seed=seed + f)
+            values.append(metrics_pkg.score_frame(t, filled, ["gpsnr_d2"], peak=peak,
+                                                  reference_normals=normals[f])["gpsnr_d2"])
+        return float(np.mean(values))
+
+    step = float(np.mean([point_spacing(np.asarray(d, dtype=float)) for d in damaged]))
+    floor = mean_d2(None)
+    result = {"spacing": step, "none_d2": floor}
+    if not np.isfinite(floor):
+        return {**result, "sigma": 0.0, "jitter_d2": floor}
+    low, high = 1e-4 * step, 100.0 * step
+    if mean_d2(high) >= floor:
+        return {**result, "sigma": float("inf"), "jitter_d2": float("nan")}
+    if mean_d2(low) < floor:
+        return {**result, "sigma": 0.0, "jitter_d2": float("nan")}
+    for _ in range(iterations):
+        middle = float(np.sqrt(low * high))
+        if mean_d2(middle) >= floor:
+            low = middle
+        else:
+            high = middle
+    return {**result, "sigma": low, "jitter_d2": mean_d2(low)}
 
 
 def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=VARIANTS, *,

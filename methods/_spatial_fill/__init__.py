@@ -23,6 +23,8 @@ from dpcbench.methods._spatial_fill.cap import (
 )
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
+    POISSON_CELL_STEPS,
+    POISSON_HOLDOUT_CELL_STEPS,
     POISSON_MAX_DEPTH,
     POISSON_SCALE,
     SHEET_MIN_ALIGNMENT,
@@ -51,8 +53,10 @@ from dpcbench.methods._spatial_fill.poisson import (
     _bodies,
     _holds_out,
     _native_stderr_silenced,
+    _path_parity,
     _poisson_points,
     _poisson_samples,
+    _triangles_near,
     limb_ends,
     orient_along_surface,
     poisson_surface_fill,
@@ -65,10 +69,11 @@ from dpcbench.methods._spatial_fill.spline import (
 )
 
 #: every name of the former single module, private helpers included (tests import them from here)
-__all__ = ["MAX_STEEP", "POISSON_MAX_DEPTH", "POISSON_SCALE", "SHEET_MIN_ALIGNMENT", "SURFACE_POINTS",
-           "_bodies", "_flat_anchors", "_holds_out", "_link_components", "_native_stderr_silenced", "_open_radius",
-           "_poisson_points", "_poisson_samples", "_sheet_bounded", "_voxel_keys", "_within_hull_of", "between_layers",
-           "cap_fill", "cap_walled", "even_subset", "far_from", "first_in_cells", "fit_height_field", "grown_agreeing",
+__all__ = ["MAX_STEEP", "POISSON_CELL_STEPS", "POISSON_HOLDOUT_CELL_STEPS", "POISSON_MAX_DEPTH", "POISSON_SCALE",
+           "SHEET_MIN_ALIGNMENT", "SURFACE_POINTS", "_bodies", "_flat_anchors", "_holds_out", "_link_components",
+           "_native_stderr_silenced", "_open_radius", "_path_parity", "_poisson_points", "_poisson_samples",
+           "_sheet_bounded", "_triangles_near", "_voxel_keys", "_within_hull_of", "between_layers", "cap_fill",
+           "cap_walled", "even_subset", "far_from", "first_in_cells", "fit_height_field", "grown_agreeing",
            "harmonic_height_field", "limb_ends", "membrane_fill", "membrane_sag", "orient_along_surface",
            "over_captured_surface", "plane_offsets", "poisson_surface_fill", "rim_sheet", "rim_surface_fill",
            "sample_triangles", "tube_fill", "unique_voxels"]

@@ -26,6 +26,11 @@ SHEET_MIN_ALIGNMENT = 0.75
 #: cube, and the largest octree depth (2^10 cells a side: a crop of 1000 grid steps, far above a hole's)
 POISSON_SCALE = 1.1
 POISSON_MAX_DEPTH = 10
+#: screened Poisson's finest octree cell, in grid steps g (the fill's sampling step): the fill's surface, and the
+#: hold-out's (one level coarser: it only says whether the fill's surface is trusted; temporal-fusion version 43,
+#: docs/temporal-fusion.md "Speed at paper scale")
+POISSON_CELL_STEPS = 1
+POISSON_HOLDOUT_CELL_STEPS = 2
 
 
 def even_subset(points: np.ndarray, count: int) -> np.ndarray:

@@ -13,6 +13,8 @@ from scipy.spatial import cKDTree
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
+    POISSON_CELL_STEPS,
+    POISSON_HOLDOUT_CELL_STEPS,
     POISSON_MAX_DEPTH,
     POISSON_SCALE,
     SURFACE_POINTS,
@@ -62,8 +64,8 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     body has c inside). Surface: open3d's screened
     Poisson reconstruction (Kazhdan and Hoppe 2013; one thread, so the mesh does not depend on the
     thread count) on an octree whose finest cell is at most the fill's grid step g (``spacing`` on
-    voxelized data, else ``step``): depth = ceil(log2(1.1 e / g)), e the support's bounding-box side,
-    1.1 open3d's default margin. Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
+    voxelized data, else ``step``; `POISSON_CELL_STEPS` g): depth = ceil(log2(1.1 e / g)), e the support's
+    bounding-box side, 1.1 open3d's default margin. Points: the mesh sampled at g / 2 (`sample_triangles`), rounded to
     voxels on voxelized data (unique), else thinned to one a cubic cell of edge g; inside ``region``,
     not covered, and attached to the support (`grown_agreeing` with reach 3 s and no plane test: a
     sheet the reconstruction closes across the crop's open sides, not touching the captured surface,
@@ -78,7 +80,9 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
 
     Hold-out test (when ``ring`` > 0; step 6's test, with the same bound), per body whose surface adds points
     (elsewhere its decision changes nothing, and it costs a second reconstruction): the support points within
-    ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed, and
+    ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed (its
+    finest cell 2 g, `POISSON_HOLDOUT_CELL_STEPS`: the test asks whether the surface continues across the
+    ring, which the octree's last level does not decide, at a fraction of the fill's reconstruction), and
     the inner ring's RMS distance m to it (to its samples at g / 2 in the region grown by ``ring``) must be
     at most ``max_holdout_spacings`` spacings once the ring's scatter e is taken out, sqrt(m^2 - e^2) <= bound,
     e its RMS distance to the surface of the whole body (the one the fill is taken from, sampled over the
@@ -100,7 +104,10 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
             # too few points to reconstruct; or no point within the attachment reach (3 s) of R, so no fill
             # point inside R could be attached to this body
             return np.zeros((0, 3))
-        surface = _poisson_samples(body, grid)
+        # only the mesh near R is sampled: the fill's points lie inside R once rounded to voxels (or thinned to
+        # cells of g), the hold-out's scatter is measured within R grown by the ring (`_triangles_near`)
+        reach = max(ring, np.sqrt(3.0) * grid) + (1.0 if voxelized else 0.0)
+        surface = _poisson_samples(body, grid, near=(region, reach))
         points = _poisson_points(body, region.contains, covered, free, spacing, voxelized, grid, samples=surface)
         # the hold-out (a second reconstruction) only where the surface adds points: on D-FAUST occlusion, 10 of
         # 26 bodies add none (8 of them passed it, 2 failed)
@@ -257,12 +264,12 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
         return True
     outer = support[~inner]
     held = _poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing,
-                           voxelized, grid, surface=True)
+                           voxelized, grid, surface=True, near=(region, ring), cell_steps=POISSON_HOLDOUT_CELL_STEPS)
     if not len(held):
         return False
     ring_points = support[inner]
     if whole is None:
-        whole = _poisson_samples(support, grid)
+        whole = _poisson_samples(support, grid, near=(region, ring))
     # both surfaces sampled over the same part (R grown by the ring), so the two distances share its edge
     whole = whole[region.contains(whole, margin=ring)]
     scatter = float(np.mean(cKDTree(whole).query(ring_points)[0] ** 2)) if len(whole) else 0.0
@@ -281,10 +288,15 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     return float(np.mean(distance ** 2)) <= bound_sq
 
 
-def _poisson_samples(support: np.ndarray, grid: float) -> np.ndarray:
+def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, float] | None = None,
+                     cell_steps: int = POISSON_CELL_STEPS) -> np.ndarray:
     """The screened Poisson surface of ``support`` (K, 3) (`poisson_surface_fill`'s docstring: oriented PCA
-    normals, octree depth from the grid step ``grid``), sampled at ``grid`` / 2 (`sample_triangles`):
-    (S, 3), all of it; (0, 3) when the reconstruction is empty."""
+    normals, octree depth from the finest cell ``cell_steps`` * ``grid``, at least 2, open3d's least),
+    sampled at ``grid`` / 2 (`sample_triangles`):
+    (S, 3), all of it, or with ``near`` = (region, margin) the samples of the triangles that can reach the
+    region grown by margin (`_triangles_near`: every sample there, in the same order, none far from it);
+    (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's closed surface
+    reaches far past R."""
     import open3d as o3d
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(support))
@@ -297,24 +309,47 @@ def _poisson_samples(support: np.ndarray, grid: float) -> np.ndarray:
     cloud.normals = o3d.utility.Vector3dVector(
         orient_along_surface(support, np.asarray(cloud.normals), support.mean(axis=0), 16))
     extent = float(np.ptp(support, axis=0).max())
-    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / grid, 2.0))), 1, POISSON_MAX_DEPTH))
+    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
+                        POISSON_MAX_DEPTH))
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _native_stderr_silenced():
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE,
                                                                             n_threads=1)
     if not len(mesh.triangles):
         return np.zeros((0, 3))
-    return sample_triangles(np.asarray(mesh.vertices), np.asarray(mesh.triangles), grid / 2.0)
+    vertices, triangles = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
+    if near is not None:
+        triangles = triangles[_triangles_near(vertices, triangles, *near)]
+    return sample_triangles(vertices, triangles, grid / 2.0)
+
+
+def _triangles_near(vertices: np.ndarray, triangles: np.ndarray, region: HoleRegion, margin: float) -> np.ndarray:
+    """Mask (T,) of the ``triangles`` ((T, 3) indices into ``vertices`` (V, 3)) that may hold a point of
+    ``region`` grown by ``margin`` (`HoleRegion.contains` with that margin): a triangle lies within its bounding
+    sphere (centre c its centroid, radius rho its farthest corner from c), so one whose c is outside the region
+    grown by margin + rho (+ a rounding allowance) holds no such point. A superset: the callers test their
+    samples exactly after."""
+    corners = vertices[triangles]  # (T, 3, 3)
+    centre = corners.mean(axis=1)
+    rho = np.sqrt(np.max(np.sum((corners - centre[:, None, :]) ** 2, axis=2), axis=1))
+    d = centre - region.center
+    slack = margin + rho + 1e-9 * (1.0 + float(np.abs(vertices).max()) + margin)
+    if region.shape == "ball":
+        return np.sqrt(np.einsum("ij,ij->i", d, d)) <= region.radius + slack
+    half_extents, rotation = region.half_extents, region.rotation
+    assert half_extents is not None and rotation is not None  # a box region has both (HoleRegion.__post_init__)
+    return (np.abs(d @ rotation) <= half_extents + slack[:, None]).all(axis=1)
 
 
 def _poisson_points(support, inside, covered, free, spacing, voxelized, grid, surface=False,
-                    samples=None) -> np.ndarray:
+                    samples=None, near=None, cell_steps=POISSON_CELL_STEPS) -> np.ndarray:
     """`poisson_surface_fill`'s surface and points (its docstring), without the hold-out test: ``inside``
     a mask function of (P, 3) points, ``free`` the distance from ``covered`` a new point keeps. With
     ``surface``: the surface's samples at g / 2 inside, neither rounded to voxels nor thinned nor tested
     (the hold-out test measures the distance to the surface, not to a sampling of it: one sample a cell
     of g lies up to ~g / 2 beside a held-out point that is on the surface). ``samples``: the surface's
-    samples (`_poisson_samples` of ``support``) when already made."""
-    points = _poisson_samples(support, grid) if samples is None else samples
+    samples (`_poisson_samples` of ``support``) when already made; ``near``, ``cell_steps``: `_poisson_samples`'s
+    (``near`` a region and margin that hold every point ``inside`` keeps)."""
+    points = _poisson_samples(support, grid, near, cell_steps) if samples is None else samples
     if not len(points):
         return np.zeros((0, 3))
     if surface:
@@ -400,19 +435,31 @@ def orient_along_surface(points: np.ndarray, normals: np.ndarray, centre: np.nda
     graph = coo_matrix((weight, (rows, cols)), shape=(count, count)).tocsr()
     tree = minimum_spanning_tree(graph.maximum(graph.T))
     components, labels = connected_components(tree, directed=False)
-    sign = np.ones(count)
+    up = np.arange(count)  # each node's parent in its component's breadth-first tree (a root: itself)
+    odd = np.zeros(count, dtype=bool)  # whether the edge to the parent flips the sign
     _, roots = np.unique(labels, return_index=True)
     for root in roots:
         order, parent = breadth_first_order(tree, root, directed=False, return_predecessors=True)
         children = order[1:]
-        flips = np.where(np.einsum("ij,ij->i", normals[children], normals[parent[children]]) < 0, -1.0, 1.0)
-        # the sign of a node is its parent's times the edge's: a walk in breadth-first order (each parent
-        # is set before its children), sequential by nature
-        signs, parents = sign.tolist(), parent.tolist()
-        for node, flip in zip(children.tolist(), flips.tolist()):
-            signs[node] = signs[parents[node]] * flip
-        sign = np.asarray(signs)
-    oriented = normals * sign[:, None]
+        up[children] = parent[children]
+        odd[children] = np.einsum("ij,ij->i", normals[children], normals[parent[children]]) < 0
+    # the sign of a node: the product of the flips on its path to the root (+1 at the root)
+    oriented = normals * np.where(_path_parity(up, odd), -1.0, 1.0)[:, None]
     outward = np.sign(np.einsum("ij,ij->i", points - centre, oriented))
     votes = np.bincount(labels, weights=outward, minlength=components)
     return oriented * np.where(votes[labels] < 0, -1.0, 1.0)[:, None]
+
+
+def _path_parity(up: np.ndarray, odd: np.ndarray) -> np.ndarray:
+    """Mask (N,): whether an odd number of the edges on each node's path to its root are flagged, for a forest
+    given by ``up`` (N,) (each node's parent; a root is its own) and ``odd`` (N,) (the edge to the parent flagged;
+    False at a root). Pointer jumping: after each round ``up`` reaches twice as far up and ``odd`` holds the parity
+    of the edges it skipped: log2 of the depth rounds, each a few array operations, where a walk in breadth-first
+    order sets one node at a time."""
+    up, odd = np.asarray(up), np.asarray(odd, dtype=bool)
+    while True:
+        further = up[up]
+        if np.array_equal(further, up):
+            return odd
+        odd = odd ^ odd[up]
+        up = further

@@ -97,6 +97,8 @@ class FusionConfig:
                                    "(False: 3-10x faster on real captures with occlusion boxes)")
     membrane_after_poisson: bool = _knob(True, "bool", "the membrane also spans what the closed surface left open "
                                          "in a region that keeps captured points")
+    best_surface: bool = _knob(True, "bool", "a hole every spatial strategy refused takes the candidate surface with "
+                               "the least hold-out miss, unless leaving it open is predicted to cost less D1")
     snap: bool | str = _knob("auto", "snap", "voxelize the output when the input is voxelized (True/False force it)")
 
     @classmethod
@@ -163,4 +165,5 @@ ABLATIONS: dict[str, str] = {
     "reuse_next": "no back-fill from frame f+1",
     "drop_layers": "second layers over the captured surface are kept",
     "coarse_retry": "no coarse-to-fine retry of a failed alignment",
+    "best_surface": "a hole every spatial strategy refused stays open",
 }

@@ -149,7 +149,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "43"  # the history of each version: docs/temporal-fusion.md
+    version = "45"  # the history of each version: docs/temporal-fusion.md
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -164,7 +164,8 @@ class TemporalFusion(InpaintingMethod):
                  partial_sources: bool = True, sheet: bool = True, revoxelize: bool = True, pool_adjacent: bool = True,
                  adjacent_first: bool = True, count_copies: bool = True, reuse_next: bool = True,
                  drop_layers: bool = True, coarse_retry: bool = True,
-                 poisson_in_boxes: bool = True, membrane_after_poisson: bool = True, snap: bool | str = "auto") -> None:
+                 poisson_in_boxes: bool = True, membrane_after_poisson: bool = True, best_surface: bool = True,
+                 snap: bool | str = "auto") -> None:
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
@@ -199,6 +200,7 @@ class TemporalFusion(InpaintingMethod):
         self.coarse_retry = coarse_retry
         self.poisson_in_boxes = poisson_in_boxes
         self.membrane_after_poisson = membrane_after_poisson
+        self.best_surface = best_surface
         self.snap = snap
 
     def _validate(self) -> FusionConfig:

@@ -95,19 +95,27 @@ Version 42 (step 6e also after step 6c in an occlusion box; region holes unchang
 coherent 800k 36.8 s for 3 frames (12.3 s a frame, over the target's 10 s: 12.3 s of a 31 s profile is open3d's
 Poisson, 18 reconstructions single-threaded, none of them repeated), whose frame D2 is 18.22 / 20.82 / 18.10 against
 no fill's 17.48 / 16.37 / 19.43; Longdress region 8.1 s, occlusion 83.6 s (1 frame).
+Version 43 (step 6c samples only the mesh near R and orients by pointer jumping, the same output; its hold-out on an
+octree one level coarser), 2026-12-05, `-k "coherent_800k or longdress"`, CPU, two rounds back to back with c4acd0d
+(version 42) and cdbba71 (the same-output changes alone), every output the same (sha256 in extra_info): coherent
+800k 24.22 / 25.96 -> 25.72 / 25.74 -> 22.38 / 22.39 s for 3 frames (target 5 s a frame: not met), Longdress
+occlusion 65.91 / 72.81 -> 60.10 / 60.56 -> 45.25 / 49.19 s (target 15 s: not met), region 6.28 / 6.82 -> 5.81 /
+5.74 -> 4.48 / 4.64 s (docs/temporal-fusion.md, "Speed at paper scale").
 """
 
 from __future__ import annotations
 
+import sys
 import warnings
+from pathlib import Path
 
 import pytest
 
-SIZES = {
-    "100k": dict(size="small"),
-    "290k": dict(size="default", height=620),
-    "800k": dict(size="default", bit_depth=11, height=1040),
-}
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import fusion_cases  # noqa: E402  (the inputs, shared with profile_method.py --case)
+from fusion_cases import digest  # noqa: E402  (sha256 of the output points, kept in extra_info)
+
+SIZES = fusion_cases.SIZES
 WINDOW = 3
 
 
@@ -178,32 +186,28 @@ def test_bench_fusion_coherent_800k(benchmark):
     in every frame, so no frame is a source and each hole goes to the spatial fills (steps 6-6e). The whole-frame
     D1 / D2 of the result and of no fill go into the benchmark's extra_info (outside the timed call): a change of
     order among the spatial fills moved this case's D1 by 8.8 dB (version 35) with no 100k-point row changing."""
-    from dpcbench.bench.data.datasets import load_dataset
-    from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
 
-    truth = load_dataset("human", frames=3, progress=False, **SIZES["800k"]).points
-    damage = get_generator("region", preset="medium", count=5, coherent=True).damage(truth, seed=0)
+    truth, frames, regions = fusion_cases.coherent_800k()
     method = get_method("temporal-fusion", window=WINDOW)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        out = benchmark.pedantic(method.inpaint, args=(damage.frames, damage.regions), rounds=1, iterations=1,
-                                 warmup_rounds=0)
+        out = benchmark.pedantic(method.inpaint, args=(frames, regions), rounds=1, iterations=1, warmup_rounds=0)
     from dpcbench.metrics import score_frame
 
     scores = [score_frame(t, o, ["gpsnr_d1", "gpsnr_d2"]) for t, o in zip(truth, out)]
-    open_holes = [score_frame(t, d, ["gpsnr_d1", "gpsnr_d2"]) for t, d in zip(truth, damage.frames)]
-    benchmark.extra_info.update(points=[len(f) for f in truth],
-                                added=[len(o) - len(f) for o, f in zip(out, damage.frames)],
+    open_holes = [score_frame(t, d, ["gpsnr_d1", "gpsnr_d2"]) for t, d in zip(truth, frames)]
+    benchmark.extra_info.update(points=[len(f) for f in truth], sha256=digest(out),
+                                added=[len(o) - len(f) for o, f in zip(out, frames)],
                                 d1=[round(s["gpsnr_d1"], 2) for s in scores], d2=[round(s["gpsnr_d2"], 2) for s in scores],
                                 no_fill_d1=[round(s["gpsnr_d1"], 2) for s in open_holes],
                                 no_fill_d2=[round(s["gpsnr_d2"], 2) for s in open_holes])
-    assert all(len(o) > len(f) for o, f in zip(out, damage.frames))
+    assert all(len(o) > len(f) for o, f in zip(out, frames))
     assert all(s["gpsnr_d1"] > n["gpsnr_d1"] for s, n in zip(scores, open_holes))
 
 
 @pytest.mark.parametrize("holes", ["region", "occlusion"])
-def test_bench_fusion_longdress(benchmark, shared_dir, holes):
+def test_bench_fusion_longdress(benchmark, holes):
     """The paper's own data at paper scale: the real 858k-point Longdress frame of ``../shared/data`` (10-bit
     voxels), one frame, so no other frame saw its holes and every hole goes to the spatial fills (steps 6-6e).
     ``region``: 4 medium balls (seed 0); ``occlusion``: the rig's boxes (seed 0, 91 of them). The whole-frame
@@ -211,24 +215,21 @@ def test_bench_fusion_longdress(benchmark, shared_dir, holes):
     42, CPU time, one run each (one-off scripts, docs/notes-journal.md "Longdress, one frame, occlusion holes"): region
     8.1 s CPU (7.4 s wall through the CLI), D1 / D2 14.05 / 26.58 against no fill 8.30 / 29.05; occlusion 84-88 s CPU (73 s of it
     step 6c refusing its wide boxes; ``poisson_in_boxes=False`` 8 s), 18.64 / 27.65 against 15.41 / 32.03."""
-    from dpcbench.bench.data.sequences import load_sequence
-    from dpcbench.holes.registry import get_generator
     from dpcbench.methods.registry import get_method
     from dpcbench.metrics import score_frame
 
-    truth = [load_sequence(shared_dir / "data" / "8i_longdress_1300").points[0]]
-    params = dict(preset="medium") if holes == "region" else {}
-    damage = get_generator(holes, **params).damage(truth, seed=0)
+    if not fusion_cases.LONGDRESS_FILE.is_file():
+        pytest.skip(f"the Longdress frame {fusion_cases.LONGDRESS_FILE} is not present")
+    truth, frames, regions = fusion_cases.longdress(holes)
     method = get_method("temporal-fusion")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the one-frame warning: no other frame to copy from
-        out = benchmark.pedantic(method.inpaint, args=(damage.frames, damage.regions), rounds=1, iterations=1,
-                                 warmup_rounds=0)
+        out = benchmark.pedantic(method.inpaint, args=(frames, regions), rounds=1, iterations=1, warmup_rounds=0)
     score = score_frame(truth[0], out[0], ["gpsnr_d1", "gpsnr_d2"])
-    open_holes = score_frame(truth[0], damage.frames[0], ["gpsnr_d1", "gpsnr_d2"])
-    benchmark.extra_info.update(points=len(truth[0]), regions=len(damage.regions[0]),
-                                added=len(out[0]) - len(damage.frames[0]),
+    open_holes = score_frame(truth[0], frames[0], ["gpsnr_d1", "gpsnr_d2"])
+    benchmark.extra_info.update(points=len(truth[0]), regions=len(regions[0]), sha256=digest(out),
+                                added=len(out[0]) - len(frames[0]),
                                 d1=round(score["gpsnr_d1"], 2), d2=round(score["gpsnr_d2"], 2),
                                 no_fill_d1=round(open_holes["gpsnr_d1"], 2), no_fill_d2=round(open_holes["gpsnr_d2"], 2))
-    assert len(out[0]) > len(damage.frames[0])
+    assert len(out[0]) > len(frames[0])
     assert score["gpsnr_d1"] > open_holes["gpsnr_d1"]

@@ -39,6 +39,9 @@ def register(subparsers) -> None:
     p.add_argument("--peak", default="intrinsic", help="PSNR peak (as `dpcbench score`)")
     p.add_argument("--seed", type=int, default=0, help="seed of the surface and jitter samples")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--break-even", action="store_true",
+                   help="also find the jitter sigma at which a complete fill's D2 equals no fill's (the off-surface "
+                        "error a fill must stay under for D2 at or above no fill)")
     p.set_defaults(func=main)
 
 
@@ -61,7 +64,7 @@ def main(args) -> int:
     import numpy as np
 
     from dpcbench.bench.data.sequences import load_sequence
-    from dpcbench.bench.results.oracle import VARIANTS, off_surface_rms, score_oracles
+    from dpcbench.bench.results.oracle import VARIANTS, d2_break_even, off_surface_rms, score_oracles
 
     truth = load_sequence(args.truth, colors=False)
     damaged = load_sequence(args.damaged, colors=False)
@@ -95,13 +98,16 @@ def main(args) -> int:
 
         regions = regions_from_json(args.region, frame_count=len(truth), label=f"--region {args.region}")
     normals = [f.normals for f in truth.frames]
-    scores = score_oracles(truth.points, damaged.points, variants, masks=_masks(args, len(truth)), regions=regions,
-                           sigma=sigma or 0.0, seed=args.seed, peak=args.peak,
-                           reference_normals=normals if any(n is not None for n in normals) else None)
+    given_normals = normals if any(n is not None for n in normals) else None
+    masks = _masks(args, len(truth))
+    scores = score_oracles(truth.points, damaged.points, variants, masks=masks, regions=regions,
+                           sigma=sigma or 0.0, seed=args.seed, peak=args.peak, reference_normals=given_normals)
+    even = (d2_break_even(truth.points, damaged.points, masks=masks, seed=args.seed, peak=args.peak,
+                          reference_normals=given_normals) if args.break_even else None)
     if args.json:
         payload = {"variants": {v: {scope: s["mean"] for scope, s in by.items()} for v, by in scores.items()},
                    "frames": {v: {scope: s["frames"] for scope, s in by.items()} for v, by in scores.items()},
-                   "sigma": sigma, "measured": measured}
+                   "sigma": sigma, "measured": measured, "d2_break_even": even}
         sys.stdout.write(json.dumps(payload, default=lambda x: None if not math.isfinite(x) else x) + "\n")
         return 0
     names = list(next(iter(scores.values()))["frame"]["mean"])
@@ -115,4 +121,9 @@ def main(args) -> int:
     print(f"means over {len(truth)} frame(s); peak {args.peak}"
           + (f"; jitter sigma {sigma:.6g}" + (f" (measured on {measured['fill_points']} fill points of "
                                               f"{args.method_result})" if measured else "") if sigma is not None else ""))
+    if even is not None:
+        print(f"D2 break-even: a complete fill within {even['sigma']:.4g} units ({even['sigma'] / even['spacing']:.3g} "
+              f"spacings) RMS of the truth along its normal scores no fill's D2 ({even['none_d2']:.2f} dB, mean over "
+              "the frames; jitter oracle, seed "
+              f"{args.seed}); farther off, even a complete fill scores less")
     return 0

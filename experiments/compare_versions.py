@@ -1,0 +1,96 @@
+"""Two versions of one method in one results store, row by row: whole-frame D1 / D2 / NSHD of each and of no fill,
+and the paired difference (new - old) over the row's (frame, seed) pairs with its 95% interval
+(`bench.results.stats.paired`: paired bootstrap and Wilcoxon), so a change of output is judged against noise.
+
+    dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # at the old version
+    dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # again at the new one
+    .venv/bin/python experiments/compare_versions.py q.sqlite --method temporal-fusion --old 42 --new 43
+
+A row is a sequence and a kind of holes (all its seeds, every experiment of the store); "beyond noise" when the
+interval excludes 0; "inpainted frames identical" when both versions wrote the same PLY bytes in every run of the
+row (the run folders must still be there).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sqlite3
+from collections import defaultdict
+from pathlib import Path
+
+from dpcbench.bench.results.stats import paired
+
+METRICS = (("gpsnr_d1", "D1"), ("gpsnr_d2", "D2"), ("nshd", "NSHD"))
+
+
+def _values(connection, method: str, version: str | None) -> dict:
+    """(sequence, holes) -> metric -> {(seed, frame): value} of the done runs of ``method`` (at ``version``)."""
+    query = ("select r.sequence, r.holes, r.seed, s.frame, s.metric, s.value from runs r "
+             "join results s on s.run_id = r.run_id where r.status = 'done' and r.method = ? and s.scope = 'frame'")
+    args: list = [method]
+    if version is not None:
+        query += " and r.method_version = ?"
+        args.append(version)
+    out: dict = defaultdict(lambda: defaultdict(dict))
+    for sequence, holes, seed, frame, metric, value in connection.execute(query, args):
+        out[(sequence, holes)][metric][(seed, frame)] = value
+    return out
+
+
+def _frames_digest(connection, method: str, version: str) -> dict:
+    """(sequence, holes) -> sha256 over the inpainted PLY files of every done run of the row (seeds in order),
+    read from the run folders: equal digests mean the two versions wrote the same bytes."""
+    query = ("select sequence, holes, seed, output_dir from runs where status = 'done' and method = ? and "
+             "method_version = ? order by sequence, holes, seed")
+    digests: dict = defaultdict(hashlib.sha256)
+    for sequence, holes, _seed, folder in connection.execute(query, (method, version)):
+        for path in sorted(Path(folder, "inpainted").glob("*.ply")):
+            digests[(sequence, holes)].update(hashlib.sha256(path.read_bytes()).digest())
+    return {row: digest.hexdigest() for row, digest in digests.items()}
+
+
+def _mean(values: dict) -> float:
+    return sum(values.values()) / len(values) if values else float("nan")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("store")
+    parser.add_argument("--method", default="temporal-fusion")
+    parser.add_argument("--old", required=True, help="the old method_version")
+    parser.add_argument("--new", required=True, help="the new method_version")
+    args = parser.parse_args(argv)
+    connection = sqlite3.connect(f"file:{args.store}?mode=ro", uri=True)
+    old = _values(connection, args.method, args.old)
+    new = _values(connection, args.method, args.new)
+    none = _values(connection, "none", None)
+    frames = [_frames_digest(connection, args.method, version) for version in (args.old, args.new)]
+    print("| row | n | " + " | ".join(f"{label} old / new / no fill | {label} new - old [95% interval]"
+                                      for _, label in METRICS) + " | inpainted frames |")
+    print("|---|---|" + "---|---|" * len(METRICS) + "---|")
+    for row in sorted(set(old) & set(new)):
+        cells = []
+        for metric, _ in METRICS:
+            shared = set(new[row][metric]) & set(old[row][metric])  # the means over the pairs compared
+            a, b, floor = ({key: values[key] for key in shared if key in values}
+                           for values in (new[row][metric], old[row][metric], none[row][metric]))
+            comparison = paired(a, b, higher_is_better=True)  # new - old as it stands (no sign flip)
+            scale = 1e9 if metric == "nshd" else 1.0
+
+            cells.append(" / ".join(f"{_mean(v) * scale:.2f}" for v in (b, a, floor)))
+            if comparison.n < 2:
+                cells.append(f"{comparison.mean_difference * scale:+.3f} (one pair: no interval)")
+                continue
+            beyond = "beyond noise" if comparison.low > 0 or comparison.high < 0 else "within noise"
+            cells.append(f"{comparison.mean_difference * scale:+.3f} [{comparison.low * scale:+.3f}, "
+                         f"{comparison.high * scale:+.3f}] {beyond}")
+        n = len(set(old[row]["gpsnr_d1"]) & set(new[row]["gpsnr_d1"]))
+        same = frames[0].get(row) is not None and frames[0].get(row) == frames[1].get(row)
+        print(f"| {row[0]}, {row[1]} | {n} | " + " | ".join(cells) + f" | {'identical' if same else 'differ'} |")
+    print("NSHD in 1e-9; n = (frame, seed) pairs; lower NSHD is better")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

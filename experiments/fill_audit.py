@@ -1,0 +1,215 @@
+"""Which stage of temporal-fusion put each new point where it is, and what each stage costs in D1 and D2.
+
+Runs `TemporalFusion.inpaint` on a `dpcbench damage` folder with every stage wrapped (nothing in the method is
+changed: the wrappers record what each stage returns), attributes each new output point to the stage whose
+returned point lies nearest it (within 1.5 spacings: the surface projection and the voxel snapping move points by
+less), and scores every output point with the exact metric's per-point errors (`metrics.pairs.CloudPair`, pc_error's
+conventions; reference normals from the truth's PLY, else estimated as `dpcbench score` does).
+
+Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per stage:
+- points: new output points attributed to it;
+- off RMS: RMS point-to-plane distance of those points to the truth (in spacings), and the share > 2 spacings;
+- BA2: their summed point-to-plane errors against the truth (the result-to-reference term of D2);
+- for each hole region, AB1 / AB2 (the reference-to-result terms of D1 / D2 over the region's truth points) of the
+  result against the open hole's, so a region whose fill costs more D2 than leaving it open shows.
+
+Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
+
+    .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--param name=value ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
+from scipy.spatial import cKDTree
+
+from dpcbench.bench.core.params import parse_params
+from dpcbench.bench.data.plyio import read_ply
+from dpcbench.methods.temporal_fusion import method as fusion_method
+from dpcbench.methods.temporal_fusion import spatial
+from dpcbench.metrics import psnr, resolve_peak
+from dpcbench.metrics.neighbours import point_spacing
+from dpcbench.metrics.pairs import CloudPair
+
+#: a stage's returned point within this many spacings of an output point is where that output point came from
+ATTRIBUTION_SPACINGS = 1.5
+
+
+class StageLog:
+    """Points each stage returned, per frame: {frame: [(stage, (P, 3) points), ...]}."""
+
+    def __init__(self) -> None:
+        self.frame = -1
+        self.points: dict[int, list[tuple[str, np.ndarray]]] = defaultdict(list)
+
+    def add(self, stage: str, points: np.ndarray) -> None:
+        if points is not None and len(points):
+            self.points[self.frame].append((stage, np.asarray(points, dtype=np.float64).reshape(-1, 3)))
+
+
+def instrument(log: StageLog) -> None:
+    """Wrap the stages `fill_region` and the back-fill call (in `methods.temporal_fusion.method`'s namespace) and
+    each cascade strategy's ``fill`` so that ``log`` records what they return."""
+    m = fusion_method
+    originals = {name: getattr(m, name) for name in ("fill_region", "rim_fill", "fuse", "reuse_previous",
+                                                      "partial_copies", "back_fill")}
+
+    def fill_region(cfg, seq, f, region, previous_fill):
+        log.frame = f
+        return originals["fill_region"](cfg, seq, f, region, previous_fill)
+
+    def rim_fill(*args, **kwargs):
+        out = originals["rim_fill"](*args, **kwargs)
+        log.add("rim_fill", out)
+        return out
+
+    def fuse(*args, **kwargs):
+        out = originals["fuse"](*args, **kwargs)
+        log.add("copy", out.points)
+        return out
+
+    def reuse_previous(cfg, seq, f, region, crop, accepted, *rest):
+        out = originals["reuse_previous"](cfg, seq, f, region, crop, accepted, *rest)
+        log.add("reuse", out[len(accepted):])
+        return out
+
+    def partial_copies(*args, **kwargs):
+        out = originals["partial_copies"](*args, **kwargs)
+        log.add("partial", out)
+        return out
+
+    def back_fill(cfg, seq, f, *rest):
+        log.frame = f
+        out = originals["back_fill"](cfg, seq, f, *rest)
+        log.add("back_fill", out)
+        return out
+
+    for name, wrapper in (("fill_region", fill_region), ("rim_fill", rim_fill), ("fuse", fuse),
+                          ("reuse_previous", reuse_previous), ("partial_copies", partial_copies),
+                          ("back_fill", back_fill)):
+        setattr(m, name, wrapper)
+    for strategy in spatial.CASCADE:
+        strategy.fill = _traced(strategy, strategy.fill, log)
+
+
+def _traced(strategy, fill, log: StageLog):
+    def traced(cfg, hole, state):
+        out = fill(cfg, hole, state)
+        if len(out.spatial) > len(state.spatial):
+            log.add(strategy.__name__, out.spatial[len(state.spatial):])
+        if len(out.sheet_fill) > len(state.sheet_fill):
+            log.add(strategy.__name__, out.sheet_fill[len(state.sheet_fill):])
+        return out
+
+    return staticmethod(traced)
+
+
+def attribute(new: np.ndarray, records: list[tuple[str, np.ndarray]], spacing: float) -> np.ndarray:
+    """(P,) stage name of each of the ``new`` points: the stage whose recorded point is nearest, "unattributed"
+    when none lies within `ATTRIBUTION_SPACINGS`."""
+    labels = np.full(len(new), "unattributed", dtype=object)
+    if not len(new) or not records:
+        return labels
+    names = [name for name, pts in records for _ in range(len(pts))]
+    points = np.vstack([pts for _, pts in records])
+    dist, idx = cKDTree(points).query(new, distance_upper_bound=ATTRIBUTION_SPACINGS * spacing)
+    found = np.isfinite(dist)
+    labels[found] = np.asarray(names, dtype=object)[idx[found]]
+    return labels
+
+
+def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, result: np.ndarray, regions,
+                records, spacing: float) -> list[str]:
+    """The report lines of one frame (see the module docstring)."""
+    filled, empty = CloudPair(truth, result, normals), CloudPair(truth, damaged, normals)
+    peak = resolve_peak("intrinsic", filled)
+    lines = []
+    for label, pair in (("result", filled), ("no fill", empty)):
+        d1 = max(pair.ref_to_res.sq_dist.mean(), pair.res_to_ref.sq_dist.mean())
+        d2 = max(pair.plane_ref_to_res.mean(), pair.plane_res_to_ref.mean())
+        lines.append(f"  {label:8s} D1 {psnr(d1, peak):6.2f} D2 {psnr(d2, peak):6.2f}  "
+                     f"(AB1 {pair.ref_to_res.sq_dist.sum():10.0f} BA1 {pair.res_to_ref.sq_dist.sum():9.0f} "
+                     f"AB2 {pair.plane_ref_to_res.sum():9.0f} BA2 {pair.plane_res_to_ref.sum():9.0f})")
+    new = result[len(damaged):]
+    labels = attribute(new, records, spacing)
+    # per-point errors of the result's own rows (deduplicated rows map back through result_index)
+    rows = np.arange(len(result)) if filled.result_index is None else None
+    ba2 = np.zeros(len(result))
+    if rows is None:
+        ba2[filled.result_index] = filled.plane_res_to_ref
+    else:
+        ba2 = filled.plane_res_to_ref
+    new_ba2 = ba2[len(damaged):]
+    off = np.sqrt(new_ba2) / spacing
+    for stage in sorted(set(labels)):
+        at = labels == stage
+        lines.append(f"  stage {stage:14s} points {at.sum():6d} off RMS {np.sqrt(np.mean(off[at] ** 2)):5.2f} s "
+                     f"(> 2 s: {np.mean(off[at] > 2):4.0%})  BA2 {new_ba2[at].sum():9.0f}")
+    reference = filled.reference
+    for k, region in enumerate(regions):
+        inside = region.contains(reference, margin=2 * spacing)
+        mine = region.contains(new, margin=2 * spacing)
+        stages = ", ".join(f"{stage} {int((labels[mine] == stage).sum())}" for stage in sorted(set(labels[mine])))
+        lines.append(f"  region {k} ({np.round(region.center, 1).tolist()}, r {region.bounding_radius:.1f}): "
+                     f"AB1 {filled.ref_to_res.sq_dist[inside].sum():9.0f} (open {empty.ref_to_res.sq_dist[inside].sum():9.0f})"
+                     f"  AB2 {filled.plane_ref_to_res[inside].sum():8.0f} (open {empty.plane_ref_to_res[inside].sum():8.0f})"
+                     f"  BA2 {new_ba2[mine].sum():8.0f}  [{stages}]")
+    return lines
+
+
+def truth_frames(truth: Path, damaged: Path) -> list[Path]:
+    """The truth's PLY files for the damaged frames: ``truth`` itself when a file; else the files of the folder that
+    the damage record (holes.json ``input_files``) names, or all of its PLY files in natural order."""
+    import json
+
+    from dpcbench.bench.data.sequences import natural_key
+
+    if truth.is_file():
+        return [truth]
+    names = json.loads((damaged / "holes.json").read_text()).get("input_files")
+    if names and all((truth / name).is_file() for name in names):
+        return [truth / name for name in names]
+    return sorted(truth.glob("*.ply"), key=lambda p: natural_key(p.name))
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("truth", type=Path, help="the undamaged frames: a PLY file or a folder of PLY frames")
+    parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
+    parser.add_argument("--frames", default=None, help="comma-separated frames to report (default: all)")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="a temporal-fusion parameter (repeatable)")
+    args = parser.parse_args(argv)
+    loaded = read_damage_output(args.damaged)
+    if loaded is None:
+        print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
+        return 2
+    truth_files = truth_frames(args.truth, args.damaged)
+    if len(truth_files) != len(loaded[1]):
+        print(f"error: {args.truth} has {len(truth_files)} PLY frames but {args.damaged} has {len(loaded[1])}; "
+              "give the folder the damage was made from", file=sys.stderr)
+        return 2
+    _, frames, regions = loaded
+    log = StageLog()
+    instrument(log)
+    params = parse_params(args.param)
+    outputs = fusion_method.TemporalFusion(**params).inpaint(frames, regions)
+    spacing = 1.0 if all(np.array_equal(f, np.round(f)) for f in frames) else point_spacing(max(frames, key=len))
+    wanted = range(len(frames)) if args.frames is None else [int(f) for f in args.frames.split(",")]
+    for f in wanted:
+        cloud = read_ply(truth_files[f])
+        truth = np.asarray(cloud.points, dtype=np.float64)
+        normals = cloud.normals  # None: CloudPair estimates them as `dpcbench score` does
+        print(f"frame {f}: {len(outputs[f]) - len(frames[f])} new points")
+        print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,131 @@
+"""temporal-fusion's last resort (`methods/_spatial_fill/best.py`, strategy `BestSurface`): the hold-out miss on
+closed-form surfaces, the rule that ranks candidates and leaves a hole open only where that is predicted cheaper,
+the ranked union of partial fills, and its place in the method (a hole every other strategy refuses)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._spatial_fill.best import GrownRegion, best_surface_fill, candidates, holdout_miss
+from dpcbench.methods.temporal_fusion import TemporalFusion
+
+
+def plane(half: int = 20, height=lambda u, v: 0.0 * u) -> np.ndarray:
+    g = np.arange(-half, half + 1, dtype=float)
+    u, v = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+    return np.column_stack([u, v, height(u, v)])
+
+
+def holed(points: np.ndarray, region: HoleRegion) -> np.ndarray:
+    return points[~region.contains(points)]
+
+
+HOLE = HoleRegion(shape="ball", center=np.zeros(3), radius=6.0)
+RING = 2.0
+
+
+def rim_and_crop(points):
+    crop = points[np.linalg.norm(points - HOLE.center, axis=1) <= HOLE.radius + 2 * 4.0]
+    return crop[HOLE.contains(crop, margin=4.0)], crop
+
+
+def test_a_grown_region_holds_what_the_region_holds_with_the_margin():
+    grown = GrownRegion(HOLE, 2.5)
+    points = np.array([[0.0, 0, 7.0], [0, 0, 8.4], [0, 0, 8.6]])
+    assert grown.contains(points).tolist() == HOLE.contains(points, margin=2.5).tolist() == [True, True, False]
+    assert grown.contains(points, margin=0.3).tolist() == [True, True, True]
+    assert grown.bounding_radius == HOLE.bounding_radius + 2.5 and np.array_equal(grown.center, HOLE.center)
+
+
+def test_the_spline_predicts_a_plane_s_inner_ring_exactly_and_a_wrong_surface_misses_it_by_its_offset():
+    """On a plane every candidate surface built without the inner ring passes through it (miss ~ 0); a surface
+    lying 5 units off the plane misses the ring by 5."""
+    rim, crop = rim_and_crop(holed(plane(), HOLE))
+    surfaces = candidates(rim, crop, HOLE, 1.0, voxelized=True, step=1.0, gap_spacings=1.0, ring=RING)
+    assert holdout_miss(surfaces["spline"], HOLE, RING) < 0.1
+
+    def lifted(support, region, covered):
+        return plane(12)[region.contains(plane(12))] + [0.0, 0.0, 5.0]
+
+    assert abs(holdout_miss((rim, lifted), HOLE, RING) - 5.0) < 1e-9
+    # too little support to judge: inf
+    assert holdout_miss((rim[:5], lifted), HOLE, RING) == float("inf")
+
+
+def test_the_last_resort_fills_a_curved_hole_on_its_surface():
+    """A paraboloid z = (u^2 + v^2) / 40 with a ball hole: the fill covers every hidden voxel within 1.5 and lies
+    within a voxel of the surface."""
+    truth = plane(height=lambda u, v: np.round((u ** 2 + v ** 2) / 40.0))
+    rim, crop = rim_and_crop(holed(truth, HOLE))
+    surfaces = candidates(rim, crop, HOLE, 1.0, voxelized=True, step=1.0, gap_spacings=1.0, ring=RING)
+    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), surfaces, RING, 1.0)
+    hidden = truth[HOLE.contains(truth)]
+    assert names and len(fill)
+    assert (cKDTree(fill).query(hidden)[0] <= 1.5).all()
+    assert cKDTree(truth).query(fill)[0].max() <= 1.0
+
+
+def test_a_surface_that_misses_its_ring_by_more_than_the_open_hole_s_error_leaves_the_hole_open():
+    """The rule: a candidate fills only when its hold-out miss is below the RMS distance of its points to the data.
+    A surface whose hold-out lies 50 units off but whose fill hugs the data (open error < 1) is refused; the same
+    surface with a hold-out of 0.2 fills."""
+    rim, crop = rim_and_crop(holed(plane(), HOLE))
+    near_data = np.array([[6.4, 0.0, 0.5], [-6.4, 0.0, 0.5]])  # inside the region, half a unit off the rim
+
+    def surface(miss):
+        def fill(support, region, covered):
+            if isinstance(region, GrownRegion):  # the hold-out: a surface `miss` above the inner ring
+                return support[:0] if not len(support) else np.vstack([crop[HOLE.contains(crop, margin=RING)]
+                                                                       + [0.0, 0.0, miss]])
+            return near_data
+        return fill
+
+    for miss, expected in ((50.0, []), (0.2, ["wrong"])):
+        names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"wrong": (rim, surface(miss))}, RING, 1.0)
+        assert names == expected and len(fill) == 2 * len(expected)
+
+
+def test_a_second_surface_fills_only_what_the_best_one_left_open_and_continues_it():
+    """Ranked union: the better candidate (hold-out miss 0) fills the half x < 0 of a flat hole; the worse one
+    (miss 0.5) would fill all of it but adds only the half left open, and none of its points that lie off the
+    filled surface (a sheet 8 units above)."""
+    rim, crop = rim_and_crop(holed(plane(), HOLE))
+    hidden = plane()[HOLE.contains(plane())]
+
+    def half(support, region, covered):
+        points = plane(12)[region.contains(plane(12))]
+        return points if isinstance(region, GrownRegion) else points[points[:, 0] < 0]
+
+    def whole(support, region, covered):
+        points = plane(12)[region.contains(plane(12))]
+        if isinstance(region, GrownRegion):
+            return points + [0.0, 0.0, 0.5]
+        stray = points[:10] + [0.0, 0.0, 8.0]
+        keep = np.ones(len(points), dtype=bool) if covered is None else ~np.isfinite(
+            covered.query(points, distance_upper_bound=1.0)[0])
+        return np.vstack([points[keep], stray])
+
+    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole), "half": (rim, half)},
+                                    RING, 1.0)
+    assert names == ["half", "whole"]
+    assert (cKDTree(fill).query(hidden)[0] == 0).all()  # every hidden voxel filled
+    assert np.abs(fill[:, 2]).max() == 0.0 and len(np.unique(fill, axis=0)) == len(fill)  # no stray, no double
+
+
+def test_temporal_fusion_fills_a_hole_its_strategies_refuse_only_with_the_last_resort():
+    """With every strategy's hold-out bound at 1e-9 spacings (each refuses; the cap and membrane off), the one-frame hole stays open without
+    the last resort and is filled with it."""
+    truth = plane(height=lambda u, v: np.round((u ** 2 + v ** 2) / 40.0))
+    frame = holed(truth, HOLE)
+    strict = dict(surface_holdout_spacings=1e-9, rim_fill=False, cap=False, membrane=False)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a one-frame sequence: the spatial fill only
+        off = TemporalFusion(best_surface=False, **strict).inpaint([frame], [[HOLE]])[0]
+        on = TemporalFusion(**strict).inpaint([frame], [[HOLE]])[0]
+    assert len(off) == len(frame)
+    hidden = truth[HOLE.contains(truth)]
+    assert (cKDTree(on).query(hidden)[0] <= 1.5).all()
