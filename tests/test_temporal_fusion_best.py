@@ -37,6 +37,10 @@ def test_a_grown_region_holds_what_the_region_holds_with_the_margin():
     assert grown.contains(points).tolist() == HOLE.contains(points, margin=2.5).tolist() == [True, True, False]
     assert grown.contains(points, margin=0.3).tolist() == [True, True, True]
     assert grown.bounding_radius == HOLE.bounding_radius + 2.5 and np.array_equal(grown.center, HOLE.center)
+    assert grown.shape == "ball" and grown.radius == HOLE.radius + 2.5
+    box = GrownRegion(HoleRegion.box([0.0, 0.0, 0.0], [2.0, 3.0, 4.0]), 1.0)
+    assert box.shape == "box" and np.allclose(box.half_extents, [3.0, 4.0, 5.0])
+    assert box.contains(np.array([[2.9, 0.0, 0.0]]))[0] and not box.contains(np.array([[3.1, 0.0, 0.0]]))[0]
 
 
 def test_the_spline_predicts_a_plane_s_inner_ring_exactly_and_a_wrong_surface_misses_it_by_its_offset():

@@ -42,13 +42,16 @@ Candidate = tuple[np.ndarray, Callable[[np.ndarray, object, "cKDTree | None"], n
 
 
 class GrownRegion:
-    """``region`` grown by ``margin``: what `HoleRegion.contains` with that margin holds, with the centre and a
-    bounding radius grown as much (what the fills read of a region)."""
+    """``region`` grown by ``margin``: what `HoleRegion.contains` with that margin holds, with the centre, a bounding
+    radius and the shape's size grown as much (what the fills read of a region: the ball's radius or the box's half
+    extents, for a superset test such as `poisson._triangles_near`; the exact test is ``contains``)."""
 
     def __init__(self, region: HoleRegion, margin: float) -> None:
         self.region, self.margin = region, float(margin)
-        self.center = region.center
+        self.shape, self.center, self.rotation = region.shape, region.center, region.rotation
         self.bounding_radius = region.bounding_radius + self.margin
+        self.radius = region.radius + self.margin
+        self.half_extents = None if region.half_extents is None else region.half_extents + self.margin
 
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         return self.region.contains(points, margin=self.margin + margin)
