@@ -67,6 +67,8 @@ def test_the_last_resort_fills_a_curved_hole_on_its_surface():
     names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), surfaces, RING, 1.0)
     hidden = truth[HOLE.contains(truth)]
     assert names and len(fill)
+    # every candidate is judged, the closed surface's hold-out (built on the grown region) included
+    assert all(holdout_miss(surfaces[name], HOLE, RING) <= 1.0 for name in ("spline", "closed"))
     assert (cKDTree(fill).query(hidden)[0] <= 1.5).all()
     assert cKDTree(truth).query(fill)[0].max() <= 1.0
 
