@@ -18,11 +18,10 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
-from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
+from _damaged import load_damage_or_exit  # the sibling module; these scripts run as `python experiments/X.py`
 from fill_audit import truth_frames
 from scipy.spatial import cKDTree
 
@@ -73,10 +72,7 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", default="0", help="comma-separated frames (default 0)")
     parser.add_argument("--break-even", action="store_true", help="also the frames' D2 break-even")
     args = parser.parse_args(argv)
-    loaded = read_damage_output(args.damaged)
-    if loaded is None:
-        print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
-        return 2
+    loaded = load_damage_or_exit(args.damaged)
     _, frames, regions = loaded
     files = truth_frames(args.truth, args.damaged)
     for f in (int(x) for x in args.frames.split(",")):

@@ -10,12 +10,11 @@ found nothing open). Usage (after experiments/one_frame.sh has written OUTDIR/da
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
-from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
+from _damaged import load_damage_or_exit  # the sibling module; these scripts run as `python experiments/X.py`
 
 from dpcbench.bench.core.params import parse_params
 from dpcbench.methods.temporal_fusion import spatial
@@ -43,10 +42,7 @@ def main(argv=None) -> int:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a temporal-fusion parameter (repeatable), e.g. best_surface=false")
     args = parser.parse_args(argv)
-    loaded = read_damage_output(args.damaged)
-    if loaded is None:
-        print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
-        return 2
+    loaded = load_damage_or_exit(args.damaged)
     _, frames, regions = loaded
     log: list = []
     for strategy in spatial.CASCADE:

@@ -26,7 +26,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
+from _damaged import load_damage_or_exit  # the sibling module; these scripts run as `python experiments/X.py`
 from scipy.spatial import cKDTree
 
 from dpcbench.bench.core.params import parse_params
@@ -186,10 +186,7 @@ def main(argv=None) -> int:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a temporal-fusion parameter (repeatable)")
     args = parser.parse_args(argv)
-    loaded = read_damage_output(args.damaged)
-    if loaded is None:
-        print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
-        return 2
+    loaded = load_damage_or_exit(args.damaged)
     truth_files = truth_frames(args.truth, args.damaged)
     if len(truth_files) != len(loaded[1]):
         print(f"error: {args.truth} has {len(truth_files)} PLY frames but {args.damaged} has {len(loaded[1])}; "

@@ -9,11 +9,10 @@ result as PLY frames for `dpcbench score`. A measurement of the refusal rule, no
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
-from _damaged import read_damage_output  # the sibling module; these scripts run as `python experiments/X.py`
+from _damaged import load_damage_or_exit  # the sibling module; these scripts run as `python experiments/X.py`
 
 from dpcbench.bench.data.plyio import write_ply
 from dpcbench.methods._spatial_fill import membrane
@@ -25,10 +24,7 @@ def main(argv=None) -> int:
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
     parser.add_argument("out", type=Path, help="folder for the filled PLY frames")
     args = parser.parse_args(argv)
-    loaded = read_damage_output(args.damaged)
-    if loaded is None:
-        print(f"error: {args.damaged} holds no PLY frames and holes.json; run `dpcbench damage` first", file=sys.stderr)
-        return 2
+    loaded = load_damage_or_exit(args.damaged)
     files, frames, regions = loaded
     membrane._within_hull_of = lambda points, inside, anchors: np.ones(len(points), dtype=bool)
     out = TemporalFusion().inpaint(frames, regions)
