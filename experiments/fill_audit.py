@@ -60,9 +60,9 @@ def instrument(log: StageLog) -> None:
     originals = {name: getattr(m, name) for name in ("fill_region", "rim_fill", "fuse", "reuse_previous",
                                                       "partial_copies", "back_fill")}
 
-    def fill_region(cfg, seq, f, region, previous_fill):
+    def fill_region(cfg, seq, f, *rest, **kwargs):
         log.frame = f
-        return originals["fill_region"](cfg, seq, f, region, previous_fill)
+        return originals["fill_region"](cfg, seq, f, *rest, **kwargs)
 
     def rim_fill(*args, **kwargs):
         out = originals["rim_fill"](*args, **kwargs)
@@ -74,20 +74,20 @@ def instrument(log: StageLog) -> None:
         log.add("copy", out.points)
         return out
 
-    def reuse_previous(cfg, seq, f, region, crop, accepted, *rest):
-        out = originals["reuse_previous"](cfg, seq, f, region, crop, accepted, *rest)
-        log.add("reuse", out[len(accepted):])
+    def reuse_previous(*args, **kwargs):
+        out = originals["reuse_previous"](*args, **kwargs)
+        log.add("reuse", out[0])  # (the moved points, their rows in the previous fill)
         return out
 
     def partial_copies(*args, **kwargs):
         out = originals["partial_copies"](*args, **kwargs)
-        log.add("partial", out)
+        log.add("partial", out[0])  # (the points, their colours or None)
         return out
 
-    def back_fill(cfg, seq, f, *rest):
+    def back_fill(cfg, seq, f, *rest, **kwargs):
         log.frame = f
-        out = originals["back_fill"](cfg, seq, f, *rest)
-        log.add("back_fill", out)
+        out = originals["back_fill"](cfg, seq, f, *rest, **kwargs)
+        log.add("back_fill", out[0])  # (the points, their colours or None)
         return out
 
     for name, wrapper in (("fill_region", fill_region), ("rim_fill", rim_fill), ("fuse", fuse),
