@@ -912,8 +912,9 @@ class _CubeGraphInpainting(InpaintingMethod):
             return result, None
         new = result[len(out):]
         carried = np.vstack(new_colours) if new_colours else np.empty((0, 3))
-        if len(new) and (len(new) != len(added) or not np.array_equal(new, added)):
-            carried = carried[cKDTree(added).query(new)[1]]  # step 10's voxels
+        if len(new) != len(added) or not np.array_equal(new, added):
+            # step 10's voxels (none left where every new point fell on an occupied voxel)
+            carried = carried[cKDTree(added).query(new)[1]] if len(new) else carried[:0]
         return result, np.vstack([np.asarray(colours, dtype=np.float64), carried])
 
     def _fill_group(self, regions: list, normals: np.ndarray, agtv: np.ndarray, ctx: FrameContext) -> GroupFill:

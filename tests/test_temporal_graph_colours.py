@@ -128,3 +128,23 @@ def test_temporal_graph_takes_colour_from_the_neighbouring_frames():
     _, off = _coloured(TemporalGraph, damaged, colours, regions, variant="paper", beta=0.0)
     _, fu = _coloured(FuNonlocal, damaged, colours, regions, variant="paper")
     assert all(np.array_equal(a, b) for a, b in zip(off, fu))
+
+
+def test_a_frame_whose_new_points_all_fall_on_occupied_voxels_keeps_one_colour_a_point():
+    """Bunny tiny, coherent "paper" holes, seed 1: every point frame 0's cubes add lands on a voxel already held, so
+    step 10 leaves none; the colours must then be the frame's own (the quick preset's run failed on a misaligned
+    colour array here)."""
+    from dpcbench.bench.data.datasets import load_dataset
+    from dpcbench.holes.registry import get_generator
+
+    seq = load_dataset("bunny", frames=3, progress=False, size="tiny")
+    damage = get_generator("region", preset="paper", coherent=True).damage(seq.points, seed=1, colors=seq.colors)
+    method = TemporalGraph()
+    outputs, colours = method.inpaint_with_colours(damage.frames, damage.colors, damage.regions)
+    assert len(outputs[0]) == len(damage.frames[0])  # the case: nothing added to frame 0
+    for frame, frame_colours, points, coloured in zip(damage.frames, damage.colors, outputs, colours):
+        assert coloured.shape == (len(points), 3) and coloured.dtype == np.uint8
+        np.testing.assert_array_equal(points[:len(frame)], frame)  # known points fixed, first
+        np.testing.assert_array_equal(coloured[:len(frame)], frame_colours)
+    for got, expected in zip(outputs, method.inpaint(damage.frames, damage.regions)):
+        np.testing.assert_array_equal(got, expected)
