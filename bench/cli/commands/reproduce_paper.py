@@ -25,7 +25,7 @@ def register(subparsers) -> None:
                     "3 frames each, three seeds (9 pairs a cell: the fewest at which a claim over 8 columns can pass "
                     "Holm at 0.05), plus 3 frames with acquisition holes for the real-hole figure (target: "
                     "under 10 minutes on 2 cores; MeshLab dominates). The full preset (two stand-ins of 570-640k "
-                    "points, 10 frames, 3 seeds: 84 runs) took 1 h 19 min on 2 cores (measured; "
+                    "points, 10 frames, 3 seeds: 96 runs) took 51 min on 2 cores, 1.26 CPU-h (measured; "
                     "bench/presets/paper.toml), plus the real-captured-motion rows (D-FAUST punching, samba) when their "
                     "data is found (the D-FAUST rows about double the quick preset's CPU time).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
