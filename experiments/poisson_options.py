@@ -29,12 +29,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "benchmarks"))
 from fusion_cases import CASES  # noqa: E402  (tests/benchmarks is no package)
 
-from dpcbench.methods._spatial_fill import POISSON_MAX_DEPTH, POISSON_SCALE  # noqa: E402
-from dpcbench.methods._spatial_fill.poisson import (  # noqa: E402
-    _bodies,
-    _native_stderr_silenced,
-    orient_along_surface,
-)
+from dpcbench.methods._spatial_fill.poisson import _bodies, poisson_input, poisson_mesh  # noqa: E402
 from dpcbench.methods.registry import get_method  # noqa: E402
 from dpcbench.methods.temporal_fusion import spatial  # noqa: E402
 
@@ -43,18 +38,9 @@ OPTIONS = {"cell 1, crop": (1, False), "cell 2, crop": (2, False), "cell 1, rim"
 
 def reconstruction_cpu(points: np.ndarray, grid: float, cell_steps: int) -> tuple[int, float]:
     """(octree depth, CPU seconds of open3d's screened Poisson) of ``points`` (K, 3) with normals as step 6c's."""
-    import open3d as o3d
-
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
-    cloud.normals = o3d.utility.Vector3dVector(
-        orient_along_surface(points, np.asarray(cloud.normals), points.mean(axis=0), 16))
-    extent = float(np.ptp(points, axis=0).max())
-    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 1,
-                        POISSON_MAX_DEPTH))
+    cloud, depth = poisson_input(points, grid, cell_steps)
     start = time.process_time()
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _native_stderr_silenced():
-        o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE, n_threads=1)
+    poisson_mesh(cloud, depth)
     return depth, time.process_time() - start
 
 

@@ -288,15 +288,10 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     return float(np.mean(distance ** 2)) <= bound_sq
 
 
-def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, float] | None = None,
-                     cell_steps: int = POISSON_CELL_STEPS) -> np.ndarray:
-    """The screened Poisson surface of ``support`` (K, 3) (`poisson_surface_fill`'s docstring: oriented PCA
-    normals, octree depth from the finest cell ``cell_steps`` * ``grid``, at least 2, open3d's least),
-    sampled at ``grid`` / 2 (`sample_triangles`):
-    (S, 3), all of it, or with ``near`` = (region, margin) the samples of the triangles that can reach the
-    region grown by margin (`_triangles_near`: every sample there, in the same order, none far from it);
-    (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's closed surface
-    reaches far past R."""
+def poisson_input(support: np.ndarray, grid: float, cell_steps: int = POISSON_CELL_STEPS):
+    """(open3d point cloud, octree depth) of what screened Poisson reconstructs from ``support`` (K, 3): PCA normals
+    of 16 neighbours oriented along the surface (`orient_along_surface`), the depth from the finest cell
+    ``cell_steps`` * ``grid``, at least 2 (open3d's least)."""
     import open3d as o3d
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(support))
@@ -311,9 +306,30 @@ def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, f
     extent = float(np.ptp(support, axis=0).max())
     depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
                         POISSON_MAX_DEPTH))
+    return cloud, depth
+
+
+def poisson_mesh(cloud, depth: int):
+    """open3d's screened Poisson mesh of ``cloud`` at ``depth`` (`poisson_input`), single-threaded (the same mesh on
+    every machine), its own warnings silenced."""
+    import open3d as o3d
+
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _native_stderr_silenced():
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(cloud, depth=depth, scale=POISSON_SCALE,
                                                                             n_threads=1)
+    return mesh
+
+
+def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, float] | None = None,
+                     cell_steps: int = POISSON_CELL_STEPS) -> np.ndarray:
+    """The screened Poisson surface of ``support`` (K, 3) (`poisson_surface_fill`'s docstring: oriented PCA
+    normals, octree depth from the finest cell ``cell_steps`` * ``grid``, at least 2, open3d's least),
+    sampled at ``grid`` / 2 (`sample_triangles`):
+    (S, 3), all of it, or with ``near`` = (region, margin) the samples of the triangles that can reach the
+    region grown by margin (`_triangles_near`: every sample there, in the same order, none far from it);
+    (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's closed surface
+    reaches far past R."""
+    mesh = poisson_mesh(*poisson_input(support, grid, cell_steps))
     if not len(mesh.triangles):
         return np.zeros((0, 3))
     vertices, triangles = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
