@@ -24,9 +24,10 @@ PAPER_PARAMS = {name: params for name, _, params in paper.PAPER_METHODS}
 
 
 def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)"), frames=3, experiment="exp",
-                        seeds=(0,)):
+                        seeds=(0,), coloured=()):
     """Per frame f of method k on sequence s, with every seed: gpsnr_d1 = 10 + 5k + f (+1 on the
-    second sequence), nshd = (4 - k) * 1e-7 * (f + 1)."""
+    second sequence), nshd = (4 - k) * 1e-7 * (f + 1); on the sequences in ``coloured`` also cpsnr_y = 30 + k + f
+    (whole frame)."""
     store = ResultsStore(path)
     for s_i, seq in enumerate(sequences):
         for k, method in enumerate(METHODS):
@@ -38,6 +39,9 @@ def _store_with_results(path, sequences=("Human (stand-in)", "Bunny (stand-in)")
                     rows.append({"frame": f, "metric": "nshd", "scope": "frame", "peak": "",
                                  "value": (4 - k) * 1e-7 * (f + 1)})
                     rows.append({"frame": f, "metric": "time_s", "scope": "frame", "peak": "", "value": 0.5 * (k + 1)})
+                    if seq in coloured:
+                        rows.append({"frame": f, "metric": "cpsnr_y", "scope": "frame", "peak": "",
+                                     "value": 30.0 + k + f})
                 rows.append({"frame": -1, "metric": "time_s", "scope": "frame", "peak": "",
                              "value": 0.5 * (k + 1) * frames})
                 rows.append({"frame": -1, "metric": "peak_mem_mb", "scope": "frame", "peak": "", "value": 100.0 + k})
@@ -470,6 +474,27 @@ def test_a_reversed_order_is_not_reproduced_and_says_why(tmp_path):
     ranking = ranking_claim(t1, t2)
     assert ranking["verdict"] == "not reproduced"
     assert "Lozes > Hu beyond the interval" in ranking["why"] and "Hu > Proposed" in ranking["why"]
+
+
+def test_paper_report_has_a_colour_section_for_the_coloured_sequences(tmp_path):
+    store = _store_with_results(tmp_path / "s.sqlite", coloured=("Human (stand-in)",))
+    out = tmp_path / "paper"
+    text = write_paper_report(store.results_frame("exp"), store.runs_frame("exp"), out, standins=True,
+                              preset="paper-quick", command="c", elapsed_s=1.0, figure_notes={}).read_text()
+    section = text[text.index("## Colour PSNR (not in the paper)"):]
+    # the paper's columns in their order, each cell the mean over frames 0-2 of 30 + k + f (Meshlab k = 0 ...
+    # Proposed k = 3), no fill and ours absent
+    assert ("| Sequence | No fill (floor) | Meshlab | Lozes | Hu | Proposed | temporal-graph tuned (ours) | "
+            "temporal-fusion (ours) | temporal-copy (reference) |") in section
+    assert ("| Human (stand-in) | – | 31.00 [28.52, 33.48] | 32.00 [29.52, 34.48] | 33.00 [30.52, 35.48] | "
+            "34.00 [31.52, 36.48] | – | – | – |") in section
+    assert "No colour values for Bunny (stand-in)" in section
+    assert "STAND-IN" in (out / "tables" / "cpsnr_y_frame.md").read_text()
+    # without colour values the section says so
+    plain = _store_with_results(tmp_path / "p.sqlite")
+    text = write_paper_report(plain.results_frame("exp"), plain.runs_frame("exp"), tmp_path / "plain", standins=True,
+                              preset="paper-quick", command="c", elapsed_s=1.0, figure_notes={}).read_text()
+    assert "No colour PSNR stored: none of the sequences" in text
 
 
 def test_paper_report_has_the_claims_and_its_provenance(tmp_path):

@@ -28,9 +28,11 @@ def colour_sequences(df: pd.DataFrame) -> tuple[list[str], list[str]]:
     return [s for s in sequences if s in coloured], [s for s in sequences if s not in coloured]
 
 
-def colour_section(df: pd.DataFrame, out_dir: str | Path | None = None, *, heading: str = "## Colour PSNR") -> str:
+def colour_section(df: pd.DataFrame, out_dir: str | Path | None = None, *, heading: str = "## Colour PSNR",
+                   column_of=None, columns: list[str] | None = None, notes: list[str] | None = None) -> str:
     """Markdown of the colour tables (see the module docstring); an explanatory line when no sequence
-    has colour values."""
+    has colour values. ``column_of``, ``columns`` and ``notes`` go to `comparison_table` (a report with its own
+    columns, `reproduce-paper`'s, passes them)."""
     with_colour, without = colour_sequences(df)
     lines = [heading, ""]
     if not with_colour:
@@ -44,7 +46,8 @@ def colour_section(df: pd.DataFrame, out_dir: str | Path | None = None, *, headi
     scopes = [s for s in ("frame", "holes") if s in set(df["scope"])]
     for scope in scopes:
         for metric in REPORT_COLOUR_METRICS:
-            table = comparison_table(df, metric, scope, "", title=f"{metric}, scope {scope}", decimals=2)
+            table = comparison_table(df, metric, scope, "", title=f"{metric}, scope {scope}", decimals=2,
+                                     column_of=column_of, columns=columns, notes=notes)
             if not table.rows:
                 continue
             if out_dir is not None:

@@ -206,14 +206,19 @@ def columns_markdown() -> str:
     return "\n".join(lines) + "\n"
 
 
+def rows_note(standins: bool) -> str:
+    """The note under every table of `reproduce-paper` saying what its rows are."""
+    return ("Rows are embedded STAND-IN sequences, not the paper's data: compare rankings and gaps, not "
+            "absolute values; the paper's rows are printed for reference." if standins else
+            "Rows are the paper's sequences (local copies), except those labelled 'not one of the paper's sequences' "
+            "(real captured motion); frames and holes follow this run's preset.")
+
+
 def paper_tables(df: pd.DataFrame, *, standins: bool, peak: str = "intrinsic", scope: str = "frame",
                  gpsnr_metric: str = "gpsnr_d1", normals_note: str = "") -> tuple[ComparisonTable, ComparisonTable]:
     """Table 1 (GPSNR, dB) and Table 2 (NSHD, x1e-7) in the paper's layout; ``normals_note``
     (`bench.reporting.tables.d2_normals_note`) goes under Table 1 when it is a D2 table."""
-    note = ("Rows are embedded STAND-IN sequences, not the paper's data: compare rankings and gaps, not "
-            "absolute values; the paper's rows are printed for reference." if standins else
-            "Rows are the paper's sequences (local copies), except those labelled 'not one of the paper's sequences' "
-            "(real captured motion); frames and holes follow this run's preset.")
+    note = rows_note(standins)
     where = " (embedded stand-ins)" if standins else ""
     gp_label = {"gpsnr_d1": "D1 point-to-point", "gpsnr_d2": "D2 point-to-plane"}.get(gpsnr_metric, gpsnr_metric)
     columns = paper.ALL_COLUMNS
@@ -587,10 +592,10 @@ def paper_report_sections(df: pd.DataFrame, runs: pd.DataFrame, t1: ComparisonTa
                           standins: bool, label: str, preset: str, command: str, elapsed_s: float,
                           figure_notes: dict[str, str], variants: list[ComparisonTable], normals_note: str,
                           store_path=None, computed=None, ablation: pd.DataFrame | None = None,
-                          missing: int = 0) -> dict[str, str]:
+                          missing: int = 0, colour: str = "") -> dict[str, str]:
     """REPORT.md of `reproduce-paper` as named sections, in order (name -> Markdown); a new section is
     one more entry (`write_paper_report` joins them). ``ablation``: the store's ablation
-    (`paper_ablation.ablation_frame`), or None."""
+    (`paper_ablation.ablation_frame`), or None; ``colour``: the colour section (`colour_report.colour_section`)."""
     provenance = provenance_markdown(runs, set(df["run_id"]), store_path=store_path, computed=computed, missing=missing)
     return {
         "header": _header_section(standins, label, command, preset, elapsed_s, provenance, normals_note),
@@ -601,6 +606,7 @@ def paper_report_sections(df: pd.DataFrame, runs: pd.DataFrame, t1: ComparisonTa
         "claims": "\n".join(["## The paper's claims", "", claims_markdown(t1, t2, standins=standins), ""]),
         "real_motion": real_motion_markdown(t1, ablation),
         "ranking": "\n".join(["## Ranking against the paper", "", ranking_markdown(t1, t2), ""]),
+        "colour": colour,
         "figures": _figures_section(figure_notes),
         "runtime": "\n".join(["## Runtime per method", "", _runtime_markdown(df, paper_column, paper.ALL_COLUMNS), ""]),
         "variants": _variants_section(variants),
@@ -659,10 +665,15 @@ def write_paper_report(df: pd.DataFrame, runs: pd.DataFrame, out_dir: str | Path
                               column_of=paper_column, columns=paper.ALL_COLUMNS, notes=[paper.columns_caption()])
         write_table(tr, tables_dir, "real_holes_gpsnr")
         variants.append(tr)
+    from dpcbench.bench.reporting.colour_report import colour_section
+
+    # colour PSNR of the sequences whose frames carry colour (the paper reports none: its future work)
+    colour = colour_section(df, out, heading="## Colour PSNR (not in the paper)", column_of=paper_column,
+                            columns=paper.ALL_COLUMNS, notes=[rows_note(standins), paper.columns_caption()])
     sections = paper_report_sections(df, runs, t1, t2, standins=standins, label=label, preset=preset,
                                      command=command, elapsed_s=elapsed_s, figure_notes=figure_notes,
                                      variants=variants, normals_note=normals_note, store_path=store_path,
-                                     computed=computed, ablation=ablation, missing=missing)
+                                     computed=computed, ablation=ablation, missing=missing, colour=colour)
     if ablation_md:  # after the variants, before the failed runs and the files
         keys = list(sections)
         at = keys.index("failed")
