@@ -153,15 +153,17 @@ def d2_break_even(truth: list[np.ndarray], damaged: list[np.ndarray], *, masks: 
     low, high = 1e-4 * step, 100.0 * step
     if mean_d2(high) >= floor:
         return {**result, "sigma": float("inf"), "jitter_d2": float("nan")}
-    if mean_d2(low) < floor:
+    low_d2 = mean_d2(low)
+    if low_d2 < floor:
         return {**result, "sigma": 0.0, "jitter_d2": float("nan")}
     for _ in range(iterations):
         middle = float(np.sqrt(low * high))
-        if mean_d2(middle) >= floor:
-            low = middle
+        middle_d2 = mean_d2(middle)
+        if middle_d2 >= floor:
+            low, low_d2 = middle, middle_d2
         else:
             high = middle
-    return {**result, "sigma": low, "jitter_d2": mean_d2(low)}
+    return {**result, "sigma": low, "jitter_d2": low_d2}
 
 
 def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=VARIANTS, *,

@@ -110,16 +110,19 @@ def best_surface_fill(captured: cKDTree, region: HoleRegion, covered: cKDTree, s
     and only where they continue it (`grown_agreeing` from the fills so far, reach 3 spacings as step 4, tolerance
     the surface's own miss, at least a spacing). Nothing when no candidate passes."""
     ranked = []
-    for name, candidate in surfaces.items():
-        support, fill = candidate
-        if len(fill(support, region, covered)):
-            ranked.append((holdout_miss(candidate, region, ring), name))
+    alone = {}  # each candidate's fill on its own support: the first to fill reuses it (a Poisson solve is costly)
+    for name, (support, fill) in surfaces.items():
+        alone[name] = fill(support, region, covered)
+        if len(alone[name]):
+            ranked.append((holdout_miss(surfaces[name], region, ring), name))
     names: list[str] = []
     filled = np.zeros((0, 3))
     for miss, name in sorted(ranked):
         support, fill = surfaces[name]
-        grown = covered if not len(filled) else cKDTree(np.vstack([covered.data, filled]))
-        points = fill(np.vstack([support, filled]), region, grown)
+        if not len(filled):
+            points = alone[name]
+        else:
+            points = fill(np.vstack([support, filled]), region, cKDTree(np.vstack([covered.data, filled])))
         if len(filled) and len(points):
             # a later surface only continues what the better ones filled: grown from their fill, each point within the
             # surface's own predicted error of its local plane (grown from the data too, a closed surface's rounding
