@@ -331,6 +331,34 @@ def test_oracle_command(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["d2_break_even"]["sigma"] == 0.0
     assert main(argv[:-1] + ["--variant", "none", "--break-even"]) == 0
     assert "D2 break-even: a complete fill within 0 units" in capsys.readouterr().out
+    assert main(argv + ["--variant", "none", "--colour"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "has frames without colour" in err
+
+
+def test_colour_oracle_reproduces_a_linear_colour_harmonically():
+    """Closed form: on the unit grid a colour linear in x and y is harmonic on the 8-neighbour graph (each point's
+    neighbours lie symmetrically round it), so the harmonic fill gives the hidden points their true colours: no
+    error, the PSNR ceiling. The nearest input colour is a step away from them: finite, lower. The damaged points
+    keep theirs, so the whole frame scores higher than the holes alone."""
+    import numpy as np
+
+    from dpcbench.bench.core.errors import UserError
+    from dpcbench.bench.results.oracle import score_colour_oracles
+    from dpcbench.holes.regions import HoleRegion
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    truth, damaged, mask = _plane_with_hole()
+    colour = np.column_stack([40 + 3 * truth[:, 0], 20 + 2 * truth[:, 1], 100 + truth[:, 0] + truth[:, 1]])
+    colour = colour.astype(np.uint8)
+    hole = [HoleRegion.ball([20.0, 20.0, 0.0], 6.5)]
+    scores = score_colour_oracles([truth], [colour], [damaged], [colour[~mask]], masks=[mask], regions=[hole])
+    harmonic, nearest = (scores[f]["holes"]["mean"] for f in ("harmonic", "nearest"))
+    assert harmonic["cpsnr_y"] == harmonic["cpsnr_u"] == harmonic["cpsnr_v"] == DEFAULT_MAX_PSNR
+    assert 20 < nearest["cpsnr_y"] < 60 and nearest["cpsnr_u"] < DEFAULT_MAX_PSNR
+    assert scores["nearest"]["frame"]["mean"]["cpsnr_y"] > nearest["cpsnr_y"]
+    with pytest.raises(UserError, match="colour oracle fill 'source'"):
+        score_colour_oracles([truth], [colour], [damaged], [colour[~mask]], ["source"])
 
 
 def _sphere_with_hole(radius: float = 20.0, hole: float = 6.0):

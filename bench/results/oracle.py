@@ -23,6 +23,13 @@ which even a complete fill scores less. An open hole's point-to-plane error is s
 surface round it is flat (each hidden point's nearest rim point lies in its tangent plane), so this
 bound is often well under a spacing: a D2 target above no fill asks that much of a fill.
 
+`score_colour_oracles` scores colour the same way: the ``truth`` fill's positions (the damaged frame plus every
+missing truth point), the missing points coloured from the damaged frame alone by one of the methods' colour
+fills (`methods._colour.colour_frame`: ``harmonic`` from the hole's rim, ``nearest`` input colour), against the
+truth's colours. The geometry is perfect, so the figure is the colour fill's own error: a method that colours its
+new points with that fill reaches about it by placing them well, and a colour target above it asks for a better
+colour estimate, not better geometry.
+
 `off_surface_rms` measures a method's off-surface error: the RMS over its fill points (result
 points farther than 1% of the spacing from every damaged point) of ``|(p - q) . n_q|``, q the
 nearest truth point and n_q the truth's PCA normal there (D2's point-to-plane distance).
@@ -37,6 +44,9 @@ from scipy.spatial import cKDTree
 from dpcbench.bench.core.errors import UserError
 
 VARIANTS = ("none", "surface", "jitter", "truth")
+#: the colour fills scored on the truth's positions by `score_colour_oracles` (those of `methods._colour` that use
+#: the damaged frame alone)
+COLOUR_FILLS = ("harmonic", "nearest")
 #: a truth point closer than this share of the damaged frame's spacing to a damaged point is kept
 MATCH_SHARE = 0.01
 DEFAULT_NEIGHBOURS = 12
@@ -187,4 +197,34 @@ def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=V
             scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), peak=peak, regions=regions,
                                                          reference_normals=reference_normals)
         out[variant] = scores
+    return out
+
+
+def score_colour_oracles(truth: list[np.ndarray], truth_colours: list[np.ndarray], damaged: list[np.ndarray],
+                         damaged_colours: list[np.ndarray], fills=COLOUR_FILLS, *, masks: list | None = None,
+                         regions: list | None = None, metrics=("cpsnr_y", "cpsnr_u", "cpsnr_v")) -> dict:
+    """fill -> {"frame": `metrics.score_sequence` of the coloured truth oracle against the truth, whole frames, and
+    "holes": the same in ``regions`` (when given)} (module docstring). truth (N_f, 3) and truth_colours (N_f, 3)
+    uint8 per frame; damaged (M_f, 3) and damaged_colours (M_f, 3) uint8 per frame: the damaged points keep their
+    colours, the missing truth points take ``fill``'s colours from the damaged frame."""
+    from dpcbench import metrics as metrics_pkg
+    from dpcbench.methods._colour import colour_frame
+
+    unknown = [f for f in fills if f not in COLOUR_FILLS]
+    if unknown:
+        raise UserError(f"colour oracle fill {unknown[0]!r}: expected one of {', '.join(COLOUR_FILLS)}")
+    if not len(truth) == len(truth_colours) == len(damaged) == len(damaged_colours):
+        raise UserError(f"{len(truth)} truth frame(s) and {len(damaged)} damaged frame(s), {len(truth_colours)} and "
+                        f"{len(damaged_colours)} with colours; give sequences of the same length, coloured")
+    filled = [oracle_fill(t, d, "truth", mask=None if masks is None else masks[f])
+              for f, (t, d) in enumerate(zip(truth, damaged))]
+    out = {}
+    for fill in fills:
+        colours = [colour_frame(np.asarray(d, dtype=float), np.asarray(c), p, fill=fill)
+                   for d, c, p in zip(damaged, damaged_colours, filled)]
+        options = {"reference_colours": truth_colours, "result_colours": colours}
+        scores = {"frame": metrics_pkg.score_sequence(truth, filled, list(metrics), **options)}
+        if regions is not None:
+            scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), regions=regions, **options)
+        out[fill] = scores
     return out

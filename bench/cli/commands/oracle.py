@@ -42,6 +42,10 @@ def register(subparsers) -> None:
     p.add_argument("--break-even", action="store_true",
                    help="also find the jitter sigma at which a complete fill's D2 equals no fill's (the off-surface "
                         "error a fill must stay under for D2 at or above no fill)")
+    p.add_argument("--colour", action="store_true",
+                   help="also score colour (cpsnr_y/u/v): the truth's positions with the missing points coloured from "
+                        "DAMAGED by each colour fill the methods have (harmonic from the rim, nearest input colour), "
+                        "the best a method colouring with that fill can score; needs colour on both")
     p.set_defaults(func=main)
 
 
@@ -66,8 +70,8 @@ def main(args) -> int:
     from dpcbench.bench.data.sequences import load_sequence
     from dpcbench.bench.results.oracle import VARIANTS, d2_break_even, off_surface_rms, score_oracles
 
-    truth = load_sequence(args.truth, colors=False)
-    damaged = load_sequence(args.damaged, colors=False)
+    truth = load_sequence(args.truth, colors=args.colour)
+    damaged = load_sequence(args.damaged, colors=args.colour)
     if len(truth) != len(damaged):
         raise UserError(f"{args.truth} has {len(truth)} frame(s), {args.damaged} has {len(damaged)}; give the truth "
                         "and the damaged frames of the same sequence")
@@ -102,22 +106,18 @@ def main(args) -> int:
     masks = _masks(args, len(truth))
     scores = score_oracles(truth.points, damaged.points, variants, masks=masks, regions=regions,
                            sigma=sigma or 0.0, seed=args.seed, peak=args.peak, reference_normals=given_normals)
+    colour = _colour_scores(args, truth, damaged, masks, regions) if args.colour else None
     even = (d2_break_even(truth.points, damaged.points, masks=masks, seed=args.seed, peak=args.peak,
                           reference_normals=given_normals) if args.break_even else None)
     if args.json:
         payload = {"variants": {v: {scope: s["mean"] for scope, s in by.items()} for v, by in scores.items()},
                    "frames": {v: {scope: s["frames"] for scope, s in by.items()} for v, by in scores.items()},
-                   "sigma": sigma, "measured": measured, "d2_break_even": even}
+                   "sigma": sigma, "measured": measured, "d2_break_even": even,
+                   "colour": None if colour is None else {f: {scope: s["mean"] for scope, s in by.items()}
+                                                          for f, by in colour.items()}}
         sys.stdout.write(json.dumps(payload, default=lambda x: None if not math.isfinite(x) else x) + "\n")
         return 0
-    names = list(next(iter(scores.values()))["frame"]["mean"])
-    scopes = list(next(iter(scores.values())))
-    header = ["oracle"] + [f"{n} ({scope})" for scope in scopes for n in names]
-    rows = [[v] + [f"{scores[v][scope]['mean'].get(n, float('nan')):.6g}" for scope in scopes for n in names]
-            for v in variants]
-    widths = [max(len(r[c]) for r in [header, *rows]) for c in range(len(header))]
-    for row in [header, *rows]:
-        print("  ".join([row[0].ljust(widths[0])] + [x.rjust(w) for x, w in zip(row[1:], widths[1:])]))
+    _print_table("oracle", scores)
     print(f"means over {len(truth)} frame(s); peak {args.peak}"
           + (f"; jitter sigma {sigma:.6g}" + (f" (measured on {measured['fill_points']} fill points of "
                                               f"{args.method_result})" if measured else "") if sigma is not None else ""))
@@ -126,4 +126,30 @@ def main(args) -> int:
               f"spacings) RMS of the truth along its normal scores no fill's D2 ({even['none_d2']:.2f} dB, mean over "
               "the frames; jitter oracle, seed "
               f"{args.seed}); farther off, even a complete fill scores less")
+    if colour is not None:
+        print("\ncolour oracle: the truth's positions, the missing points coloured from the damaged frames by the fill "
+              "named (dB; a method colouring with that fill scores about this with perfect geometry)")
+        _print_table("colour fill", colour)
     return 0
+
+
+def _colour_scores(args, truth, damaged, masks, regions) -> dict:
+    from dpcbench.bench.results.oracle import score_colour_oracles
+
+    for label, seq in ((args.truth, truth), (args.damaged, damaged)):
+        if any(c is None for c in seq.colors):
+            raise UserError(f"--colour: {label} has frames without colour; give coloured frames or drop --colour")
+    return score_colour_oracles(truth.points, truth.colors, damaged.points, damaged.colors, masks=masks,
+                                regions=regions)
+
+
+def _print_table(first: str, scores: dict) -> None:
+    """One row per oracle of ``scores`` (name -> scope -> `score_sequence` result), a column per metric and scope."""
+    names = list(next(iter(scores.values()))["frame"]["mean"])
+    scopes = list(next(iter(scores.values())))
+    header = [first] + [f"{n} ({scope})" for scope in scopes for n in names]
+    rows = [[v] + [f"{by[scope]['mean'].get(n, float('nan')):.6g}" for scope in scopes for n in names]
+            for v, by in scores.items()]
+    widths = [max(len(r[c]) for r in [header, *rows]) for c in range(len(header))]
+    for row in [header, *rows]:
+        print("  ".join([row[0].ljust(widths[0])] + [x.rjust(w) for x, w in zip(row[1:], widths[1:])]))
