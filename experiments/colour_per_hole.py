@@ -4,7 +4,9 @@ For each method folder that `experiments/colour_one_frame.sh` wrote (OUTDIR/METH
 OUTDIR/damaged), prints the Y PSNR of the reference-to-result direction (each truth point in the holes against the
 colour of its nearest result point) and of the result-to-reference direction (each result point in the holes against
 its nearest truth point), over all holes and for each hole alone, with the number of points each direction
-evaluates. `cpsnr_y` is the lower of the two (pc_error's symmetric figure, `metrics.colour`). A direction with no
+evaluates. The name ``oracle`` among the METHODs stands for the colour oracle of `dpcbench oracle --colour`: the
+truth's own positions, the missing points coloured from the damaged frame by the methods' harmonic fill.
+`cpsnr_y` is the lower of the two (pc_error's symmetric figure, `metrics.colour`). A direction with no
 point in a hole (no fill there) is printed as "-".
 
 Usage (after `experiments/colour_one_frame.sh FRAME.ply PRESET SEED OUTDIR`):
@@ -36,6 +38,26 @@ def direction_psnrs(pair: ColourPair, regions) -> tuple[str, str, int, int]:
     return cells[0][0], cells[1][0], cells[0][1], cells[1][1]
 
 
+def one_frame(folder: Path):
+    files = sorted(folder.glob("*.ply"))
+    if len(files) != 1:
+        sys.exit(f"{folder}: expected one PLY frame, found {len(files)}")
+    frame = read_ply(files[0])
+    return frame.points, frame.colors
+
+
+def oracle(truth, outdir: Path):
+    """The truth's positions (damaged plus every missing truth point) with the methods' harmonic colours."""
+    import numpy as np
+
+    from dpcbench.bench.results.oracle import oracle_fill
+    from dpcbench.methods._colour import colour_frame
+
+    damaged_points, damaged_colours = one_frame(outdir / "damaged")
+    points = oracle_fill(truth.points, damaged_points, "truth")
+    return points, colour_frame(np.asarray(damaged_points, dtype=float), damaged_colours, points, fill="harmonic")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("truth", type=Path, help="the undamaged frame (PLY with colours)")
@@ -51,11 +73,8 @@ def main(argv=None) -> int:
     print("| method | hole | truth points | result points | Y ref->result | Y result->ref |")
     print("|---|---|---|---|---|---|")
     for method in methods:
-        files = sorted((args.outdir / method).glob("*.ply"))
-        if len(files) != 1:
-            sys.exit(f"{args.outdir / method}: expected one PLY frame, found {len(files)}")
-        result = read_ply(files[0])
-        pair = ColourPair(truth.points, result.points, reference_colours=truth.colors, result_colours=result.colors)
+        points, colours = oracle(truth, args.outdir) if method == "oracle" else one_frame(args.outdir / method)
+        pair = ColourPair(truth.points, points, reference_colours=truth.colors, result_colours=colours)
         for label, regs in [("all", regions)] + [(str(i), [r]) for i, r in enumerate(regions)]:
             forward, backward, n_ref, n_res = direction_psnrs(pair, regs)
             print(f"| {method} | {label} | {n_ref} | {n_res} | {forward} | {backward} |")
