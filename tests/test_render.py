@@ -151,6 +151,10 @@ def test_splat_size_closes_gaps_within_limits():
     grid = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0), [0.0]), -1).reshape(-1, 3) * 2.5
     assert point_spacing(grid) == pytest.approx(2.5)
     assert point_spacing(grid[:1]) == 0.0
+    # more points than the probe: still the grid's spacing, not the probe's own (a random thinning's nearest
+    # neighbours lie about half as far apart as a grid's: 0.48 voxel was measured so on a voxelized frame)
+    big = np.stack(np.meshgrid(np.arange(60.0), np.arange(60.0), [0.0]), -1).reshape(-1, 3)
+    assert point_spacing(big, sample=500) == pytest.approx(1.0)
 
 
 def test_render_clouds_uses_one_splat_size_for_every_panel(monkeypatch, tmp_path):
@@ -161,6 +165,24 @@ def test_render_clouds_uses_one_splat_size_for_every_panel(monkeypatch, tmp_path
     render_clouds([dense, dense[::4]], tmp_path / "two.png", panel_height=120)
     radii = [radius for *_, radius in calls]
     assert len(radii) == 2 and radii[0] == radii[1] >= 1
+
+
+def test_a_close_zoom_of_a_voxel_grid_has_no_gaps(monkeypatch, tmp_path):
+    """A flat voxel grid facing the camera, 90,000 points (more than the spacing probe's 50,000), zoomed to about 3 pixels a voxel:
+    every pixel inside the zoomed grid is covered (a spacing measured at half the voxel, or splats that close the
+    rows but not the diagonals, left a grid of background pixels there)."""
+    from dpcbench.bench.reporting import render
+
+    calls = _record_rasterize(monkeypatch)
+    g = np.arange(300.0)
+    plane = np.stack(np.meshgrid(g, g, [0.0]), -1).reshape(-1, 3)
+    render_clouds([plane], tmp_path / "zoom.png", zoom=(100, 100, -1, 175, 175, 1), panel_height=480, view="front",
+                  shading="normal")
+    points, bounds, width, height, radius = calls[-1]  # the zoom panel
+    image = render.rasterize(points, np.zeros((len(points), 3), np.uint8), render.view_rotation("front"), bounds,
+                             width, height, radius)
+    assert width / 75 > 2.5  # a close zoom: pixels per voxel
+    assert not np.any(np.all(image[2:-2, 2:-2] == 255, axis=-1))
 
 
 def _zoom_grid_scene():
