@@ -435,3 +435,16 @@ def test_roles_of_runs_stored_before_the_key_come_from_the_presets():
                      "new": ("heldout", "mine")}
     assert any(n.startswith("fusion-heldout: its runs record no data role") for n in notes)
     assert any(n.startswith("mine: no data role declared") for n in notes)
+
+
+def test_versions_note_names_each_method_s_code_version_and_flags_a_mix():
+    """The report says which code versions its runs come from; runs of one method at two versions (a row rerun
+    after a change, the others not) are flagged with their counts, the measured method first."""
+    import pandas as pd
+
+    from dpcbench.bench.reporting.margins import versions_note
+
+    table = pd.DataFrame({"method": ["none", "fusion", "fusion", "lozes"], "method_version": ["1", "45", "45", "2"]})
+    assert versions_note(table, "fusion").endswith("fusion 45; lozes 2; none 1")
+    mixed = versions_note(table.assign(method_version=["1", "46", "45", "2"]), "fusion")
+    assert "fusion MIXED (46 on 1 runs, 45 on 1 runs" in mixed and mixed.index("fusion") < mixed.index("lozes")

@@ -409,10 +409,12 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
                         "declared_role": spec.get("data_role"), "declared_holds_out": spec.get("holds_out"),
                         "spec_experiment": spec.get("experiment"), "finished_at": finished or "",
                         "output_dir": output_dir if isinstance(output_dir, str) else None,
-                        "sequence_spec": _canonical(spec["sequence"])})
+                        "sequence_spec": _canonical(spec["sequence"]),
+                        "method_version": str((spec.get("versions") or {}).get("method") or "?")})
     return pd.DataFrame(records, columns=["run_id", "experiment", "row", "row_label", "method_name", "method_params",
                                           "method_label", "seed", "declared_role", "declared_holds_out",
-                                          "spec_experiment", "finished_at", "output_dir", "sequence_spec"])
+                                          "spec_experiment", "finished_at", "output_dir", "sequence_spec",
+                                          "method_version"])
 
 
 def preset_roles(folder: Path = PRESETS) -> dict[str, tuple[str, str | None]]:
@@ -447,6 +449,21 @@ def resolve_roles(table: pd.DataFrame, presets: dict | None = None) -> tuple[dic
             roles[experiment] = ("unmarked", None)
             notes.append(f"{experiment}: no data role declared (experiment.data_role); listed as unmarked")
     return roles, notes
+
+
+def versions_note(table: pd.DataFrame, method: str) -> str:
+    """Which code versions the runs read come from (the run table after the newest run of each cell is kept):
+    each method's version, with run counts where a method's runs mix versions, the measured ``method`` first."""
+    parts = []
+    by_method = table.groupby("method", sort=True)["method_version"]
+    for name in sorted(by_method.groups, key=lambda m: (m != method, m)):
+        counts = by_method.get_group(name).value_counts()
+        if len(counts) == 1:
+            parts.append(f"{name} {counts.index[0]}")
+        else:
+            mix = ", ".join(f"{v} on {n} runs" for v, n in sorted(counts.items(), key=lambda x: -x[1]))
+            parts.append(f"{name} MIXED ({mix}: rows run at different code versions; rerun the older ones)")
+    return "method versions read (the newest run of each cell): " + "; ".join(parts)
 
 
 def heldout_check(table: pd.DataFrame, roles: dict) -> list[str]:
@@ -554,7 +571,7 @@ def margins_from_store(store, method: str, experiments: list[str] | None = None,
                         "give one of these labels as --method")
     label = method if method in set(table["method"]) or not labels else labels[0]
     roles, notes = resolve_roles(table)
-    notes += heldout_check(table, roles)
+    notes += [versions_note(table, label)] + heldout_check(table, roles)
     if oracle:
         extra, oracle_notes = oracle_observations(table, label)
         obs = pd.concat([obs, extra], ignore_index=True)
