@@ -222,9 +222,10 @@ def score_colour_oracles(truth: list[np.ndarray], truth_colours: list[np.ndarray
     for fill in fills:
         colours = [colour_frame(np.asarray(d, dtype=float), np.asarray(c), p, fill=fill)
                    for d, c, p in zip(damaged, damaged_colours, filled)]
-        options = {"reference_colours": truth_colours, "result_colours": colours}
-        scores = {"frame": metrics_pkg.score_sequence(truth, filled, list(metrics), **options)}
+        scores = {"frame": metrics_pkg.score_sequence(truth, filled, list(metrics), reference_colours=truth_colours,
+                                                      result_colours=colours)}
         if regions is not None:
-            scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), regions=regions, **options)
+            scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), regions=regions,
+                                                         reference_colours=truth_colours, result_colours=colours)
         out[fill] = scores
     return out
