@@ -3,8 +3,9 @@
 Runs `TemporalFusion.inpaint` on a `dpcbench damage` folder twice: as it is, and with the last resort's predicted
 error of each candidate (`methods._spatial_fill.best.holdout_miss`: the inner ring's RMS distance to the candidate
 built without it) replaced by the candidate's true error (the RMS distance of its fill of the region to the nearest
-truth point). The second is an oracle (it reads the truth), the most any better ranking could give; the acceptance
-test against the open part's predicted error is the method's own in both. Prints whole-frame D1 / D2 (intrinsic peak,
+truth point). The second is an oracle (it reads the truth), about the most a better ranking could give. The error
+is used wherever the method uses the miss: to rank, in the test against the open part's predicted error, and as the
+tolerance with which a later candidate continues the earlier fills. Prints whole-frame D1 / D2 (intrinsic peak,
 `dpcbench score`'s) of both, per frame. Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/ranking_oracle.py TRUTH.ply DAMAGED
