@@ -104,9 +104,9 @@ def main(args) -> int:
     normals = [f.normals for f in truth.frames]
     given_normals = normals if any(n is not None for n in normals) else None
     masks = _masks(args, len(truth))
+    colour = _colour_scores(args, truth, damaged, masks, regions) if args.colour else None  # refuses uncoloured first
     scores = score_oracles(truth.points, damaged.points, variants, masks=masks, regions=regions,
                            sigma=sigma or 0.0, seed=args.seed, peak=args.peak, reference_normals=given_normals)
-    colour = _colour_scores(args, truth, damaged, masks, regions) if args.colour else None
     even = (d2_break_even(truth.points, damaged.points, masks=masks, seed=args.seed, peak=args.peak,
                           reference_normals=given_normals) if args.break_even else None)
     if args.json:
