@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 import dpcbench.methods._colour as colour_fill
 from dpcbench.bench.data.plyio import read_ply
-from dpcbench.bench.results.oracle import missing_points
+from dpcbench.bench.results.oracle import oracle_fill
 from dpcbench.holes.regions import regions_from_json
 from dpcbench.metrics.colour import ColourPair, colour_mse_directions, colour_psnr
 from dpcbench.metrics.geometry import Selection
@@ -58,15 +58,16 @@ def fills(damaged, points: np.ndarray):
         out = colour_fill.colour_frame(damaged.points, smooth, points, fill="harmonic")
         out[~new] = damaged.colors[kept[~new]]
         yield f"smooth k{k}", out
+    nearest = colour_fill.colour_frame(damaged.points, damaged.colors, points, fill="nearest")
     for k in (8, 64):
         dist, near = tree.query(points[new], k=k, workers=-1)
         for power in (2, 4):
             weight = 1.0 / np.maximum(dist, 1e-9) ** power
-            out = colour_fill.colour_frame(damaged.points, damaged.colors, points, fill="nearest")
             mean = (damaged.colors[near] * weight[..., None]).sum(axis=1) / weight.sum(axis=1)[:, None]
+            out = nearest.copy()  # kept points keep their colours
             out[new] = np.clip(np.rint(mean), 0, 255).astype(np.uint8)
             yield f"idw k{k} p{power}", out
-    yield "nearest", colour_fill.colour_frame(damaged.points, damaged.colors, points, fill="nearest")
+    yield "nearest", nearest
 
 
 def main(argv=None) -> int:
@@ -79,7 +80,7 @@ def main(argv=None) -> int:
     truth = read_ply(args.frame)
     damaged = read_ply(next((out / "damaged").glob("*.ply")))
     regions = regions_from_json(str(out / "damaged" / "holes.json"), frame_count=1, label="holes.json")[0]
-    geometries = {"oracle": np.concatenate([damaged.points, missing_points(truth.points, damaged.points)])}
+    geometries = {"oracle": oracle_fill(truth.points, damaged.points, "truth")}
     for method in args.methods:
         geometries[method] = read_ply(next((out / method).glob("*.ply"))).points
     rows = {name: dict((fill, hole_y(truth, points, c, regions)) for fill, c in fills(damaged, points))
