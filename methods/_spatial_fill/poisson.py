@@ -11,6 +11,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._front_fill import local_quadric
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
     POISSON_CELL_STEPS,
@@ -78,17 +79,16 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     hole (`methods.temporal_fusion`, step 6c). With ``bridge_ends``, two bodies that are the ends of one limb the hole
     cuts through (`limb_ends`) are filled by `tube_fill` instead, and alone when it refuses.
 
-    Hold-out test (when ``ring`` > 0; step 6's test, with the same bound), per body whose surface adds points
-    (elsewhere its decision changes nothing, and it costs a second reconstruction): the support points within
-    ``ring`` of the region (the inner ring) are left out, the surface of the others is reconstructed (its
-    finest cell 2 g, `POISSON_HOLDOUT_CELL_STEPS`: the test asks whether the surface continues across the
-    ring, which the octree's last level does not decide, at a fraction of the fill's reconstruction), and
-    the inner ring's RMS distance m to it (to its samples at g / 2 in the region grown by ``ring``) must be
-    at most ``max_holdout_spacings`` spacings once the ring's scatter e is taken out, sqrt(m^2 - e^2) <= bound,
-    e its RMS distance to the surface of the whole body (the one the fill is taken from, sampled over the
-    same part): the ring's noise about any smooth surface (capture noise, voxel rounding) is in m whether
-    the surface was fitted with the ring or without it, and only the rest measures how well the surface
-    predicts what it did not see. With normals pointed away from the centroid one by one (before the spanning tree), a crop
+    Hold-out test (when ``ring`` > 0; step 6's test, with the same bound), per body, before the body's own
+    surface is made (a refused body costs no fine reconstruction): the support points within ``ring`` of the
+    region (the inner ring) are left out, the surface of the others is reconstructed (its finest cell 2 g,
+    `POISSON_HOLDOUT_CELL_STEPS`: the test asks whether the surface continues across the ring, which the
+    octree's last level does not decide, at a fraction of the fill's reconstruction), and the inner ring's RMS
+    distance m to it (to its samples at g / 2 in the region grown by ``ring``) must be at most
+    ``max_holdout_spacings`` spacings once the ring's scatter e is taken out, sqrt(m^2 - e^2) <= bound, e the RMS
+    of `local_quadric`'s residual at the ring's points (each fitted to its 20 nearest body points): the ring's
+    noise about any smooth surface (capture noise, voxel rounding) is in m whether the surface was fitted with
+    the ring or without it, and only the rest measures how well the surface predicts what it did not see. With normals pointed away from the centroid one by one (before the spanning tree), a crop
     holding two body parts (a hand at the hip) gave a surface that missed the inner ring by 1.7 s and the
     truth by 5-16 voxels (human default, coherent, seed 2); trusted holes there measured 0.49-0.70 s."""
     support = np.asarray(support, dtype=np.float64)
@@ -104,17 +104,15 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
             # too few points to reconstruct; or no point within the attachment reach (3 s) of R, so no fill
             # point inside R could be attached to this body
             return np.zeros((0, 3))
-        # only the mesh near R is sampled: the fill's points lie inside R once rounded to voxels (or thinned to
-        # cells of g), the hold-out's scatter is measured within R grown by the ring (`_triangles_near`)
-        reach = max(ring, np.sqrt(3.0) * grid) + (1.0 if voxelized else 0.0)
-        surface = _poisson_samples(body, grid, near=(region, reach))
-        points = _poisson_points(body, region.contains, covered, free, spacing, voxelized, grid, samples=surface)
-        # the hold-out (a second reconstruction) only where the surface adds points: on D-FAUST occlusion, 10 of
-        # 26 bodies add none (8 of them passed it, 2 failed)
-        if len(points) and ring > 0 and not _holds_out(body, region, ring, free, spacing, voxelized, grid,
-                                                       max_holdout_spacings, whole=surface):
+        # the hold-out first, on a coarser octree: most bodies it refuses (12 of 13 in the Longdress frame's
+        # occlusion boxes) then cost no reconstruction at the finest cell
+        if ring > 0 and not _holds_out(body, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
             return np.zeros((0, 3))
-        return points
+        # only the mesh near R is sampled: the fill's points lie inside R once rounded to voxels (or thinned to
+        # cells of g) (`_triangles_near`)
+        reach = np.sqrt(3.0) * grid + (1.0 if voxelized else 0.0)
+        surface = _poisson_samples(body, grid, near=(region, reach))
+        return _poisson_points(body, region.contains, covered, free, spacing, voxelized, grid, samples=surface)
 
     parts = []
     for group in groups:
@@ -254,11 +252,9 @@ def _bodies(support: np.ndarray, reach: float) -> list[np.ndarray]:
     return [support[labels == labels[i]] for i in np.sort(first)]
 
 
-def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings, whole=None) -> bool:
+def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings) -> bool:
     """`poisson_surface_fill`'s hold-out test (its docstring) on ``support``: True when it passes (or when
-    the ring or the rest has too few points to judge). ``whole``: the samples of the surface of all of
-    ``support`` (`_poisson_samples`), whose distance to the ring is the capture's own scatter; None
-    reconstructs it."""
+    the ring or the rest has too few points to judge)."""
     inner = region.contains(support, margin=ring)
     if inner.sum() < 6 or (~inner).sum() < 32:
         return True
@@ -268,11 +264,10 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     if not len(held):
         return False
     ring_points = support[inner]
-    if whole is None:
-        whole = _poisson_samples(support, grid, near=(region, ring))
-    # both surfaces sampled over the same part (R grown by the ring), so the two distances share its edge
-    whole = whole[region.contains(whole, margin=ring)]
-    scatter = float(np.mean(cKDTree(whole).query(ring_points)[0] ** 2)) if len(whole) else 0.0
+    # the capture's own scatter about a smooth surface, at the ring: a local quadric's residual (no reconstruction;
+    # within 0.07 s of the ring's distance to the body's own Poisson surface on the voxelized data measured,
+    # experiments/holdout_scatter.py)
+    scatter = float(np.mean(local_quadric(ring_points, support, 20)[2] ** 2))
     bound_sq = (max_holdout_spacings * spacing) ** 2 + scatter  # held-out miss^2 - scatter^2 <= bound^2
     cap = 4.0 * np.sqrt(bound_sq)
     # distances capped at 4 bounds first (a k-d query for far points is slow: 6.3 s for 99k ring points

@@ -1,0 +1,106 @@
+"""The closed surface's hold-out test (step 6c, `methods._spatial_fill.poisson._holds_out`) with the ring's scatter e
+measured three ways, on every decision a run makes: the decision with each e, and which differ from the method's.
+
+    .venv/bin/python experiments/holdout_scatter.py                      # the golden inputs, defaults
+    .venv/bin/python experiments/holdout_scatter.py --case longdress-occlusion --case coherent-800k
+
+The test passes a body when sqrt(m^2 - e^2) <= 1 spacing: m the inner ring's RMS distance to the surface built
+without it (finest octree cell 2 g), e the ring's own scatter. The three e:
+
+- ``fine``: the ring's RMS distance to the screened Poisson surface of the whole body at the fill's finest cell g
+  (temporal-fusion up to version 45: a fine reconstruction per body, made before the test);
+- ``coarse``: the same at the hold-out's cell 2 g (the two surfaces of the test at one resolution);
+- ``local``: the RMS of `local_quadric`'s residual at the ring's points, each fitted to its 20 nearest body points
+  (the capture's scatter about a local quadric; no reconstruction; the method's since version 46).
+
+Prints one line per decision (body size, m, each e in spacings; a star where that e decides otherwise than the
+method) and in all how many decisions each other e changes. Cases: experiments/fusion_golden.py's inputs (defaults), or with ``--case`` the paper-scale
+benchmark inputs of tests/benchmarks/fusion_cases.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "benchmarks"))
+
+from dpcbench.methods._front_fill import local_quadric  # noqa: E402
+from dpcbench.methods._spatial_fill import poisson  # noqa: E402
+from dpcbench.methods.registry import get_method  # noqa: E402
+
+
+def _rms_to(samples: np.ndarray, region, ring: float, points: np.ndarray) -> float:
+    samples = samples[region.contains(samples, margin=ring)]
+    return float(np.sqrt(np.mean(cKDTree(samples).query(points)[0] ** 2))) if len(samples) else 0.0
+
+
+def _trace(log: list) -> None:
+    holds_out = poisson._holds_out
+
+    def traced(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
+        passed = holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings)
+        inner = region.contains(support, margin=ring)
+        if inner.sum() < 6 or (~inner).sum() < 32:
+            return passed
+        outer, ring_points = support[~inner], support[inner]
+        held = poisson._poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing,
+                                       voxelized, grid, surface=True, near=(region, ring),
+                                       cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS)
+        m = float(np.sqrt(np.mean(cKDTree(held).query(ring_points)[0] ** 2))) if len(held) else np.inf
+        e = {
+            "fine": _rms_to(poisson._poisson_samples(support, grid, near=(region, ring)), region, ring, ring_points),
+            "coarse": _rms_to(poisson._poisson_samples(support, grid, near=(region, ring),
+                                                       cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS),
+                              region, ring, ring_points),
+            "local": float(np.sqrt(np.mean(local_quadric(ring_points, support, 20)[2] ** 2))),
+        }
+        bound = max_holdout_spacings * spacing
+        verdict = {k: bool(m * m - v * v <= bound * bound) for k, v in e.items()}
+        log.append((len(support), m / spacing, {k: v / spacing for k, v in e.items()}, verdict, passed))
+        return passed
+
+    poisson._holds_out = traced
+
+
+def _cases(names: list[str]) -> dict:
+    if names:
+        from fusion_cases import CASES
+
+        return {name: CASES[name]()[1:] for name in names}
+    from fusion_golden import inputs
+
+    return {name: (frames, regions) for name, (frames, regions, _) in inputs().items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--case", action="append", default=[], help="a fusion_cases.py case (repeatable)")
+    args = parser.parse_args(argv)
+    totals = {"fine": 0, "coarse": 0, "decisions": 0}
+    for name, (frames, regions) in _cases(args.case).items():
+        log: list = []
+        _trace(log)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            get_method("temporal-fusion").inpaint([f.copy() for f in frames], regions)
+        print(f"== {name}: {len(log)} decisions")
+        for size, m, e, verdict, passed in log:
+            marks = " ".join(f"{k} {v:.2f}{'' if verdict[k] == passed else '*'}" for k, v in e.items())
+            print(f"   body {size:8,d}  m {m:6.2f}  e: {marks}  {'passed' if passed else 'refused'}")
+        for key in ("fine", "coarse"):
+            totals[key] += sum(v[key] != p for *_, v, p in log)
+        totals["decisions"] += len(log)
+    print(f"decisions {totals['decisions']}; changed with e fine (version 45) {totals['fine']}, "
+          f"with e coarse {totals['coarse']}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
