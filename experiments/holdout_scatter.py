@@ -2,7 +2,7 @@
 measured three ways, on every decision a run makes: the decision with each e, and which differ from the method's.
 
     .venv/bin/python experiments/holdout_scatter.py                      # the golden inputs, defaults
-    .venv/bin/python experiments/holdout_scatter.py --case longdress-occlusion --case coherent-800k
+    .venv/bin/python experiments/holdout_scatter.py --case longdress-occlusion --case coherent-800k --cut 4 --cut 3
 
 The test passes a body when sqrt(m^2 - e^2) <= 1 spacing: m the inner ring's RMS distance to the surface built
 without it (finest octree cell 2 g), e the ring's own scatter. The three e:
@@ -14,14 +14,19 @@ without it (finest octree cell 2 g), e the ring's own scatter. The three e:
   (the capture's scatter about a local quadric; no reconstruction; the method's since version 46).
 
 Prints one line per decision (body size, m, each e in spacings; a star where that e decides otherwise than the
-method) and in all how many decisions each other e changes. Cases: experiments/fusion_golden.py's inputs (defaults), or with ``--case`` the paper-scale
-benchmark inputs of tests/benchmarks/fusion_cases.py.
+method; the held-out support's size and its reconstruction's CPU) and in all how many decisions each other e changes.
+With ``--cut K`` (repeatable) also the hold-out with its support cut to R grown by K rings (the ring is half the
+crop's shell): its miss, CPU and decision (with the local e).
+
+Cases: experiments/fusion_golden.py's inputs (defaults), or with ``--case`` the paper-scale benchmark inputs of
+tests/benchmarks/fusion_cases.py.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -41,7 +46,17 @@ def _rms_to(samples: np.ndarray, region, ring: float, points: np.ndarray) -> flo
     return float(np.sqrt(np.mean(cKDTree(samples).query(points)[0] ** 2))) if len(samples) else 0.0
 
 
-def _trace(log: list) -> None:
+def _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid) -> tuple[float, float]:
+    """(the ring's RMS distance m to the surface of ``outer`` at the hold-out's cell, that reconstruction's CPU s)."""
+    start = time.process_time()
+    held = poisson._poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing, voxelized,
+                                   grid, surface=True, near=(region, ring), cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS)
+    cpu = time.process_time() - start
+    return (float(np.sqrt(np.mean(cKDTree(held).query(ring_points)[0] ** 2))) if len(held) else np.inf), cpu
+
+
+def _trace(log: list, cuts: list[float]) -> None:
+    """Wrap `poisson._holds_out` once; each decision appends a record to ``log`` (the caller empties it per case)."""
     holds_out = poisson._holds_out
 
     def traced(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
@@ -50,10 +65,7 @@ def _trace(log: list) -> None:
         if inner.sum() < 6 or (~inner).sum() < 32:
             return passed
         outer, ring_points = support[~inner], support[inner]
-        held = poisson._poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing,
-                                       voxelized, grid, surface=True, near=(region, ring),
-                                       cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS)
-        m = float(np.sqrt(np.mean(cKDTree(held).query(ring_points)[0] ** 2))) if len(held) else np.inf
+        m, cpu = _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid)
         e = {
             "fine": _rms_to(poisson._poisson_samples(support, grid, near=(region, ring)), region, ring, ring_points),
             "coarse": _rms_to(poisson._poisson_samples(support, grid, near=(region, ring),
@@ -63,7 +75,14 @@ def _trace(log: list) -> None:
         }
         bound = max_holdout_spacings * spacing
         verdict = {k: bool(m * m - v * v <= bound * bound) for k, v in e.items()}
-        log.append((len(support), m / spacing, {k: v / spacing for k, v in e.items()}, verdict, passed))
+        cut = []
+        for k in cuts:  # the held-out support cut to R grown by k rings: its miss, CPU and decision (local e)
+            kept = outer[region.contains(outer, margin=k * ring)]
+            mk, cpu_k = (_miss(kept, ring_points, region, ring, free, spacing, voxelized, grid) if len(kept) >= 32
+                         else (np.inf, 0.0))
+            cut.append((k, len(kept), mk / spacing, cpu_k, bool(mk * mk - e["local"] ** 2 <= bound * bound)))
+        log.append((len(support), m / spacing, {k: v / spacing for k, v in e.items()}, verdict, passed, len(outer),
+                    cpu, cut))
         return passed
 
     poisson._holds_out = traced
@@ -82,23 +101,33 @@ def _cases(names: list[str]) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", action="append", default=[], help="a fusion_cases.py case (repeatable)")
+    parser.add_argument("--cut", action="append", default=[], type=float,
+                        help="also the hold-out with its support cut to R grown by this many rings (repeatable)")
     args = parser.parse_args(argv)
     totals = {"fine": 0, "coarse": 0, "decisions": 0}
+    cut_changed = dict.fromkeys(args.cut, 0)
+    log: list = []
+    _trace(log, args.cut)
     for name, (frames, regions) in _cases(args.case).items():
-        log: list = []
-        _trace(log)
+        log.clear()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             get_method("temporal-fusion").inpaint([f.copy() for f in frames], regions)
         print(f"== {name}: {len(log)} decisions")
-        for size, m, e, verdict, passed in log:
+        for size, m, e, verdict, passed, outer, cpu, cut in log:
             marks = " ".join(f"{k} {v:.2f}{'' if verdict[k] == passed else '*'}" for k, v in e.items())
-            print(f"   body {size:8,d}  m {m:6.2f}  e: {marks}  {'passed' if passed else 'refused'}")
+            print(f"   body {size:8,d}  m {m:6.2f}  e: {marks}  {'passed' if passed else 'refused'}"
+                  f"  (held-out support {outer:,d}, {cpu:.2f} s CPU)")
+            for k, kept, mk, cpu_k, ok in cut:
+                print(f"      cut to {k:g} rings: support {kept:,d}, m {mk:6.2f}, {cpu_k:.2f} s CPU, "
+                      f"{'passed' if ok else 'refused'}{'' if ok == passed else '*'}")
+                cut_changed[k] += ok != passed
         for key in ("fine", "coarse"):
-            totals[key] += sum(v[key] != p for *_, v, p in log)
+            totals[key] += sum(v[key] != p for _, _, _, v, p, *_ in log)
         totals["decisions"] += len(log)
     print(f"decisions {totals['decisions']}; changed with e fine (version 45) {totals['fine']}, "
-          f"with e coarse {totals['coarse']}")
+          f"with e coarse {totals['coarse']}"
+          + "".join(f", cut to {k:g} rings {n}" for k, n in cut_changed.items()))
     return 0
 
 
