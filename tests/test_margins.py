@@ -448,3 +448,27 @@ def test_versions_note_names_each_method_s_code_version_and_flags_a_mix():
     assert versions_note(table, "fusion").endswith("fusion 45; lozes 2; none 1")
     mixed = versions_note(table.assign(method_version=["1", "46", "45", "2"]), "fusion")
     assert "fusion MIXED (46 on 1 runs, 45 on 1 runs" in mixed and mixed.index("fusion") < mixed.index("lozes")
+
+
+def test_runs_on_superseded_data_are_left_out_with_a_note():
+    """A sequence whose files changed between two runs of an experiment (its data version, a stat hash, moved) gives
+    two rows that differ only in their data version; one label must not list both. The row of the newest run is kept,
+    the other's runs are left out with a note per row; a row with one data version, and another experiment's row on
+    the old data, are kept whole."""
+    import pandas as pd
+
+    from dpcbench.bench.reporting.margins import newest_data
+
+    table = pd.DataFrame({
+        "experiment": ["tune", "tune", "tune", "tune", "tune", "other"],
+        "row_base": ["A", "A", "A", "A", "B", "A"],
+        "row": ["A@old", "A@old", "A@new", "A@new", "B@1", "A@old"],
+        "row_label": ["samba · coherent holes"] * 4 + ["bunny · coherent holes", "samba · coherent holes"],
+        "finished_at": ["2026-12-05T01", "2026-12-05T02", "2026-12-06T01", "2026-12-06T02", "2026-12-05T03",
+                        "2026-12-05T04"],
+    })
+    kept, notes = newest_data(table)
+    assert list(kept["row"]) == ["A@new", "A@new", "B@1", "A@old"]
+    assert notes == ["tune · samba · coherent holes: 2 run(s) on an older version of the sequence's data left out "
+                     "(its files changed since; rerun the experiment to compute them on the current data)"]
+    assert newest_data(table[table["row_base"] == "B"])[1] == []

@@ -399,10 +399,11 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
         holes = dict(identity["holes"])
         seed = holes.pop("seed", 0)
         versions = identity["versions"]
-        row = _canonical({"sequence": identity["sequence"], "holes": holes, "protocol": identity["protocol"],
-                          "data": versions.get("data"), "detector": versions.get("detector")})
+        base = {"sequence": identity["sequence"], "holes": holes, "protocol": identity["protocol"],
+                "detector": versions.get("detector")}
+        row = _canonical({**base, "data": versions.get("data")})
         sequence_label = spec["sequence"].get("label") or spec["sequence"].get("name")
-        records.append({"run_id": run_id, "experiment": experiment, "row": row,
+        records.append({"run_id": run_id, "experiment": experiment, "row": row, "row_base": _canonical(base),
                         "row_label": f"{sequence_label} · {_holes_label(spec['holes'])}",
                         "method_name": spec["method"]["name"], "method_params": _canonical(spec["method"]["params"]),
                         "method_label": spec["method"].get("label"), "seed": int(seed),
@@ -411,7 +412,8 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
                         "output_dir": output_dir if isinstance(output_dir, str) else None,
                         "sequence_spec": _canonical(spec["sequence"]),
                         "method_version": str((spec.get("versions") or {}).get("method") or "?")})
-    return pd.DataFrame(records, columns=["run_id", "experiment", "row", "row_label", "method_name", "method_params",
+    return pd.DataFrame(records, columns=["run_id", "experiment", "row", "row_base", "row_label", "method_name",
+                                          "method_params",
                                           "method_label", "seed", "declared_role", "declared_holds_out",
                                           "spec_experiment", "finished_at", "output_dir", "sequence_spec",
                                           "method_version"])
@@ -485,9 +487,27 @@ def heldout_check(table: pd.DataFrame, roles: dict) -> list[str]:
     return notes
 
 
+def newest_data(table: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """(the run table without the runs of superseded data, a note per row it drops runs from): of the rows of one
+    experiment that differ only in their data version (the sequence's files were touched or replaced between two
+    runs of it), the row of the newest run is kept. Both would otherwise be listed under one label, each with the
+    methods that happened to run on that version of the data."""
+    if table.empty:
+        return table, []
+    newest = (table.sort_values("finished_at", kind="stable").groupby(["experiment", "row_base"], sort=False)["row"]
+              .last().rename("newest_row"))
+    merged = table.join(newest, on=["experiment", "row_base"])
+    stale = merged["row"] != merged["newest_row"]
+    notes = [f"{experiment} · {label}: {len(group)} run(s) on an older version of the sequence's data left out "
+             f"(its files changed since; rerun the experiment to compute them on the current data)"
+             for (experiment, label), group in merged[stale].groupby(["experiment", "row_label"], sort=True)]
+    return table[~stale.to_numpy()], notes
+
+
 def store_observations(results: pd.DataFrame, runs: pd.DataFrame, experiments: list[str] | None = None):
-    """(observations with `OBS_COLUMNS`, the run table) from a store's `results_frame` and
-    `runs_frame`; the newest run of each (experiment, row, seed, method configuration)."""
+    """(observations with `OBS_COLUMNS`, the run table, notes) from a store's `results_frame` and
+    `runs_frame`; the newest run of each (experiment, row, seed, method configuration), on the newest data
+    (`newest_data`)."""
     from dpcbench.bench.reporting.tables import config_labels
 
     table = run_table(runs)
@@ -495,6 +515,7 @@ def store_observations(results: pd.DataFrame, runs: pd.DataFrame, experiments: l
         table = table[table["experiment"].isin(experiments)]
     if table.empty:
         raise UserError("no finished run in the experiments read; run them first (dpcbench run CONFIG)")
+    table, notes = newest_data(table)
     cell = ["experiment", "row", "seed", "method_name", "method_params"]
     table = table.sort_values("finished_at", kind="stable").groupby(cell, sort=False).tail(1)
     given = {(n, p): lab for n, p, lab in zip(table["method_name"], table["method_params"], table["method_label"])
@@ -503,7 +524,7 @@ def store_observations(results: pd.DataFrame, runs: pd.DataFrame, experiments: l
     keep = table[["run_id", "experiment", "row", "row_label", "method", "seed"]]
     df = results.merge(keep, on=["run_id", "experiment"], how="inner", suffixes=("_store", ""))
     df = df.assign(peak=df["peak"].fillna("").astype(str))
-    return df[OBS_COLUMNS], table
+    return df[OBS_COLUMNS], table, notes
 
 
 def oracle_observations(table: pd.DataFrame, method: str) -> tuple[pd.DataFrame, list[str]]:
@@ -557,7 +578,7 @@ def margins_from_store(store, method: str, experiments: list[str] | None = None,
                             f"{', '.join(known) or 'none'}")
     results, runs = store.results_frame(), store.runs_frame()
     runs = runs[runs["status"] == "done"]
-    obs, table = store_observations(results, runs, experiments or None)
+    obs, table, data_notes = store_observations(results, runs, experiments or None)
     if not experiments:
         with_method = set(table.loc[(table["method_name"] == method) | (table["method"] == method), "experiment"])
         if not with_method:
@@ -571,7 +592,7 @@ def margins_from_store(store, method: str, experiments: list[str] | None = None,
                         "give one of these labels as --method")
     label = method if method in set(table["method"]) or not labels else labels[0]
     roles, notes = resolve_roles(table)
-    notes += [versions_note(table, label)] + heldout_check(table, roles)
+    notes += data_notes + [versions_note(table, label)] + heldout_check(table, roles)
     if oracle:
         extra, oracle_notes = oracle_observations(table, label)
         obs = pd.concat([obs, extra], ignore_index=True)
