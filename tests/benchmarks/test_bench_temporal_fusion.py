@@ -101,6 +101,8 @@ octree one level coarser), 2026-12-05, `-k "coherent_800k or longdress"`, CPU, t
 800k 24.22 / 25.96 -> 25.72 / 25.74 -> 22.38 / 22.39 s for 3 frames (target 5 s a frame: not met), Longdress
 occlusion 65.91 / 72.81 -> 60.10 / 60.56 -> 45.25 / 49.19 s (target 15 s: not met), region 6.28 / 6.82 -> 5.81 /
 5.74 -> 4.48 / 4.64 s (docs/temporal-fusion.md, "Speed at paper scale").
+Later versions' figures: docs/temporal-fusion.md, "Speed at paper scale" (version 46: coherent 800k 21.88 s,
+Longdress occlusion 16.92 s, region 6.10 s).
 """
 
 from __future__ import annotations
