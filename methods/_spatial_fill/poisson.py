@@ -266,7 +266,7 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     ring_points = support[inner]
     # the capture's own scatter about a smooth surface, at the ring: a local quadric's residual, no reconstruction
     # (0.05 s above to 0.17 s below the ring's distance to the body's own Poisson surface, the same decision in all
-    # 60 measured: experiments/holdout_scatter.py)
+    # 99 measured: experiments/holdout_scatter.py)
     scatter = float(np.mean(local_quadric(ring_points, support, 20)[2] ** 2))
     bound_sq = (max_holdout_spacings * spacing) ** 2 + scatter  # held-out miss^2 - scatter^2 <= bound^2
     cap = 4.0 * np.sqrt(bound_sq)
