@@ -32,25 +32,32 @@ from dpcbench.methods.temporal_fusion.config import FusionConfig
 from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 
 
+def region_candidates(damaged: np.ndarray, tree: cKDTree, region, spacing: float, step: float, integer: bool):
+    """(crop (K, 3), shell, the candidate surfaces by name) of one hole ``region`` of a damaged frame, as the last
+    resort builds them (crop and rim as temporal-fusion's stage crop takes them)."""
+    cfg = FusionConfig()
+    shell = cfg.shell(region, spacing)
+    crop = damaged[np.asarray(tree.query_ball_point(region.center, region.bounding_radius + 2 * shell,
+                                                    return_sorted=True), dtype=np.int64)]
+    rim = crop[region.contains(crop, margin=shell)]
+    surfaces = candidates(rim, crop, region, spacing, voxelized=integer, step=step, gap_spacings=cfg.fill_gap_spacings,
+                          ring=shell / 2)
+    return crop, shell, surfaces
+
+
 def frame_lines(truth: np.ndarray, truth_normals: np.ndarray | None, damaged: np.ndarray, regions) -> list[str]:
     """The report lines of one frame (module docstring)."""
     integer = np.array_equal(damaged, np.round(damaged))
     spacing = 1.0 if integer else point_spacing(damaged)
     step = spacing if integer else sampling_step(damaged)
-    cfg = FusionConfig()
     tree, truth_tree = cKDTree(damaged), cKDTree(truth)
     normals = truth_normals if truth_normals is not None else estimate_normals(truth, 12)
     lines = []
     for k, region in enumerate(regions):
-        shell = cfg.shell(region, spacing)
-        crop = damaged[np.asarray(tree.query_ball_point(region.center, region.bounding_radius + 2 * shell,
-                                                        return_sorted=True), dtype=np.int64)]
-        rim = crop[region.contains(crop, margin=shell)]
+        crop, shell, surfaces = region_candidates(damaged, tree, region, spacing, step, integer)
         hidden = truth[region.contains(truth) & (tree.query(truth)[0] > 1e-6 * spacing)]
         lines.append(f"region {k} ({np.round(region.center, 1).tolist()}, r {region.bounding_radius:.1f}): "
                      f"{len(hidden)} hidden points")
-        surfaces = candidates(rim, crop, region, spacing, voxelized=integer, step=step, gap_spacings=cfg.fill_gap_spacings,
-                              ring=shell / 2)
         for name, (support, fill) in surfaces.items():
             points = fill(support, region, cKDTree(crop))
             if not len(points):
