@@ -165,6 +165,33 @@ def test_margins_of_a_win_a_tie_and_a_loss_to_the_floor():
     assert any(line.startswith("tuning,tune,,'=C,fusion,d2,") for line in lines)
 
 
+def test_colour_target_only_on_rows_that_scored_colour():
+    """Issue 54's target: hole-region cpsnr_y against the best other method, on the rows whose runs scored colour;
+    a row without colour shows no colour margin, and a report without any shows no colour column."""
+    import pandas as pd
+
+    from dpcbench.bench.reporting.margins import COLOUR_TARGETS, TARGETS, compute_margins
+
+    plain = _hand_made()
+    # row "win" scored colour: fusion 0.5 dB below graph in the holes' Y on every pair, none 3 dB below fusion
+    base = [[20.0, 21.0, 22.0, 23.0], [20.5, 21.5, 22.5, 23.5]]
+    colour = _frame([_obs("tune", "win", "A | win", m, [[v + shift for v in f] for f in base], "cpsnr_y", "holes", "")
+                     for m, shift in (("fusion", 0.0), ("graph", 0.5), ("none", -3.0))])
+    report = compute_margins(pd.concat([plain, colour], ignore_index=True), "fusion",
+                             {"tune": ("tuning", None), "held": ("heldout", "tune")})
+    rows = {(r.experiment, r.row): r for r in report.rows}
+    m = rows[("tune", "win")].margins["colour"]
+    assert m.against == "graph" and m.margin == pytest.approx(-0.5) and m.n == 8 and m.verdict == "missed"
+    assert "colour" not in rows[("tune", "noise")].margins and "colour" not in rows[("held", "win")].margins
+    assert report.targets() == TARGETS + COLOUR_TARGETS
+    assert report.count_line("tuning", COLOUR_TARGETS[0]).startswith(
+        "colour (cpsnr_y) in the holes the best on 0 of 1 rows (0 beyond noise; 1 missed beyond noise)")
+    text = report.markdown()
+    assert "| Y in the holes − best other's (dB) |" in text and "-0.50 [-0.50, -0.50] vs graph, n 8: missed" in text
+    # without colour anywhere: no colour column
+    assert compute_margins(plain, "fusion", {"tune": ("tuning", None)}).targets() == TARGETS
+
+
 def report_targets():
     from dpcbench.bench.reporting.margins import TARGETS
 

@@ -9,8 +9,9 @@ level metrics give one value per (seed, frame); temporal consistency, a sequence
 per seed (frame -1). Of several runs of one cell (row, seed, method configuration) the newest
 enters (a store keeps the runs of older code versions).
 
-Per row and target (`TARGETS`, issue 53's list), with ``x`` the method's values and ``y`` those of
-the method it is measured against, over the n pairs both have with finite values:
+Per row and target (`TARGETS`, issue 53's list, and `COLOUR_TARGETS`, issue 54's, on the rows that scored
+colour), with ``x`` the method's values and ``y`` those of the method it is measured against, over the n pairs
+both have with finite values:
 
     d_i = s * (x_i - y_i)          s = +1 where higher is better (PSNR), -1 where lower is (NSHD, TC)
 
@@ -106,6 +107,13 @@ TARGETS = (
            False, "best other's TC − its TC (holes)"),
 )
 
+#: issue 54's target, on the rows whose sequence carries colour and whose experiment scored ``cpsnr_y``: the
+#: method's colour PSNR of luma (pc_error's BT.709 Y) in the hole regions the highest of all methods
+COLOUR_TARGETS = (
+    Target("colour", "colour (cpsnr_y) in the holes the best", "cpsnr_y", "holes", "", "best", 0.0, True,
+           "Y in the holes − best other's (dB)"),
+)
+
 
 #: observations of an oracle fill (`bench.results.oracle`) carry this method label prefix; they are never "another method"
 ORACLE_PREFIX = "oracle: "
@@ -174,9 +182,13 @@ class MarginReport:
     notes: list[str] = field(default_factory=list)
 
     def targets(self) -> tuple[Target, ...]:
-        """TARGETS, and ORACLE_TARGETS where an oracle was scored (`add_oracle`)."""
-        with_oracle = any(t.key in r.margins for r in self.rows for t in ORACLE_TARGETS)
-        return TARGETS + (ORACLE_TARGETS if with_oracle else ())
+        """TARGETS, COLOUR_TARGETS where a row scored colour, and ORACLE_TARGETS where an oracle was scored
+        (`add_oracle`)."""
+        def present(targets):
+            return any(t.key in r.margins for r in self.rows for t in targets)
+
+        return (TARGETS + (COLOUR_TARGETS if present(COLOUR_TARGETS) else ())
+                + (ORACLE_TARGETS if present(ORACLE_TARGETS) else ()))
 
     def out_of_reach_line(self, role: str) -> str | None:
         """How many rows that miss a D1 / D2 target the surface oracle misses too, beyond noise."""
@@ -251,7 +263,8 @@ class MarginReport:
                   f"is on that side of it and the Wilcoxon signed-rank p of d − threshold <= {stats.ALPHA}; "
                   f"within noise otherwise; n too small below n = {stats.min_pairs(1)}). D1, D2 and NSHD are "
                   "whole-frame values at the intrinsic peak; temporal consistency is one value per seed, in the "
-                  "holes.", ""]
+                  "holes" + ("; colour is cpsnr_y (pc_error's BT.709 Y) in the holes, on the rows whose sequence "
+                             "carries colour (– elsewhere)" if COLOUR_TARGETS[0] in targets else "") + ".", ""]
         lines += [f"- {md_escape(n)}" for n in self.notes]
         return "\n".join(lines).rstrip() + "\n"
 
@@ -287,7 +300,7 @@ def _num(x, digits: int = 2, sign: bool = False) -> str:
 def _margin_cell(m: Margin) -> str:
     if not m.defined:
         return "–"
-    if m.target.metric.startswith("gpsnr"):  # dB: two decimals; other scales (NSHD ~1e-8): 3 significant digits
+    if m.target.metric.startswith(("gpsnr", "cpsnr")):  # dB: two decimals; other scales (NSHD ~1e-8): 3 significant digits
         def show(x):
             return _num(x, 2, True)
     else:
@@ -356,6 +369,11 @@ def compute_margins(obs: pd.DataFrame, method: str, roles: dict[str, tuple[str, 
             result.margins[t.key] = margin(_pairs(sub), method, t)
             if t.key in ("d1", "d2"):
                 result.means[t.key] = result.margins[t.key].method_mean
+        for t in COLOUR_TARGETS:  # only where the method's runs of this row scored colour
+            sub = methods[(methods["metric"] == t.metric) & (methods["scope"] == t.scope)
+                          & (methods["peak"] == t.peak)]
+            if (sub["method"] == method).any():
+                result.margins[t.key] = margin(_pairs(sub), method, t)
         surface = ORACLE_PREFIX + "surface"
         if (oracles["method"] == surface).any():
             for t in ORACLE_TARGETS:
