@@ -125,6 +125,50 @@ def test_method_version_and_data_change_ids(seq_dir, monkeypatch):
     assert set(_ids(base)).isdisjoint(ids)
 
 
+def test_data_is_identified_by_content_not_by_place_or_mtime(seq_dir, tmp_path, monkeypatch):
+    """Touched data and a copy of it elsewhere keep their run ids; the same size with other bytes does not."""
+    import os
+    import shutil
+
+    monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
+    ids = _ids(_config(seq_dir))
+    for frame in seq_dir.iterdir():
+        os.utime(frame, ns=(1_600_000_000_000_000_000, 1_600_000_000_000_000_000))
+    assert _ids(_config(seq_dir)) == ids
+    copy_dir = shutil.copytree(seq_dir, tmp_path / "elsewhere" / seq_dir.name)
+    assert _ids(_config(copy_dir)) == ids
+    frame = sorted(copy_dir.glob("*.ply"))[0]
+    data = bytearray(frame.read_bytes())
+    data[-1] ^= 1  # one bit of the last point's coordinates
+    frame.write_bytes(bytes(data))
+    assert set(_ids(_config(copy_dir))).isdisjoint(ids)
+
+
+def test_file_digest_is_cached_by_path_size_and_mtime(tmp_path, monkeypatch):
+    import hashlib
+    import os
+
+    from dpcbench.bench.data import file_digest
+
+    monkeypatch.setenv("DPCBENCH_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "frame.ply"
+    path.write_bytes(b"x" * 3_000_000)  # more than one read chunk
+    truth = hashlib.sha256(path.read_bytes()).hexdigest()
+    assert file_digest.file_sha256(path) == truth
+    entries = list((tmp_path / "cache" / "file-digests").iterdir())
+    assert len(entries) == 1
+    # unchanged file: the digest comes from the cache entry (a planted one shows it was not read again)
+    entries[0].write_text(entries[0].read_text().split("\n")[0] + "\n" + "0" * 64 + "\n")
+    assert file_digest.file_sha256(path) == "0" * 64
+    # a new mtime is a new key: the file is read again
+    os.utime(path, ns=(1_600_000_000_000_000_000, 1_600_000_000_000_000_000))
+    assert file_digest.file_sha256(path) == truth
+    # a corrupt entry is a re-read, not an error
+    for entry in (tmp_path / "cache" / "file-digests").iterdir():
+        entry.write_text("garbage")
+    assert file_digest.file_sha256(path) == truth
+
+
 @pytest.mark.parametrize("mutate, key", [
     (lambda c: c["methods"][0]["params"].update(shift="big"), "methods[0].params.shift: expected a number"),
     (lambda c: c["methods"][1].update(name="nope"), "methods[1].name: unknown method 'nope'"),

@@ -366,7 +366,10 @@ class Placement:
 
 
 def _files_fingerprint(files: list[Path]) -> list:
-    return [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
+    """Each mesh file's name and content digest (`bench.data.file_digest`): the sampled frames' cache key."""
+    from dpcbench.bench.data.file_digest import file_sha256
+
+    return [(p.name, file_sha256(p)) for p in files]
 
 
 def _check_params(points, density, bit_depth, oversampling) -> None:

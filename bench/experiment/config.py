@@ -61,7 +61,8 @@ SHA-256 of canonical JSON (sorted keys, floats that are whole numbers written as
 give the same id). Labels ([labels] too), descriptions and the data role (``data_role``, ``holds_out``) are
 presentation only and never change an id. The data
 fingerprint is the dataset's name and parameters (embedded data, generated deterministically) or
-the name, size and modification time of every frame file (folders).
+the name and SHA-256 of every frame file (folders; `bench.data.file_digest` reads a file again only when
+its size or modification time changed), so copied, moved or touched data keeps its runs.
 
 Detected regions. With ``regions = "detected"`` what a method gets depends on the detector too, so
 those runs' ids also hash every parameter of `holes.detection.detect_holes` as it will be called
@@ -299,23 +300,29 @@ def _table_list(data: dict, key: str) -> list[dict]:
 
 
 # -- data fingerprints -----------------------------------------------------------------------
+def _content_hash(files: list[Path]) -> str:
+    """`stable_hash` of each file's name and the SHA-256 of its bytes (`bench.data.file_digest`): the same
+    data gives the same runs wherever it lies and whatever its modification times."""
+    from dpcbench.bench.data.file_digest import file_sha256
+
+    return stable_hash([(p.name, file_sha256(p)) for p in files])
+
+
 def _mesh_fingerprint(files: list[Path], sequence: dict) -> dict:
     from dpcbench.bench.data.meshseq import GENERATOR_VERSION
 
-    stats = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
-    return {"folder": files[0].parent.name, "files": len(files), "stat_hash": stable_hash(stats),
+    return {"folder": files[0].parent.name, "files": len(files), "content_hash": _content_hash(files),
             "mesh": {"params": sequence.get("params", {}), "version": GENERATOR_VERSION}}
 
 
 def _folder_fingerprint(folder: Path) -> dict:
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".ply")
-    stats = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in files]
-    return {"folder": folder.name, "files": len(files), "stat_hash": stable_hash(stats)}
+    return {"folder": folder.name, "files": len(files), "content_hash": _content_hash(files)}
 
 
 def data_fingerprint(sequence: dict, where: str) -> dict:
     """What identifies a sequence's data: dataset name + params (+ the datasets module's version if it
-    declares one) for generated data; file names, sizes and mtimes for folders on disk."""
+    declares one) for generated data; the files' names and content (SHA-256) for folders on disk."""
     if sequence.get("path"):
         path = Path(sequence["path"]).expanduser()
         if not path.exists():

@@ -507,8 +507,8 @@ def heldout_check(table: pd.DataFrame, roles: dict) -> list[str]:
 
 def newest_data(table: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     """(the run table without the runs of superseded data, a note per row it drops runs from): of the rows of one
-    experiment that differ only in their data version (the sequence's files were touched or replaced between two
-    runs of it), the row of the newest run is kept. Both would otherwise be listed under one label, each with the
+    experiment that differ only in their data version (the sequence's files were edited or replaced between two
+    runs of it, or the runs predate content fingerprints), the row of the newest run is kept. Both would otherwise be listed under one label, each with the
     methods that happened to run on that version of the data."""
     if table.empty:
         return table, []
