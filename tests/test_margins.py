@@ -271,10 +271,10 @@ def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
 
     rows = list(csv.DictReader((out / "margins.csv").open()))
     assert {r["role"] for r in rows} == {"tuning", "heldout"} and len(rows) == 2 * 6
-    # the surface oracle, scored on each cell's damaged frames: 6 pairs against the same references
+    # the smooth-surface oracle, scored on each cell's damaged frames: 6 pairs against the same references
     oracle = [r for r in rows if r["target"] == "oracle_d2"]
     assert len(oracle) == 2 and all(r["against"] == "none" and r["n"] == "6" for r in oracle), oracle
-    assert "surface oracle: D2 − no fill (dB)" in text
+    assert "smooth-surface oracle: D2 − no fill (dB)" in text
     d1 = [r for r in rows if r["target"] == "d1"]
     assert all(float(r["margin"]) == 0 and r["n"] == "6" and r["verdict"] == "missed" for r in d1), d1
     d2 = [r for r in rows if r["target"] == "d2"]
@@ -324,6 +324,15 @@ def test_oracle_on_a_plane_with_a_hole():
     assert d2["jitter"] < DEFAULT_MAX_PSNR
     more = score_oracles([truth], [damaged], ["jitter"], masks=[mask], sigma=0.4)["jitter"]["frame"]["mean"]
     assert more["gpsnr_d2"] < d2["jitter"]
+    # smooth: the surface samples on the truth's smooth surface; on a plane that is where they are already
+    assert np.allclose(oracle_fill(truth, damaged, "smooth", mask=mask, seed=3), surface)
+    assert d2["smooth"] == DEFAULT_MAX_PSNR
+    # on a bumpy plane (each sample's own height noise) the surface samples keep the noise, the smooth ones do not
+    rng = np.random.default_rng(0)
+    bumpy = truth + np.column_stack([np.zeros((len(truth), 2)), rng.normal(0, 0.1, len(truth))])
+    noisy = oracle_fill(bumpy, bumpy[~mask], "surface", mask=mask, seed=3)[len(damaged):]
+    smooth = oracle_fill(bumpy, bumpy[~mask], "smooth", mask=mask, seed=3)[len(damaged):]
+    assert np.sqrt(np.mean(smooth[:, 2] ** 2)) < 0.5 * np.sqrt(np.mean(noisy[:, 2] ** 2))
     # a method's off-surface error: its fill 0.3 above the plane
     lifted = np.vstack([damaged, truth[mask] + [0, 0, 0.3]])
     rms, count = off_surface_rms(truth, damaged, lifted)
@@ -349,7 +358,7 @@ def test_oracle_command(tmp_path, capsys):
     payload = json.loads(capsys.readouterr().out)
     assert payload["sigma"] == pytest.approx(0.25, rel=1e-6)
     assert payload["measured"]["fill_points"] == 2 * mask.sum()
-    assert set(payload["variants"]) == {"none", "surface", "jitter", "truth"}
+    assert set(payload["variants"]) == {"none", "surface", "smooth", "jitter", "truth"}
     assert payload["variants"]["surface"]["frame"]["gpsnr_d2"] == DEFAULT_MAX_PSNR
     assert main(argv[:-1] + ["--variant", "jitter"]) == 2
     assert "give its sigma with --jitter SIGMA" in capsys.readouterr().err
@@ -424,7 +433,7 @@ def test_d2_break_even_brackets_no_fill_s_d2_and_is_zero_on_a_flat_hole():
 
 
 def test_a_row_out_of_reach_by_measurement():
-    """The method misses D2 against no fill on the floor row; a surface oracle 1 dB below no fill on
+    """The method misses D2 against no fill on the floor row; a smooth-surface oracle 1 dB below no fill on
     every pair misses it too: that row is out of reach by measurement."""
     import pandas as pd
 
@@ -433,7 +442,7 @@ def test_a_row_out_of_reach_by_measurement():
     obs = _hand_made()
     obs = obs[obs["experiment"] == "tune"]
     none = obs[(obs["method"] == "none") & obs["metric"].isin(["gpsnr_d1", "gpsnr_d2"])]
-    oracle = none.assign(method=ORACLE_PREFIX + "surface",
+    oracle = none.assign(method=ORACLE_PREFIX + "smooth",
                          value=none["value"] + [8.0 if m == "gpsnr_d1" else -1.0 for m in none["metric"]])
     report = compute_margins(pd.concat([obs, oracle]), "fusion", {"tune": ("tuning", None)})
     floor = next(r for r in report.rows if r.row == "floor")

@@ -12,6 +12,12 @@ the damaged frame's spacing from every damaged point) and returns ``damaged ∪ 
                nearest-neighbour spacing: points on the truth's own surface at the truth's density,
                not at its sample positions (the best a fill that knows the surface, not the samples,
                can do); on a plane every sample lies on it, so its D2 is the ceiling;
+- ``smooth``:  the ``surface`` samples moved onto the truth's smooth surface, each to the foot of its moving-
+               least-squares quadric of the ``SMOOTH_NEIGHBOURS`` nearest truth points (`methods._front_fill.
+               local_quadric`): a fill that knows the surface but neither where the truth's samples lie on it
+               nor their own offsets from it (a voxelized capture's rounding, a scan's noise), which no fill
+               from the data can know. ``surface`` keeps each sample's offset along the normal, so on voxelized
+               data its D2 is far above what a fill can reach; this one is the stricter ceiling;
 - ``jitter``:  the missing truth points moved along their truth normal by ``N(0, sigma^2)``
                (seeded), sigma a method's measured off-surface error (`off_surface_rms`): what the
                method would score if its only error were that;
@@ -43,7 +49,9 @@ from scipy.spatial import cKDTree
 
 from dpcbench.bench.core.errors import UserError
 
-VARIANTS = ("none", "surface", "jitter", "truth")
+VARIANTS = ("none", "surface", "smooth", "jitter", "truth")
+#: the ``smooth`` oracle's quadric fit: 20 neighbours, as temporal-fusion's own surface fits (`local_quadric`)
+SMOOTH_NEIGHBOURS = 20
 #: the colour fills scored on the truth's positions by `score_colour_oracles` (those of `methods._colour` that use
 #: the damaged frame alone)
 COLOUR_FILLS = ("harmonic", "nearest")
@@ -98,12 +106,17 @@ def oracle_fill(truth: np.ndarray, damaged: np.ndarray, variant: str, *, mask: n
     if variant == "truth" or not len(hole):
         return np.vstack([damaged, hole])
     rng = np.random.default_rng(seed)
-    normals = estimate_normals(truth, k, queries=hole, tree=cKDTree(truth))
-    if variant == "surface":
+    tree = cKDTree(truth)
+    normals = estimate_normals(truth, k, queries=hole, tree=tree)
+    if variant in ("surface", "smooth"):
         s = spacing(damaged)
         t1, t2 = _tangents(normals)
         u, v = rng.uniform(-s / 2, s / 2, (2, len(hole), 1))
         fill = hole + u * t1 + v * t2
+        if variant == "smooth":
+            from dpcbench.methods._front_fill import local_quadric
+
+            fill, _, _ = local_quadric(fill, truth, neighbours=SMOOTH_NEIGHBOURS, support_tree=tree)
     else:  # jitter
         if not (np.isfinite(sigma) and sigma >= 0):
             raise UserError(f"oracle jitter: sigma must be a distance >= 0, got {sigma!r}")

@@ -25,7 +25,8 @@ def register(subparsers) -> None:
     p.add_argument("--experiments", nargs="+", default=None, metavar="NAME",
                    help="experiments to read (default: every one holding a run of the method)")
     p.add_argument("--oracle", action="store_true",
-                   help="also score the surface oracle (samples on the ground truth's own surface, `dpcbench oracle`) "
+                   help="also score the smooth-surface oracle (samples on the ground truth's own smooth surface, "
+                        "`dpcbench oracle --variant smooth`) "
                         "on every row's damaged frames: its D1 - best other and D2 - no fill show which targets are "
                         "out of reach of any fill; loads every sequence again (minutes on a full grid)")
     p.add_argument("--out", default=None, help="folder for margins.md and margins.csv")

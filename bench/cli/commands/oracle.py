@@ -20,8 +20,10 @@ def register(subparsers) -> None:
         description="Fill the holes of DAMAGED (a folder of PLY frames, e.g. `dpcbench damage` output or a run "
                     "folder's damaged/) from TRUTH (the ground-truth frames) and score each fill like a method: "
                     "none (no fill, the floor), surface (one sample per missing truth point, moved within the "
-                    "truth's tangent plane by up to half the damaged frame's spacing), jitter (the missing truth "
-                    "points moved along the truth normal by N(0, sigma^2)) and truth (the ceiling).")
+                    "truth's tangent plane by up to half the damaged frame's spacing), smooth (the surface samples "
+                    "moved onto the truth's local quadric surface: the surface known, the samples' places and their "
+                    "own offsets from it not), jitter (the missing truth points moved along the truth normal by N(0, sigma^2)) "
+                    "and truth (the ceiling).")
     p.add_argument("truth", help="ground-truth PLY file, or folder / glob of PLY frames")
     p.add_argument("damaged", help="damaged PLY file, or folder / glob of PLY frames (same frame count)")
     p.add_argument("--variant", action="append", dest="variants", choices=VARIANTS, metavar="NAME",
