@@ -9,9 +9,9 @@ the damaged frame's spacing from every damaged point) and returns ``damaged ∪ 
 - ``surface``: one sample per missing truth point q, moved within the truth's tangent plane at q
                (PCA of its ``k`` nearest truth points, `metrics.neighbours.estimate_normals`) by
                ``u t1 + v t2``, ``u, v ~ U(-s/2, s/2)`` (seeded), s the damaged frame's median
-               nearest-neighbour spacing: points on the truth's own surface at the truth's density,
-               not at its sample positions (the best a fill that knows the surface, not the samples,
-               can do); on a plane every sample lies on it, so its D2 is the ceiling;
+               nearest-neighbour spacing: points at the truth's density, not at its sample positions,
+               but each keeping its sample's own offset from the surface along the normal (a voxel's
+               rounding, a scan's noise); on a plane every sample lies on it, so its D2 is the ceiling;
 - ``smooth``:  the ``surface`` samples moved onto the truth's smooth surface, each to the foot of its moving-
                least-squares quadric of the ``SMOOTH_NEIGHBOURS`` nearest truth points (`methods._front_fill.
                local_quadric`): a fill that knows the surface but neither where the truth's samples lie on it
