@@ -362,5 +362,7 @@ def test_generated_sequences_are_cached_before_the_runs_so_no_worker_pays_for_ge
         "metrics": {"names": ["gpsnr_d1"], "peaks": ["intrinsic"], "scopes": ["frame"]},
     }
     warm_caches(parse_config(cfg).expand())
-    assert sorted(p.name for p in cache.iterdir()) == ["bunny"]  # neither the uncached human nor the files
+    # neither the uncached human nor the files' frames (only their content digests, `bench.data.file_digest`)
+    assert sorted(p.name for p in cache.iterdir()) == ["bunny", "file-digests"]
+    assert len(list((cache / "file-digests").iterdir())) == 2  # one per frame file of the sphere folder
     assert len(list((cache / "bunny").glob("*.npz"))) == 2
