@@ -306,7 +306,8 @@ def _num(x, digits: int = 2, sign: bool = False) -> str:
 def _margin_cell(m: Margin) -> str:
     if not m.defined:
         return "–"
-    if m.target.metric.startswith(("gpsnr", "cpsnr")):  # dB: two decimals; other scales (NSHD ~1e-8): 3 significant digits
+    # dB: two decimals; other scales (NSHD ~1e-8): 3 significant digits
+    if m.target.metric.startswith(("gpsnr", "cpsnr")):
         def show(x):
             return _num(x, 2, True)
     else:
@@ -514,8 +515,8 @@ def heldout_check(table: pd.DataFrame, roles: dict) -> list[str]:
 def newest_data(table: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     """(the run table without the runs of superseded data, a note per row it drops runs from): of the rows of one
     experiment that differ only in their data version (the sequence's files were edited or replaced between two
-    runs of it, or the runs predate content fingerprints), the row of the newest run is kept. Both would otherwise be listed under one label, each with the
-    methods that happened to run on that version of the data."""
+    runs of it, or the older runs predate content fingerprints), the row of the newest run is kept. Both would
+    otherwise be listed under one label, each with the methods that happened to run on that version of the data."""
     if table.empty:
         return table, []
     newest = (table.sort_values("finished_at", kind="stable").groupby(["experiment", "row_base"], sort=False)["row"]
