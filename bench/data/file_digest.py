@@ -50,3 +50,8 @@ def file_sha256(path: str | Path) -> str:
     except OSError:  # a read-only cache folder: the digest is still right, it is just not kept
         pass
     return digest
+
+
+def file_digests(files: list[Path]) -> list[tuple[str, str]]:
+    """(name, `file_sha256`) of each file, in order: what identifies a set of data files."""
+    return [(Path(p).name, file_sha256(p)) for p in files]

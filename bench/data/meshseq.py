@@ -367,9 +367,9 @@ class Placement:
 
 def _files_fingerprint(files: list[Path]) -> list:
     """Each mesh file's name and content digest (`bench.data.file_digest`): the sampled frames' cache key."""
-    from dpcbench.bench.data.file_digest import file_sha256
+    from dpcbench.bench.data.file_digest import file_digests
 
-    return [(p.name, file_sha256(p)) for p in files]
+    return file_digests(files)
 
 
 def _check_params(points, density, bit_depth, oversampling) -> None:

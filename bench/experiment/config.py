@@ -303,9 +303,9 @@ def _table_list(data: dict, key: str) -> list[dict]:
 def _content_hash(files: list[Path]) -> str:
     """`stable_hash` of each file's name and the SHA-256 of its bytes (`bench.data.file_digest`): the same
     data gives the same runs wherever it lies and whatever its modification times."""
-    from dpcbench.bench.data.file_digest import file_sha256
+    from dpcbench.bench.data.file_digest import file_digests
 
-    return stable_hash([(p.name, file_sha256(p)) for p in files])
+    return stable_hash(file_digests(files))
 
 
 def _mesh_fingerprint(files: list[Path], sequence: dict) -> dict:
