@@ -282,12 +282,16 @@ def test_paper_variant_keeps_known_points_and_outputs_the_voxel_grid(cls):
         np.testing.assert_array_equal(o, np.round(o))
         assert len(np.unique(o, axis=0)) == len(o)
     assert len(out[1]) > len(damaged[1]) + 20  # it fills
-    # unvoxelized input: no quantization (nothing to return to), known points still fixed
+    # unvoxelized input: no quantization (nothing to return to), known points still fixed. The unit is given
+    # (spacing=1): by default a float frame's unit is 1/1024 of its extent, and on this 42-unit sphere a cube
+    # would hold too few points to fill anything
     shifted = [d + 0.25 for d in damaged]
     moved = [[HoleRegion.ball(r.center + 0.25, r.radius) for r in frame] for frame in regions]
-    out = cls(variant="paper", **FAST).inpaint(shifted, moved)
+    out = cls(variant="paper", spacing=1.0, **FAST).inpaint(shifted, moved)
     np.testing.assert_array_equal(out[1][:len(shifted[1])], shifted[1])
-    assert not np.array_equal(out[1], np.round(out[1]))
+    new = out[1][len(shifted[1]):]
+    assert len(new) > 20  # it fills
+    assert not np.array_equal(new, np.round(new)) and not np.array_equal(new - 0.25, np.round(new - 0.25))
 
 
 def test_free_known_points_output_the_final_position_of_a_point_filled_earlier(monkeypatch):
@@ -603,9 +607,8 @@ print(json.dumps(digests))
 """
 
 
-def _run_pinned(code: str) -> dict:
-    """The JSON that ``code`` prints, run in a child process at the pinned instruction-set level."""
-    import json
+def _start_pinned(code: str):
+    """A child process running ``code`` at the pinned instruction-set level (skips where that level is missing)."""
     import platform
     import subprocess
     import sys
@@ -617,23 +620,43 @@ def _run_pinned(code: str) -> dict:
         pytest.skip("the golden hashes are pinned to numpy's X86_V3 dispatch (numpy >= 2.4 on x86-64)")
     if not __cpu_features__.get("X86_V3"):
         pytest.skip("this CPU lacks AVX2/FMA (X86_V3), the level the golden hashes are pinned to")
-    env = dict(os.environ, OPENBLAS_CORETYPE="Haswell", OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
-               NPY_DISABLE_CPU_FEATURES=" ".join(f for f in __cpu_dispatch__ if f != "X86_V3"))
-    done = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent)], env=env,
-                          capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    from dpcbench.bench.core.isa import pin_environment
+
+    env = dict(os.environ, **pin_environment())  # .ci/pinned-isa's variables
+    return subprocess.Popen([sys.executable, "-c", code, str(Path(__file__).parent)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _pinned_result(child) -> dict:
+    """The JSON that a `_start_pinned` child prints (its stderr in the failure when it fails)."""
+    import json
+
+    out, err = child.communicate()
+    assert child.returncode == 0, err
+    return json.loads(out.strip().splitlines()[-1])
 
 
 @pytest.fixture(scope="module")
-def pinned_output_hashes():
+def pinned_children():
+    """Both pinned children, started together: each is one thread, so on two cores the second costs no wall time."""
+    children = {"golden": _start_pinned(_GOLDEN_CHILD), "switch": _start_pinned(_SWITCH_CHILD)}
+    yield children
+    for child in children.values():
+        if child.poll() is None:
+            child.kill()
+            child.communicate()
+
+
+@pytest.fixture(scope="module")
+def pinned_output_hashes(pinned_children):
     """The output hashes, computed in a child process at the pinned instruction-set level."""
-    return _run_pinned(_GOLDEN_CHILD)
+    return _pinned_result(pinned_children["golden"])
 
 
 @pytest.fixture(scope="module")
-def pinned_switch_hashes():
+def pinned_switch_hashes(pinned_children):
     """Output hashes of the paper configuration and of each switch flipped on its case, at the pinned level."""
-    return _run_pinned(_SWITCH_CHILD)
+    return _pinned_result(pinned_children["switch"])
 
 
 @pytest.mark.parametrize("case_name,config", sorted(GOLDEN_OUTPUT_HASHES))
