@@ -3,7 +3,9 @@
 For every hole region of the chosen frames of a `dpcbench damage` folder, each candidate surface of the last resort
 (`methods._spatial_fill.best.candidates`: the rim's spline, the same on the hole's own sheet, the crop's screened
 Poisson surface; none with its refusal tests) fills the region from the damaged frame alone, as the last resort
-sees it (crop and rim as temporal-fusion's stage crop takes them). Per candidate it prints the points it adds, its
+sees it (crop and rim as temporal-fusion's stage crop takes them). On voxelized input the harmonic cap (step 6d,
+`cap_fill` on the crop) is shown too, with its own loop test, as the cascade runs it ("adds nothing" where the
+test refuses the loop; no hold-out miss: the cap spans a loop, which a held-out ring would cut). Per candidate it prints the points it adds, its
 hold-out miss (the last resort's predicted error, in spacings), its true off-surface error (RMS point-to-plane
 distance of its points to the truth, the truth's PLY normals or PCA normals of 12 neighbours; in spacings), and the
 share of the hidden truth points with a fill point within 2 spacings. With ``--break-even`` it also prints the frame's
@@ -28,6 +30,7 @@ from scipy.spatial import cKDTree
 from dpcbench.bench.data.plyio import read_ply
 from dpcbench.methods._geometry import sampling_step
 from dpcbench.methods._spatial_fill.best import candidates, holdout_miss
+from dpcbench.methods._spatial_fill.cap import cap_fill
 from dpcbench.methods.temporal_fusion.config import FusionConfig
 from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 
@@ -42,6 +45,12 @@ def region_candidates(damaged: np.ndarray, tree: cKDTree, region, spacing: float
     rim = crop[region.contains(crop, margin=shell)]
     surfaces = candidates(rim, crop, region, spacing, voxelized=integer, step=step, gap_spacings=cfg.fill_gap_spacings,
                           ring=shell / 2)
+    if integer and cfg.cap:
+        def cap(support, region, covered):
+            return cap_fill(support, region, covered, spacing, voxelized=True, step=step,
+                            gap_spacings=cfg.fill_gap_spacings, harmonic=cfg.harmonic_cap)
+
+        surfaces["cap"] = (crop, cap)
     return crop, shell, surfaces
 
 
@@ -66,8 +75,8 @@ def frame_lines(truth: np.ndarray, truth_normals: np.ndarray | None, damaged: np
             _, nearest = truth_tree.query(points)
             off = np.einsum("ij,ij->i", points - truth[nearest], normals[nearest]) / spacing
             covered = np.mean(cKDTree(points).query(hidden)[0] <= 2 * spacing) if len(hidden) else 1.0
-            miss = holdout_miss((support, fill), region, shell / 2) / spacing
-            lines.append(f"  {name:7s} {len(points):6d} points  hold-out miss {miss:6.2f} s  off the truth "
+            miss = "     –" if name == "cap" else f"{holdout_miss((support, fill), region, shell / 2) / spacing:6.2f}"
+            lines.append(f"  {name:7s} {len(points):6d} points  hold-out miss {miss} s  off the truth "
                          f"{np.sqrt(np.mean(off ** 2)):6.2f} s RMS  hidden covered {covered:4.0%}")
     return lines
 

@@ -11,11 +11,14 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - off RMS: RMS point-to-plane distance of those points to the truth (in spacings), and the share > 2 spacings;
 - BA2: their summed point-to-plane errors against the truth (the result-to-reference term of D2);
 - for each hole region, AB1 / AB2 (the reference-to-result terms of D1 / D2 over the region's truth points) of the
-  result against the open hole's, so a region whose fill costs more D2 than leaving it open shows.
+  result against the open hole's, so a region whose fill costs more D2 than leaving it open shows;
+- with ``--left-open``, for each hole region the whole-frame D1 / D2 of the result with that region's new points
+  taken out (those within 2 spacings of it, as above): what leaving that one hole open would score, the rest
+  filled. A refusal rule can reach D2 at or above no fill only where this shows it, and this shows its D1 cost.
 
 Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
-    .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--param name=value ...]
+    .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
 """
 
 from __future__ import annotations
@@ -124,16 +127,22 @@ def attribute(new: np.ndarray, records: list[tuple[str, np.ndarray]], spacing: f
     return labels
 
 
+def frame_psnr(pair: CloudPair, peak: float) -> tuple[float, float]:
+    """Whole-frame (D1, D2) PSNR of ``pair``: pc_error's symmetric scores, the larger of the two directions' MSEs."""
+    d1 = max(pair.ref_to_res.sq_dist.mean(), pair.res_to_ref.sq_dist.mean())
+    d2 = max(pair.plane_ref_to_res.mean(), pair.plane_res_to_ref.mean())
+    return psnr(d1, peak), psnr(d2, peak)
+
+
 def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, result: np.ndarray, regions,
-                records, spacing: float) -> list[str]:
+                records, spacing: float, left_open: bool = False) -> list[str]:
     """The report lines of one frame (see the module docstring)."""
     filled, empty = CloudPair(truth, result, normals), CloudPair(truth, damaged, normals)
     peak = resolve_peak("intrinsic", filled)
     lines = []
     for label, pair in (("result", filled), ("no fill", empty)):
-        d1 = max(pair.ref_to_res.sq_dist.mean(), pair.res_to_ref.sq_dist.mean())
-        d2 = max(pair.plane_ref_to_res.mean(), pair.plane_res_to_ref.mean())
-        lines.append(f"  {label:8s} D1 {psnr(d1, peak):6.2f} D2 {psnr(d2, peak):6.2f}  "
+        d1, d2 = frame_psnr(pair, peak)
+        lines.append(f"  {label:8s} D1 {d1:6.2f} D2 {d2:6.2f}  "
                      f"(AB1 {pair.ref_to_res.sq_dist.sum():10.0f} BA1 {pair.res_to_ref.sq_dist.sum():9.0f} "
                      f"AB2 {pair.plane_ref_to_res.sum():9.0f} BA2 {pair.plane_res_to_ref.sum():9.0f})")
     new = result[len(damaged):]
@@ -160,6 +169,9 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
                      f"AB1 {filled.ref_to_res.sq_dist[inside].sum():9.0f} (open {empty.ref_to_res.sq_dist[inside].sum():9.0f})"
                      f"  AB2 {filled.plane_ref_to_res[inside].sum():8.0f} (open {empty.plane_ref_to_res[inside].sum():8.0f})"
                      f"  BA2 {new_ba2[mine].sum():8.0f}  [{stages}]")
+        if left_open:
+            d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[~mine]]), normals), peak)
+            lines.append(f"    left open, the rest filled: D1 {d1:6.2f} D2 {d2:6.2f}")
     return lines
 
 
@@ -183,6 +195,8 @@ def main(argv=None) -> int:
     parser.add_argument("truth", type=Path, help="the undamaged frames: a PLY file or a folder of PLY frames")
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
     parser.add_argument("--frames", default=None, help="comma-separated frames to report (default: all)")
+    parser.add_argument("--left-open", action="store_true",
+                        help="also each region's whole-frame D1 / D2 with its new points taken out")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a temporal-fusion parameter (repeatable)")
     args = parser.parse_args(argv)
@@ -204,7 +218,8 @@ def main(argv=None) -> int:
         truth = np.asarray(cloud.points, dtype=np.float64)
         normals = cloud.normals  # None: CloudPair estimates them as `dpcbench score` does
         print(f"frame {f}: {len(outputs[f]) - len(frames[f])} new points")
-        print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing)))
+        print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
+                                     args.left_open)))
     return 0
 
 
