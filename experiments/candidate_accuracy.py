@@ -5,10 +5,11 @@ For every hole region of the chosen frames of a `dpcbench damage` folder, each c
 Poisson surface; none with its refusal tests) fills the region from the damaged frame alone, as the last resort
 sees it (crop and rim as temporal-fusion's stage crop takes them). On voxelized input the harmonic cap (step 6d,
 `cap_fill` on the crop) is shown too, with its own loop test, as the cascade runs it ("adds nothing" where the
-test refuses the loop; no hold-out miss: the cap spans a loop, which a held-out ring would cut). Per candidate it prints the points it adds, its
-hold-out miss (the last resort's predicted error, in spacings), its true off-surface error (RMS point-to-plane
-distance of its points to the truth, the truth's PLY normals or PCA normals of 12 neighbours; in spacings), and the
-share of the hidden truth points with a fill point within 2 spacings. With ``--break-even`` it also prints the frame's
+test refuses the loop; no hold-out miss: the cap spans a loop, which a held-out ring would cut).
+
+Per candidate it prints the points it adds, its hold-out miss (the last resort's predicted error, in spacings), its
+true off-surface error (RMS point-to-plane distance of its points to the truth, the truth's PLY normals or PCA normals
+of 12 neighbours; in spacings), and the share of the hidden truth points with a fill point within 2 spacings. With ``--break-even`` it also prints the frame's
 D2 break-even (`bench.results.oracle.d2_break_even`): a fill whose off-surface error exceeds it cannot score no fill's
 D2 even where it is complete.
 
