@@ -10,8 +10,8 @@ test refuses the loop; no hold-out miss: the cap spans a loop, which a held-out 
 Per candidate it prints the points it adds, its hold-out miss (the last resort's predicted error, in spacings), its
 true off-surface error (RMS point-to-plane distance of its points to the truth, the truth's PLY normals or PCA normals
 of 12 neighbours; in spacings), and the share of the hidden truth points with a fill point within 2 spacings. With
-``--break-even`` it also prints the frame's D2 break-even (`bench.results.oracle.d2_break_even`): a fill whose off-surface error exceeds it cannot score no fill's
-D2 even where it is complete.
+``--break-even`` it also prints the frame's D2 break-even (`bench.results.oracle.d2_break_even`): a fill whose
+off-surface error exceeds it cannot score no fill's D2 even where it is complete.
 
 Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
