@@ -7,7 +7,10 @@ and the paired difference (new - old) over the row's (frame, seed) pairs with it
     .venv/bin/python experiments/compare_versions.py q.sqlite --method temporal-fusion --old 42 --new 43
 
 A row is a sequence and a kind of holes (all its seeds, every experiment of the store); "beyond noise" when the
-interval excludes 0; "inpainted frames identical" when both versions wrote the same PLY bytes in every run of the
+interval excludes 0, or with ``--decision-noise DB`` when it lies wholly beyond +-DB dB (D1 and D2; NSHD is judged
+against 0 still): the frames' spread does not hold the method's decision noise, and a paired interval over frames
+can exclude 0 for a change that moved only which thresholds a few points fell on
+(`experiments/perturbation_noise.py` measures that noise on one damage); "inpainted frames identical" when both versions wrote the same PLY bytes in every run of the
 row (the run folders must still be there).
 """
 
@@ -60,6 +63,8 @@ def main(argv=None) -> int:
     parser.add_argument("--method", default="temporal-fusion")
     parser.add_argument("--old", required=True, help="the old method_version")
     parser.add_argument("--new", required=True, help="the new method_version")
+    parser.add_argument("--decision-noise", type=float, default=0.0, metavar="DB",
+                        help="a D1 / D2 difference is beyond noise only when its interval clears +-DB (default 0)")
     args = parser.parse_args(argv)
     connection = sqlite3.connect(f"file:{args.store}?mode=ro", uri=True)
     old = _values(connection, args.method, args.old)
@@ -82,7 +87,8 @@ def main(argv=None) -> int:
             if comparison.n < 2:
                 cells.append(f"{comparison.mean_difference * scale:+.3f} (one pair: no interval)")
                 continue
-            beyond = "beyond noise" if comparison.low > 0 or comparison.high < 0 else "within noise"
+            noise = 0.0 if metric == "nshd" else args.decision_noise
+            beyond = "beyond noise" if comparison.low > noise or comparison.high < -noise else "within noise"
             cells.append(f"{comparison.mean_difference * scale:+.3f} [{comparison.low * scale:+.3f}, "
                          f"{comparison.high * scale:+.3f}] {beyond}")
         n = len(set(old[row]["gpsnr_d1"]) & set(new[row]["gpsnr_d1"]))
