@@ -190,6 +190,16 @@ def truth_frames(truth: Path, damaged: Path) -> list[Path]:
     return sorted(truth.glob("*.ply"), key=lambda p: natural_key(p.name))
 
 
+def truth_frames_or_exit(truth: Path, damaged: Path, count: int) -> list[Path]:
+    """`truth_frames`, or a one-line error and exit status 2 when they are not ``count`` (the damaged frames)."""
+    files = truth_frames(truth, damaged)
+    if len(files) != count:
+        print(f"error: {truth} has {len(files)} PLY frames but {damaged} has {count}; "
+              "give the folder the damage was made from", file=sys.stderr)
+        raise SystemExit(2)
+    return files
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("truth", type=Path, help="the undamaged frames: a PLY file or a folder of PLY frames")
@@ -200,13 +210,8 @@ def main(argv=None) -> int:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a temporal-fusion parameter (repeatable)")
     args = parser.parse_args(argv)
-    loaded = load_damage_or_exit(args.damaged)
-    truth_files = truth_frames(args.truth, args.damaged)
-    if len(truth_files) != len(loaded[1]):
-        print(f"error: {args.truth} has {len(truth_files)} PLY frames but {args.damaged} has {len(loaded[1])}; "
-              "give the folder the damage was made from", file=sys.stderr)
-        return 2
-    _, frames, regions = loaded
+    _, frames, regions = load_damage_or_exit(args.damaged)
+    truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()
     instrument(log)
     params = parse_params(args.param)

@@ -18,13 +18,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 from _damaged import load_damage_or_exit  # the sibling module; these scripts run as `python experiments/X.py`
-from fill_audit import frame_psnr, truth_frames
+from fill_audit import frame_psnr, truth_frames_or_exit
 
 from dpcbench.bench.core.params import parse_params
 from dpcbench.bench.data.plyio import read_ply
@@ -53,13 +52,8 @@ def main(argv=None) -> int:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="a method parameter")
     args = parser.parse_args(argv)
     _, frames, regions = load_damage_or_exit(args.damaged)
-    files = truth_frames(args.truth, args.damaged)
-    if len(files) != len(frames):
-        print(f"error: {args.truth} has {len(files)} PLY frames but {args.damaged} has {len(frames)}; "
-              "give the folder the damage was made from", file=sys.stderr)
-        return 2
     truths = []
-    for path in files:
+    for path in truth_frames_or_exit(args.truth, args.damaged, len(frames)):
         cloud = read_ply(path)
         truths.append((np.asarray(cloud.points, dtype=np.float64), cloud.normals))
     spacing = point_spacing(max(frames, key=len))
