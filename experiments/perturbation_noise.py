@@ -81,6 +81,9 @@ def main(argv=None) -> int:
         parts = []
         for metric in ("D1", "D2"):
             c = paired(moved_scores[metric], base_scores[metric])
+            if c.n < 2:
+                parts.append(f"{metric} {c.mean_difference:+.3f} (one frame: no interval)")
+                continue
             verdict = "beyond noise" if c.low > 0 or c.high < 0 else "within noise"
             parts.append(f"{metric} {c.mean_difference:+.3f} [{c.low:+.3f}, {c.high:+.3f}] {verdict}")
         print(f"  moved {args.shift:g} s along {'xyz'[axis]}: {new} points added, "
