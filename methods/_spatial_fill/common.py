@@ -33,6 +33,34 @@ POISSON_CELL_STEPS = 1
 POISSON_HOLDOUT_CELL_STEPS = 2
 
 
+#: the neighbours of the local quadric whose residual is a held-out point's own scatter (`holdout_passes`)
+SCATTER_NEIGHBOURS = 20
+
+
+def own_scatter_sq(held: np.ndarray, support: np.ndarray) -> float:
+    """e^2 of `holdout_passes`: the mean squared residual of `local_quadric` at each of ``held`` (H, 3), fitted to its
+    `SCATTER_NEIGHBOURS` nearest ``support`` (K, 3) points (0 where too few support points fix a quadric)."""
+    from dpcbench.methods._front_fill import local_quadric
+
+    residual = local_quadric(held, support, SCATTER_NEIGHBOURS)[2]
+    return float(np.mean(np.where(np.isfinite(residual), residual, 0.0) ** 2)) if len(residual) else 0.0
+
+
+def holdout_passes(offsets: np.ndarray, held: np.ndarray, support: np.ndarray, bound: float) -> bool:
+    """The hold-out rule of every spatial fill: True when ``offsets`` (H,), the distances of the held-out points
+    ``held`` (H, 3) from the surface built without them, have an RMS m with m^2 - e^2 <= ``bound``^2, e the held-out
+    points' own scatter about a smooth surface (`own_scatter_sq`). A noisy capture misses any smooth surface by its
+    noise whether the surface saw it or not; only the rest measures how well the surface predicts what it did not
+    see (MVUB ricardo9's depth noise: e about 0.5 s; 0.1-0.3 s on the voxelized stand-ins)."""
+    offsets = np.asarray(offsets, dtype=np.float64)
+    if not len(offsets):
+        return True
+    miss_sq = float(np.mean(offsets ** 2))
+    if miss_sq <= bound ** 2:
+        return True  # passes whatever the scatter: no fit needed
+    return miss_sq <= bound ** 2 + own_scatter_sq(held, support)
+
+
 def even_subset(points: np.ndarray, count: int) -> np.ndarray:
     """At most ``count`` rows of ``points``, evenly strided (deterministic)."""
     if len(points) <= count:

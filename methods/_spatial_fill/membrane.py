@@ -13,6 +13,7 @@ from dpcbench.methods._spatial_fill.common import (
     far_from,
     fit_height_field,
     grown_agreeing,
+    holdout_passes,
     plane_offsets,
 )
 from dpcbench.metrics.neighbours import estimate_normals
@@ -103,7 +104,8 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
             return np.zeros((0, 3))
         outer_membrane = np.vstack([membrane.evolve(held_anchors, held_seeds, step), held_anchors])
         judged, offset = plane_offsets(support[inner], outer_membrane, 3 * spacing)
-        if not judged.any() or float(np.sqrt(np.mean(offset[judged] ** 2))) > max_holdout_spacings * spacing:
+        held = support[inner][judged]
+        if not judged.any() or not holdout_passes(offset[judged], held, support, max_holdout_spacings * spacing):
             return np.zeros((0, 3))
         points = membrane.evolve(anchors, seeds, step)
     except UserError:  # more seeds than LozesPDE's cap: a region that size is no gap to span

@@ -11,7 +11,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
-from dpcbench.methods._front_fill import local_quadric
 from dpcbench.methods._spatial_fill.common import (
     MAX_STEEP,
     POISSON_CELL_STEPS,
@@ -24,6 +23,8 @@ from dpcbench.methods._spatial_fill.common import (
     far_from,
     first_in_cells,
     grown_agreeing,
+    holdout_passes,
+    own_scatter_sq,
     unique_voxels,
 )
 from dpcbench.metrics.neighbours import estimate_normals
@@ -225,8 +226,8 @@ def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered
     if ring > 0:
         inner = region.contains(support, margin=ring)
         if inner.sum() >= 6 and (~inner).sum() >= 12:
-            predicted = spline_of(~inner)(np.column_stack([t[inner], phi[inner] * arc]) / spacing)
-            if float(np.sqrt(np.mean((predicted - rho[inner] / spacing) ** 2))) > max_holdout_spacings:
+            miss = spline_of(~inner)(np.column_stack([t[inner], phi[inner] * arc]) / spacing) * spacing - rho[inner]
+            if not holdout_passes(miss, support[inner], np.vstack([first, second]), max_holdout_spacings * spacing):
                 return np.zeros((0, 3))
     grid_step = spacing / 2.0 if voxelized else (step or spacing)
     low, high = sorted(float((end - origin) @ axis) for end in ends)
@@ -267,7 +268,7 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     # the capture's own scatter about a smooth surface, at the ring: a local quadric's residual, no reconstruction
     # (0.05 s above to 0.17 s below the ring's distance to the body's own Poisson surface, the same decision in all
     # 99 measured: experiments/holdout_scatter.py)
-    scatter = float(np.mean(local_quadric(ring_points, support, 20)[2] ** 2))
+    scatter = own_scatter_sq(ring_points, support)
     bound_sq = (max_holdout_spacings * spacing) ** 2 + scatter  # held-out miss^2 - scatter^2 <= bound^2
     cap = 4.0 * np.sqrt(bound_sq)
     # distances capped at 4 bounds first (a k-d query for far points is slow: 6.3 s for 99k ring points

@@ -16,6 +16,7 @@ from dpcbench.methods._spatial_fill.common import (
     even_subset,
     far_from,
     fit_height_field,
+    holdout_passes,
     unique_voxels,
 )
 from dpcbench.metrics.neighbours import estimate_normals
@@ -81,7 +82,7 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
     from scipy.interpolate import RBFInterpolator
     from scipy.spatial import ConvexHull, QhullError
 
-    support = even_subset(support, SURFACE_POINTS)
+    whole, support = support, even_subset(support, SURFACE_POINTS)
     spread = support - centre
     uv = spread @ axes[:2].T
     step = spacing / 2.0 if voxelized else (step or spacing)
@@ -117,8 +118,8 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
         if inner.sum() >= 6 and (~inner).sum() >= 12:
             outer_spline = RBFInterpolator(uv[~inner] / spacing, heights[~inner], kernel="thin_plate_spline",
                                            smoothing=1.0, degree=2)
-            held_out = float(np.sqrt(np.mean((outer_spline(uv[inner] / spacing) - heights[inner]) ** 2)))
-            if held_out > max_holdout_spacings:
+            miss = (outer_spline(uv[inner] / spacing) - heights[inner]) * spacing
+            if not holdout_passes(miss, support[inner], whole, max_holdout_spacings * spacing):
                 return np.zeros((0, 3))
     # thin-plate spline in point-spacing units (the biharmonic membrane through the rim, the smooth
     # surface that bends least); smoothing 1: the rim's heights are samples with ~0.3-0.5 s noise
