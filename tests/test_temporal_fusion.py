@@ -1332,6 +1332,77 @@ def test_membrane_fill_spans_the_open_parts_of_an_occlusion_box_on_the_surface()
     assert len(membrane_fill(sheet, region, cKDTree(sheet), 1.0, step=sampling_step(sheet))) == 0
 
 
+def test_holdout_passes_bounds_the_miss_less_the_held_points_own_scatter():
+    """The shared hold-out rule: RMS miss m, scatter e (`own_scatter_sq`), pass iff m^2 - e^2 <= bound^2. On an exact
+    quadric e is 0 (to rounding) and the bound is exact; on a plane with 0.5 s of normal noise e^2 is most of the noise's 0.25 (a
+    20-point quadric absorbs a little of it) and the bound moves to sqrt(1 + e^2); no held-out point passes."""
+    from dpcbench.methods._spatial_fill.common import holdout_passes, own_scatter_sq
+
+    axis = np.arange(-10.0, 10.5)
+    u, v = (a.ravel() for a in np.meshgrid(axis, axis, indexing="ij"))
+    quadric = np.column_stack([u, v, 0.01 * (u ** 2 - v ** 2)])
+    held = quadric[np.hypot(u, v) < 4]
+    assert own_scatter_sq(held, quadric) < 1e-8
+    assert holdout_passes(np.full(len(held), 0.999), held, quadric, 1.0)
+    assert not holdout_passes(np.full(len(held), 1.001), held, quadric, 1.0)
+    noisy = quadric + np.column_stack([np.zeros((len(u), 2)), np.random.default_rng(0).normal(0.0, 0.5, len(u))])
+    held = noisy[np.hypot(u, v) < 4]
+    scatter_sq = own_scatter_sq(held, noisy)
+    assert 0.5 * 0.25 < scatter_sq < 1.1 * 0.25
+    edge = np.sqrt(1.0 + scatter_sq)
+    assert holdout_passes(np.full(len(held), 0.999 * edge), held, noisy, 1.0)
+    assert not holdout_passes(np.full(len(held), 1.001 * edge), held, noisy, 1.0)
+    assert holdout_passes(np.zeros(0), np.zeros((0, 3)), noisy, 1.0)
+
+
+def _without_scatter(monkeypatch):
+    """The hold-out rule as it was before the scatter term: the raw RMS miss against the bound."""
+    from dpcbench.methods._spatial_fill import common
+
+    monkeypatch.setattr(common, "own_scatter_sq", lambda held, support: 0.0)
+
+
+def test_the_spline_hold_out_allows_for_the_capture_s_own_scatter(monkeypatch):
+    """A plane with 0.8 s RMS of noise along its normal and a hole of radius 6 (step 6, ring 2): the spline of the
+    outer rim misses the noisy inner ring by over the bound (1 s), so the raw miss refuses it; less the ring's own
+    scatter it passes, and the fill lies nearer the plane than the captured points do."""
+    from dpcbench.methods._spatial_fill import rim_surface_fill
+
+    axis = np.arange(-20.0, 20.5)
+    xy = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1).reshape(-1, 2)
+    plane = np.column_stack([xy, np.zeros(len(xy))])
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 6.0)
+    kept = plane[~region.contains(plane) & (np.hypot(xy[:, 0], xy[:, 1]) < 12)]
+    kept[:, 2] += np.random.default_rng(6).normal(0.0, 0.8, len(kept))
+    fill = rim_surface_fill(kept, region, cKDTree(kept), 1.0, voxelized=False, step=1.0, ring=2.0)
+    assert len(fill) >= 0.8 * region.contains(plane).sum()
+    assert np.sqrt(np.mean(fill[:, 2] ** 2)) < 0.6 * np.sqrt(np.mean(kept[:, 2] ** 2))
+    _without_scatter(monkeypatch)
+    assert len(rim_surface_fill(kept, region, cKDTree(kept), 1.0, voxelized=False, step=1.0, ring=2.0)) == 0
+
+
+def test_the_membrane_hold_out_allows_for_the_capture_s_own_scatter(monkeypatch):
+    """The occlusion box on a gently curved sheet (`bowl_in_a_box`), its captured points 1.5 s RMS off the sheet
+    along z: the membrane of the data round the open part misses the held-out band by over the bound, so the raw
+    miss refuses it; less the band's own scatter it passes, and the fill lies on the sheet, far nearer it than the
+    captured points."""
+    from dpcbench.methods._spatial_fill import membrane_fill
+    from dpcbench.methods.lozes_pde import sampling_step
+
+    height, _, region, kept, hidden = bowl_in_a_box(0.005, [0.0, 0.0, 1.0], [8.0, 8.0, 4.0])
+    kept = kept + np.column_stack([np.zeros((len(kept), 2)), np.random.default_rng(2).normal(0.0, 1.5, len(kept))])
+    step = sampling_step(kept)
+    fill = membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)
+    assert len(fill) >= 10
+
+    def rms_off(points):
+        return float(np.sqrt(np.mean((points[:, 2] - height(points[:, 0], points[:, 1])) ** 2)))
+
+    assert rms_off(fill) < 0.3 * rms_off(kept)
+    _without_scatter(monkeypatch)
+    assert len(membrane_fill(kept, region, cKDTree(kept), 1.0, step=step)) == 0
+
+
 def test_membrane_hold_out_leaves_out_the_band_round_the_open_part_not_the_box():
     """A box on a bowl, z = 0.02 (x^2 + y^2), holding 203 captured points and two unseen patches: a membrane of
     the data round the box alone misses the data inside it by 1.3 spacings RMS (leaving the whole box out, the
