@@ -181,7 +181,8 @@ def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered
     within a quarter turn of the seam. Step 6 in the plane chart of a hole round a limb sees no height field
     (the normals wrap round it); here the same tests hold in this chart: the normals must be radial (at most
     ``max_steep`` of them more than 60 degrees off w), the spline of the points farther than ``ring`` from the
-    region must predict the radii of those within it to ``max_holdout_spacings`` spacings RMS, and the fill is
+    region must predict the radii of those within it to ``max_holdout_spacings`` spacings RMS, less their own
+    scatter in quadrature (`holdout_passes`), and the fill is
     interpolation only (t between the two ends' centroids). Grid: t and the arc length phi rho_m at step g
     (s / 2 on voxelized data, then rounded to voxels; else ``step``), lifted to the spline's radius, kept
     inside the region and not covered.

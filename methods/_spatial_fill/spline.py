@@ -70,7 +70,9 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
     smoothing 1, quadratic polynomial) of the heights h_i = (p_i - c) . n over (u_i, v_i), all in units
     of ``spacing``, on at most `SURFACE_POINTS` evenly strided support points. Hold-out test (when
     ``ring`` > 0): the spline of the support points farther than ``ring`` from the region must predict
-    the heights of those within it with RMS error at most ``max_holdout_spacings`` (in spacings).
+    the heights of those within it with RMS error at most ``max_holdout_spacings`` (in spacings), less in quadrature
+    those points' own scatter about a smooth surface (`holdout_passes`: a noisy capture's ring misses any surface by
+    its noise).
     Grid: step ``spacing / 2`` on voxelized data (then rounded half up to voxels, unique), else
     ``step`` (default ``spacing``); only grid points inside the convex hull of the support's (u, v),
     inside ``region`` and not covered are lifted onto the spline."""

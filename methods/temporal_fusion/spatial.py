@@ -86,7 +86,8 @@ def _surface(cfg: FusionConfig, hole: Opening, support: np.ndarray, covered: cKD
 
 class SurfaceSpline:
     trust = ("the support is a height field over its PCA plane (at most 1/4 of its normals 60 degrees off) and the "
-             "spline of the outer rim predicts the inner rim within surface_holdout_spacings s RMS")
+             "spline of the outer rim predicts the inner rim within surface_holdout_spacings s RMS, less the inner "
+             "rim's own scatter in quadrature (`holdout_passes`)")
 
     @staticmethod
     def applies(cfg: FusionConfig, hole: Opening, state: Cascade) -> bool:
@@ -138,7 +139,7 @@ class WalledCap:
 
 class ClosedSurface:
     trust = ("the surface of the crop without its inner ring misses that ring by at most surface_holdout_spacings s "
-             "RMS, less the ring's own scatter in quadrature")
+             "RMS, less the ring's own scatter in quadrature (`holdout_passes`)")
 
     @staticmethod
     def applies(cfg: FusionConfig, hole: Opening, state: Cascade) -> bool:
@@ -169,7 +170,8 @@ class Cap:
 
 class Membrane:
     trust = ("height field over the seeds' plane (a majority bound), interpolation or a bounded sag, the hold-out of "
-             "the band round the open part, and the agreement rule")
+             "the band round the open part (less the band's own scatter in quadrature, `holdout_passes`), and the agreement "
+             "rule")
 
     @staticmethod
     def applies(cfg: FusionConfig, hole: Opening, state: Cascade) -> bool:
