@@ -86,8 +86,7 @@ def _surface(cfg: FusionConfig, hole: Opening, support: np.ndarray, covered: cKD
 
 class SurfaceSpline:
     trust = ("the support is a height field over its PCA plane (at most 1/4 of its normals 60 degrees off) and the "
-             "spline of the outer rim predicts the inner rim within surface_holdout_spacings s RMS, less the inner "
-             "rim's own scatter in quadrature (`holdout_passes`)")
+             "spline of the outer rim predicts the inner rim within surface_holdout_spacings s RMS")
 
     @staticmethod
     def applies(cfg: FusionConfig, hole: Opening, state: Cascade) -> bool:
