@@ -2,9 +2,12 @@
 
 Runs `TemporalFusion.inpaint` on the damaged frame(s) of a `dpcbench damage` folder and prints, per hole region,
 every strategy of `methods.temporal_fusion.spatial.CASCADE` that ran and how many points it added (0 = it refused or
-found nothing open). Usage (after experiments/one_frame.sh has written OUTDIR/damaged):
+found nothing open). With ``--holdouts``, before each strategy's line, every hold-out it judged by the shared rule
+(`methods._spatial_fill.common.holdout_passes`: step 6e's membrane, step 6c's tube): the held-out points, their RMS
+miss m, their own scatter e, sqrt(m^2 - e^2) and the bound, in coordinate units, and the decision. Usage (after
+experiments/one_frame.sh has written OUTDIR/damaged, or after `dpcbench damage`):
 
-    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged [--param best_surface=false ...]
+    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged [--holdouts] [--param best_surface=false ...]
 """
 
 from __future__ import annotations
@@ -36,19 +39,45 @@ def _traced(strategy, log):
     return staticmethod(traced)
 
 
+def _traced_holdouts(log):
+    """Wrap the shared hold-out rule where the fills call it, each call logged with its figures."""
+    from dpcbench.methods._spatial_fill import membrane, poisson
+    from dpcbench.methods._spatial_fill.common import holdout_passes, own_scatter_sq
+
+    def traced(offsets, held, support, bound):
+        passed = holdout_passes(offsets, held, support, bound)
+        if len(offsets):
+            miss = float(np.sqrt(np.mean(np.square(offsets))))
+            scatter = float(np.sqrt(own_scatter_sq(held, support)))
+            net = float(np.sqrt(max(miss ** 2 - scatter ** 2, 0.0)))
+            log.append(f"  hold-out: {len(offsets)} held-out points, miss {miss:.3f}, scatter {scatter:.3f}, "
+                       f"net {net:.3f}, bound {bound:.3f}: {'passed' if passed else 'refused'}")
+        return passed
+
+    membrane.holdout_passes = poisson.holdout_passes = traced
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a temporal-fusion parameter (repeatable), e.g. best_surface=false")
+    parser.add_argument("--holdouts", action="store_true",
+                        help="also each hold-out judged by the shared rule (membrane, tube), with its figures")
     args = parser.parse_args(argv)
     loaded = load_damage_or_exit(args.damaged)
     _, frames, regions = loaded
     log: list = []
     for strategy in spatial.CASCADE:
         strategy.fill = _traced(strategy, log)
+    if args.holdouts:
+        _traced_holdouts(log)
     out = TemporalFusion(**parse_params(args.param)).inpaint(frames, regions)
-    for centre, radius, name, added, cpu in log:
+    for entry in log:
+        if isinstance(entry, str):
+            print(entry)
+            continue
+        centre, radius, name, added, cpu = entry
         print(f"region at {centre} r={radius:.1f}: {name:14s} +{added:6d} points ({cpu:.1f} s CPU)")
     print(f"added {sum(len(o) - len(f) for o, f in zip(out, frames))} points in all")
     return 0
