@@ -47,11 +47,13 @@ def own_scatter_sq(held: np.ndarray, support: np.ndarray) -> float:
 
 
 def holdout_passes(offsets: np.ndarray, held: np.ndarray, support: np.ndarray, bound: float) -> bool:
-    """The hold-out rule of every spatial fill: True when ``offsets`` (H,), the distances of the held-out points
-    ``held`` (H, 3) from the surface built without them, have an RMS m with m^2 - e^2 <= ``bound``^2, e the held-out
-    points' own scatter about a smooth surface (`own_scatter_sq`). A noisy capture misses any smooth surface by its
-    noise whether the surface saw it or not; only the rest measures how well the surface predicts what it did not
-    see (MVUB ricardo9's depth noise: e about 0.5 s; 0.1-0.3 s on the voxelized stand-ins)."""
+    """The hold-out rule of the fills after step 6 (step 6c's tube and, with its own capped distances, its Poisson
+    surface; step 6e's membrane; step 6's spline keeps the raw miss, its docstring says why): True when ``offsets``
+    (H,), the distances of the held-out points ``held`` (H, 3) from the surface built without them, have an RMS m
+    with m^2 - e^2 <= ``bound``^2, e the held-out points' own scatter about a smooth surface (`own_scatter_sq`). A
+    noisy capture misses any smooth surface by its noise whether the surface saw it or not; only the rest measures
+    how well the surface predicts what it did not see (MVUB ricardo9's depth noise: e 0.39-0.51 s at the membrane's
+    hold-outs of its occlusion boxes, `experiments/cascade_trace.py --holdouts`)."""
     offsets = np.asarray(offsets, dtype=np.float64)
     if not len(offsets):
         return True

@@ -61,8 +61,8 @@ def membrane_fill(captured: np.ndarray, region: HoleRegion, covered: cKDTree | N
     planes of that membrane and its anchors (8 nearest within 3 s, `plane_offsets`; points with fewer are
     not judged) must be at most ``max_holdout_spacings`` spacings, less in quadrature the left-out points' own
     scatter about a smooth surface (`holdout_passes`: a noisy capture misses any surface by its noise; on MVUB
-    ricardo9's occlusion boxes the raw miss refused three of radius 36-44, docs/temporal-fusion.md "Version 49"). The band is that of step 6's hold-out
-    round the open part, not round the region: an occlusion box keeps data inside, and leaving all of it
+    ricardo9's occlusion boxes the raw miss refused three of radius 36-44, docs/temporal-fusion.md "Version
+    49"). The band is that of step 6's hold-out round the open part, not round the region: an occlusion box keeps data inside, and leaving all of it
     out tested a membrane across the whole box, which the fill never spans (it refused D-FAUST boxes whose
     fills lay 0.26 s RMS off the truth at a hold-out of 1.27 s). (3) Agreement (step 4's rule,
     `grown_agreeing`): grown from the anchors, each point must lie within ``agree_spacings`` spacings of
