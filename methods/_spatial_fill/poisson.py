@@ -204,7 +204,8 @@ def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered
     across = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
     across /= np.linalg.norm(across)
     frame = np.array([across, np.cross(axis, across)])
-    support = even_subset(np.vstack([first, second]), SURFACE_POINTS)
+    both = np.vstack([first, second])
+    support = even_subset(both, SURFACE_POINTS)
     normals = estimate_normals(support, 10, queries=support)
     t = (support - origin) @ axis
     radial = support - origin - t[:, None] * axis
@@ -228,7 +229,7 @@ def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered
         inner = region.contains(support, margin=ring)
         if inner.sum() >= 6 and (~inner).sum() >= 12:
             miss = spline_of(~inner)(np.column_stack([t[inner], phi[inner] * arc]) / spacing) * spacing - rho[inner]
-            if not holdout_passes(miss, support[inner], np.vstack([first, second]), max_holdout_spacings * spacing):
+            if not holdout_passes(miss, support[inner], both, max_holdout_spacings * spacing):
                 return np.zeros((0, 3))
     grid_step = spacing / 2.0 if voxelized else (step or spacing)
     low, high = sorted(float((end - origin) @ axis) for end in ends)
