@@ -54,7 +54,11 @@ def local_quadric(points: np.ndarray, support: np.ndarray, neighbours: int = 20,
     c3 u^2 + c4 u v + c5 v^2 minimising sum_i w_i (h(u_i, v_i) - h_i)^2 with Gaussian weights
     w_i = exp(-d_i^2 / (2 b^2)), b the distance to the farthest neighbour / 2 (as temporal-fusion's
     `mls_fit`); foot = (u, v, h(u, v)) of the point; residual sqrt(sum w_i r_i^2 / sum w_i). Points
-    with fewer than 6 support points get themselves, a zero normal and an infinite residual."""
+    with fewer than 6 support points get themselves, a zero normal and an infinite residual.
+
+    The fit is solved in units of b (u / b, v / b, h / b), with a 1e-9 ridge on the normal equations:
+    the same fit at any unit of length (a ridge in the data's own units would damp the quadratic terms of
+    data in metres, whose moments of u^4 are ~1e-10 at a 3 mm spacing, to a plane)."""
     points = np.asarray(points, dtype=np.float64)
     support = np.asarray(support, dtype=np.float64)
     k = int(min(neighbours, len(support)))
@@ -83,9 +87,11 @@ def local_quadric(points: np.ndarray, support: np.ndarray, neighbours: int = 20,
     def along(direction):  # (P, k): each neighbour's coordinate along its point's direction
         return spread[0] * direction[:, 0, None] + spread[1] * direction[:, 1, None] + spread[2] * direction[:, 2, None]
 
-    u, v, h = along(u_axis), along(v_axis), along(normal)
     bandwidth = np.maximum(dist[:, -1] / 2.0, 1e-12)
-    weight = np.exp(-(dist / bandwidth[:, None]) ** 2 / 2.0)
+    # in units of the bandwidth, so that the ridge below weighs the same at any unit of length
+    unit = bandwidth[:, None]
+    u, v, h = along(u_axis) / unit, along(v_axis) / unit, along(normal) / unit
+    weight = np.exp(-(dist / unit) ** 2 / 2.0)
     # monomials u^a v^b by (a, b); the design's columns are 1, u, v, u^2, u v, v^2
     columns = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)]
     powers = {(0, 0): np.ones_like(u), (1, 0): u, (0, 1): v}
@@ -108,11 +114,11 @@ def local_quadric(points: np.ndarray, support: np.ndarray, neighbours: int = 20,
         return c[0] + c[1] * pu + c[2] * pv + c[3] * pu * pu + c[4] * pu * pv + c[5] * pv * pv
 
     misfit = quadric(u, v) - h
-    residual = np.sqrt((weight * misfit * misfit).sum(axis=1) / weight.sum(axis=1))
+    residual = np.sqrt((weight * misfit * misfit).sum(axis=1) / weight.sum(axis=1)) * bandwidth
     offset = points - centre
     pu = np.einsum("pi,pi->p", offset, u_axis)
     pv = np.einsum("pi,pi->p", offset, v_axis)
-    ph = quadric(pu, pv)
+    ph = quadric(pu / bandwidth, pv / bandwidth) * bandwidth
     foot = centre + pu[:, None] * u_axis + pv[:, None] * v_axis + ph[:, None] * normal
     finite = np.isfinite(foot).all(axis=1) & np.isfinite(residual)
     return (np.where(finite[:, None], foot, points), np.where(finite[:, None], normal, 0.0),

@@ -93,6 +93,25 @@ def test_local_quadric_matches_a_naive_per_point_fit_on_random_surfaces(neighbou
         assert abs(abs(normal[i] @ ref_normal) - 1.0) < 1e-9  # the same normal, up to its sign
 
 
+@pytest.mark.parametrize("scale", [2.0 ** -12, 1e-3, 1e3])
+def test_local_quadric_gives_the_same_fit_in_any_unit_of_length(scale):
+    """The fit of data in metres (a 3 mm spacing) is the fit of the same data in millimetres, scaled: its quadratic
+    terms are not damped by a ridge in the data's own units (foot and residual within 1e-9 of the unscaled fit's,
+    relative to the spacing; the naive fit, which has no ridge, agrees)."""
+    rng = np.random.default_rng(7)
+    uv = rng.uniform(-10, 10, size=(3000, 2))  # spacing ~0.3 units; curvature radius ~10 units
+    sheet = np.column_stack([uv, 0.05 * uv[:, 0] ** 2 + 0.03 * uv[:, 0] * uv[:, 1] - 0.04 * uv[:, 1] ** 2])
+    queries = sheet[rng.choice(len(sheet), 100, replace=False)] + rng.normal(0, 0.3, size=(100, 3))
+    foot, normal, residual = local_quadric(queries, sheet, 20)
+    scaled_foot, scaled_normal, scaled_residual = local_quadric(queries * scale, sheet * scale, 20)
+    np.testing.assert_allclose(scaled_foot / scale, foot, atol=1e-9)
+    np.testing.assert_allclose(scaled_residual / scale, residual, atol=1e-9)
+    np.testing.assert_allclose(np.abs(np.sum(scaled_normal * normal, axis=1)), 1.0, atol=1e-9)
+    for i in range(0, 100, 10):
+        ref_foot = naive_local_quadric(queries[i] * scale, sheet * scale, 20)[0]
+        np.testing.assert_allclose(scaled_foot[i] / scale, ref_foot / scale, atol=1e-7)
+
+
 def test_front_fill_closes_a_plane_hole_on_the_plane_at_the_data_density():
     plane = grid_plane()
     region = HoleRegion.ball([0.3, -0.2, 0.0], 4.0)
