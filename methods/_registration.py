@@ -46,7 +46,7 @@ def kabsch(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int = 10, trim: float = 0.9,
                      max_points: int = 256, source_tree: cKDTree | None = None,
-                     start: tuple[np.ndarray, np.ndarray] | None = None, tol: float = 1e-4
+                     start: tuple[np.ndarray, np.ndarray] | None = None, tol: float = 1e-4, unit: float = 1.0
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Rigid (R, t) that moves the complete ``source`` (S, 3) onto the ``partial`` target (T, 3).
 
@@ -56,8 +56,10 @@ def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int
     from an earlier alignment. At most ``max_points`` target
     points are paired (an evenly spaced, deterministic subset of the rows): six unknowns need far
     fewer pairs than a cube holds. Starts from the identity
-    (callers translate the source into place first). Stops early when the largest change of
-    an entry of R or t is below ``tol`` (1e-4: a hundredth of a percent of a voxel at 10 bits).
+    (callers translate the source into place first). Stops early when the largest change of an entry of R
+    plus that of t in units of ``unit`` (the data's unit of length: one voxel on voxelized data) is below ``tol``
+    (1e-4: a hundredth of a percent of a voxel at 10 bits), so that data in metres stops where the same data in
+    millimetres does.
     Returns (R, t) such that ``source @ R.T + t`` lies on the partial target.
     """
     rotation, translation = (np.eye(3), np.zeros(3)) if start is None else start
@@ -80,7 +82,7 @@ def align_to_partial(source: np.ndarray, partial: np.ndarray, *, iterations: int
             new_rotation, new_translation = kabsch(source[idx[keep]], partial[keep])
         else:
             new_rotation, new_translation = kabsch(source[idx], partial)
-        change = np.abs(new_rotation - rotation).max() + np.abs(new_translation - translation).max()
+        change = np.abs(new_rotation - rotation).max() + np.abs(new_translation - translation).max() / unit
         rotation, translation = new_rotation, new_translation
         if change < tol:
             break
@@ -121,7 +123,7 @@ class RigidFit:
 
 
 def align_best(sources: Sequence[np.ndarray | None], partial: np.ndarray, *, iterations: int,
-               screen_iterations: int = 3, residual: bool = True) -> RigidFit | None:
+               screen_iterations: int = 3, residual: bool = True, unit: float = 1.0) -> RigidFit | None:
     """The candidate source patch that `align_to_partial` fits best onto ``partial`` (T, 3), aligned.
 
     sources: candidate patches (S_i, 3), already translated into place; None or fewer than 3
@@ -129,7 +131,7 @@ def align_best(sources: Sequence[np.ndarray | None], partial: np.ndarray, *, ite
     is screened by min(``screen_iterations``, ``iterations``) iterations, the smallest trimmed mean
     residual (`alignment_residual`) wins (the first on ties) and is refined by the remaining
     iterations, resuming from its screening alignment. ``residual``: compute the winner's final
-    residual (else 0.0). None when no candidate has 3 points.
+    residual (else 0.0); ``unit``: `align_to_partial`'s. None when no candidate has 3 points.
     """
     single = len(sources) == 1
     screen = iterations if single else min(screen_iterations, iterations)
@@ -138,7 +140,7 @@ def align_best(sources: Sequence[np.ndarray | None], partial: np.ndarray, *, ite
         if source is None or len(source) < 3:
             continue
         tree = cKDTree(source)
-        rotation, translation = align_to_partial(source, partial, iterations=screen, source_tree=tree)
+        rotation, translation = align_to_partial(source, partial, iterations=screen, source_tree=tree, unit=unit)
         score = 0.0 if single else alignment_residual(tree, partial, rotation, translation)
         if score < best_residual:
             best, best_residual = (source, tree, rotation, translation), score
@@ -147,6 +149,6 @@ def align_best(sources: Sequence[np.ndarray | None], partial: np.ndarray, *, ite
     source, tree, rotation, translation = best
     if screen < iterations:
         rotation, translation = align_to_partial(source, partial, iterations=iterations - screen, source_tree=tree,
-                                                 start=(rotation, translation))
+                                                 start=(rotation, translation), unit=unit)
     final = alignment_residual(tree, partial, rotation, translation) if residual else 0.0
     return RigidFit(source, tree, rotation, translation, final)

@@ -2,6 +2,10 @@
 
 Pipeline (pymeshlab filter names as in pymeshlab 2025.7):
 
+0. The frame goes to MeshLab centred on its bounding box and in units of its sampling step s
+   (`methods._geometry.sampling_step`), and the mesh comes back moved to the data's units: MeshLab's
+   filters hold tolerances in absolute units, so a capture in metres would otherwise mesh unlike the same
+   capture in millimetres (`experiments/scale_check.py`).
 1. ``compute_normal_for_point_clouds`` (k = ``normal_neighbours``): PCA normals, MeshLab's own
    orientation propagation.
 2. Surface reconstruction: ``generate_surface_reconstruction_ball_pivoting`` (the paper's baseline;
@@ -90,7 +94,7 @@ class MeshlabFill(PerFrameMethod):
 
     name = "meshlab"
     summary = "MeshLab baseline: normals, ball-pivoting (or screened Poisson) mesh, close holes, resample (pymeshlab)"
-    version = "2"  # 2: MeshLab's vertex colours (inpaint_with_colours; the geometry unchanged)
+    version = "3"  # 2: MeshLab's vertex colours; 3: the frame meshed in units of its sampling step (CHANGELOG)
     detects_holes = True
 
     def __init__(self, reconstruction: str = "ball-pivoting", output: str = "whole", normal_neighbours: int = 10,
@@ -169,17 +173,20 @@ class MeshlabFill(PerFrameMethod):
         support, support_colours = points, colours
         if self.max_points:
             support, support_colours = cluster_points(points, int(self.max_points), step, colours)
+        # MeshLab's filters hold tolerances in absolute units, so they see the frame centred on its bounding box
+        # and in units of its sampling step: the same mesh, scaled, for a capture in metres or in millimetres
+        origin = (points.min(axis=0) + points.max(axis=0)) / 2.0
+        local = np.ascontiguousarray((np.asarray(support, dtype=np.float64) - origin) / step)
         ms = pymeshlab.MeshSet()
         if support_colours is None:
-            ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(support, dtype=np.float64)))
+            ms.add_mesh(pymeshlab.Mesh(vertex_matrix=local))
         else:
             rgba = np.column_stack([np.asarray(support_colours, dtype=np.float64) / 255.0, np.ones(len(support))])
-            ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(support, dtype=np.float64),
-                                       v_color_matrix=np.ascontiguousarray(rgba)))
+            ms.add_mesh(pymeshlab.Mesh(vertex_matrix=local, v_color_matrix=np.ascontiguousarray(rgba)))
         _apply(ms, "compute_normal_for_point_clouds", k=int(self.normal_neighbours))
         if self.reconstruction == "ball-pivoting":
             _apply(ms, "generate_surface_reconstruction_ball_pivoting",
-                   ballradius=pymeshlab.PureValue(float(self.ball_radius)))
+                   ballradius=pymeshlab.PureValue(float(self.ball_radius) / step))
         else:
             _apply(ms, "generate_surface_reconstruction_screened_poisson", depth=int(self.poisson_depth),
                    threads=1)  # one thread: the same input gives the same mesh
@@ -194,7 +201,7 @@ class MeshlabFill(PerFrameMethod):
         _apply(ms, "meshing_close_holes", maxholesize=int(self.max_hole_size), newfaceselected=True,
                selfintersection=True)
         mesh = ms.current_mesh()
-        vertices, faces = mesh.vertex_matrix(), mesh.face_matrix()
+        vertices, faces = mesh.vertex_matrix() * step + origin, mesh.face_matrix()
         hole_faces = mesh.face_selection_array().astype(bool).copy()
         hole_faces[:reconstructed_faces] = False  # only faces close-holes appended
         if self.reconstruction == "poisson":

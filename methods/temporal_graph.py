@@ -443,7 +443,7 @@ def intra_source(target: np.ndarray, lower: np.ndarray, query: np.ndarray, ctx: 
         source_lower = cand.lower[index]
         source_idx = ctx.tree.query_ball_point(source_lower + half, half + grow, p=np.inf)
         sources.append(ctx.points[source_idx] + (lower - source_lower) if len(source_idx) >= 3 else None)
-    return align_best(sources, target, iterations=icp_iterations, residual=residual)
+    return align_best(sources, target, iterations=icp_iterations, residual=residual, unit=ctx.unit)
 
 
 def inter_source_window(target: np.ndarray, lower: np.ndarray, neighbour: NeighbourFrame, *, cube: float,
@@ -481,7 +481,7 @@ def inter_source(target: np.ndarray, lower: np.ndarray, neighbour: NeighbourFram
                                                  p=np.inf)
     if len(window_idx) < 3:
         return None
-    fit = align_best([neighbour.points[window_idx]], target, iterations=icp_iterations)
+    fit = align_best([neighbour.points[window_idx]], target, iterations=icp_iterations, unit=unit)
     if fit is None:
         return None
     # raw: an inpainted f-1 would otherwise hand its own fill on, and a fill copied from frame to
@@ -1159,10 +1159,10 @@ class TemporalGraph(_CubeGraphInpainting):
 
     name = "temporal-graph"
     summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
-    version = "8"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
+    version = "9"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
     # 5: ICP pairs independent of the CPU; 6: paper variant known points fixed + snap (variant literal added);
     # 7: colours solved on the cube's graph (`cube_colours`; the geometry unchanged); 8: the generic harmonic colour
-    # fill without temporal terms (beta = 0, one frame)
+    # fill without temporal terms (beta = 0, one frame); 9: ICP's stopping test in the data's unit (CHANGELOG)
     uses_neighbour_frames = True
     _temporal = True
 
@@ -1214,9 +1214,10 @@ class FuNonlocal(_CubeGraphInpainting):
 
     name = "fu-nonlocal"
     summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
-    version = "6"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
+    version = "7"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
     # 4: paper variant known points fixed + snap (variant literal added); 5: colours solved on the cube's graph
-    # 6: without temporal terms the generic harmonic colour fill (the cube-by-cube solve measured worse)
+    # 6: without temporal terms the generic harmonic colour fill (the cube-by-cube solve measured worse);
+    # 7: ICP's stopping test in the data's unit (CHANGELOG)
     uses_neighbour_frames = False
     _temporal = False
     # not parameters: the temporal terms are off by definition, so there is no temporal evidence

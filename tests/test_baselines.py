@@ -298,6 +298,23 @@ def test_meshlab_holes_only_keeps_every_point_and_adds_only_in_the_hole(holed_sp
     assert cKDTree(added).query(truth)[0].max() < sagitta + 2 * step
 
 
+def test_meshlab_meshes_a_frame_in_metres_as_in_millimetres():
+    """MeshLab's ball pivoting holds tolerances in absolute units (handed the frame in its own units, the human
+    stand-in scaled by 2^-10 gave 23,299 points instead of 23,304); the adapter hands it the frame in units of its
+    sampling step, so the same frame scaled by a power of two (exact in floating point) gives the same output."""
+    from dpcbench.bench.data.datasets import load_dataset
+
+    frame = load_dataset("human", frames=1, size="tiny", progress=False).points[0] * 1.37  # float, not voxels
+    centres = frame[np.random.default_rng(1).choice(len(frame), 3, replace=False)]
+    regions = [HoleRegion.ball(c, 10.0) for c in centres]
+    damaged = frame[~np.any([r.contains(frame) for r in regions], axis=0)]
+    scale = 2.0 ** -10
+    fill = MeshlabFill(output="holes-only")
+    out = fill.inpaint([damaged], [regions])[0]
+    scaled = fill.inpaint([damaged * scale], [[HoleRegion.ball(r.center * scale, r.radius * scale) for r in regions]])
+    np.testing.assert_array_equal(scaled[0] / scale, out)
+
+
 def test_meshlab_blind_holes_only_fills_the_hole_too(holed_sphere):
     damaged, truth, region = holed_sphere
     out = MeshlabFill(output="holes-only").inpaint([damaged], None)[0]

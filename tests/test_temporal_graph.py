@@ -127,6 +127,41 @@ def test_align_to_partial_fits_a_complete_patch_onto_a_patch_with_a_hole():
     np.testing.assert_allclose(patch @ r.T + t, moved, atol=1e-3)
 
 
+def test_align_to_partial_stops_at_the_same_step_in_any_unit_of_length():
+    """The stopping test reads the translation's change in the data's unit: the same patch in metres (scaled by
+    2^-10, exact in floating point) stops at the same iteration, so the motion is the same, its translation
+    scaled. A pure translation, so that the stop rests on the translation's change: with the unit left at 1 the
+    metre-scale fit stops early (its changes are below 1e-4 m long before they are below 1e-4 units)."""
+    xy = np.random.default_rng(8).uniform(-6, 6, size=(800, 2))
+    patch = np.column_stack([xy, 0.08 * xy[:, 0] ** 2 + 0.15 * xy[:, 1] ** 2 + 0.03 * xy[:, 0] * xy[:, 1]])
+    partial = (patch + np.array([0.6, -0.4, 0.3]))[np.linalg.norm(patch[:, :2], axis=1) > 2.5]
+    scale = 2.0 ** -10
+    r, t = align_to_partial(patch, partial, iterations=30)
+    r_scaled, t_scaled = align_to_partial(patch * scale, partial * scale, iterations=30, unit=scale)
+    np.testing.assert_array_equal(r_scaled, r)
+    np.testing.assert_array_equal(t_scaled / scale, t)
+    _, t_unitless = align_to_partial(patch * scale, partial * scale, iterations=30)
+    assert not np.array_equal(t_unitless / scale, t)
+
+
+def test_temporal_graph_gives_the_same_output_in_any_unit_of_length():
+    """Float frames (a sphere turning 0.03 rad and moving 0.7 units a frame, two holes a frame) and the same frames
+    in metres (scaled by 2^-10): the same output, scaled (with ICP's stop in absolute units frame 2 differed)."""
+    sphere = fibonacci_sphere(radius=18.0, spacing=1.3)
+    turn = [np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+            for a in 0.03 * np.arange(3)]
+    frames = [sphere @ turn[f].T + [0.7 * f, 0.0, 0.0] for f in range(3)]
+    regions = [[HoleRegion.ball(frame[0], 3.5), HoleRegion.ball(frame[len(frame) // 2], 3.5)] for frame in frames]
+    damaged, _ = punch(frames, regions)
+    scale = 2.0 ** -10
+    method = TemporalGraph(**FAST, spacing="points")  # the unit: the median point spacing, in any unit of length
+    out = method.inpaint(damaged, regions)
+    scaled_regions = [[HoleRegion.ball(r.center * scale, r.radius * scale) for r in rr] for rr in regions]
+    scaled = method.inpaint([frame * scale for frame in damaged], scaled_regions)
+    for got, want in zip(scaled, out):
+        np.testing.assert_array_equal(got / scale, want)
+
+
 # -- graph and solve -----------------------------------------------------------------------------
 
 def test_knn_laplacian_is_symmetric_with_zero_row_sums_and_gaussian_weights():
