@@ -58,7 +58,7 @@ def local_quadric(points: np.ndarray, support: np.ndarray, neighbours: int = 20,
 
     The fit is solved in units of b (u / b, v / b, h / b), with a 1e-9 ridge on the normal equations:
     the same fit at any unit of length (a ridge in the data's own units would damp the quadratic terms of
-    data in metres, whose moments of u^4 are ~1e-10 at a 3 mm spacing, to a plane)."""
+    data in metres, whose moments of u^4 shrink with the fourth power of the unit, towards a plane)."""
     points = np.asarray(points, dtype=np.float64)
     support = np.asarray(support, dtype=np.float64)
     k = int(min(neighbours, len(support)))
