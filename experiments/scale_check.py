@@ -23,7 +23,6 @@ Usage (on float data: voxelized frames are integers, and a scaled copy is no lon
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import warnings
 from pathlib import Path
 
@@ -33,7 +32,6 @@ from fill_audit import frame_psnr, truth_frames_or_exit
 from scipy.spatial import cKDTree
 
 from dpcbench.bench.data.plyio import read_ply
-from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods.registry import get_method
 from dpcbench.metrics import resolve_peak
 from dpcbench.metrics.neighbours import point_spacing
@@ -41,12 +39,6 @@ from dpcbench.metrics.pairs import CloudPair
 
 #: a point farther than this many spacings from the unscaled output counts as moved
 MOVED_SPACINGS = 0.01
-
-
-def scaled_region(region: HoleRegion, scale: float) -> HoleRegion:
-    """``region`` with every length multiplied by ``scale`` (its rotation and extra keys kept)."""
-    half = None if region.half_extents is None else region.half_extents * scale
-    return dataclasses.replace(region, center=region.center * scale, radius=region.radius * scale, half_extents=half)
 
 
 def deviation(reference: np.ndarray, other: np.ndarray, spacing: float) -> str:
@@ -81,7 +73,7 @@ def main(argv=None) -> int:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the methods' own notices (one frame, no source), the same each run
                 outputs = get_method(name).inpaint([f * scale for f in frames],
-                                                   [[scaled_region(r, scale) for r in rr] for rr in regions])
+                                                   [[r.scaled(scale) for r in rr] for rr in regions])
             runs[scale] = [np.asarray(out, dtype=np.float64) / scale for out in outputs]
         for scale, outputs in runs.items():
             cells = []

@@ -131,6 +131,15 @@ class HoleRegion:
         half_extents, rotation = self._box()
         return (np.abs(d @ rotation) <= half_extents + margin).all(axis=1)
 
+    def scaled(self, factor: float) -> HoleRegion:
+        """The region with every length multiplied by ``factor`` > 0 (its centre, radius or half extents; its
+        rotation and extra keys kept): this region in another unit of length."""
+        if self.shape == "ball":
+            return HoleRegion("ball", self.center * factor, radius=self.radius * factor, extra=dict(self.extra))
+        half_extents, rotation = self._box()
+        return HoleRegion("box", self.center * factor, half_extents=half_extents * factor, rotation=rotation,
+                          extra=dict(self.extra))
+
     def to_dict(self) -> dict:
         out = {"shape": self.shape, "center": self.center.tolist()}
         if self.shape == "ball":

@@ -21,8 +21,10 @@ BUILTIN = METHODS.builtin_names()
 #: parameters under which a method fills `sample_sequence` (a sparse float sphere, ~4 units between points). At
 #: their defaults the cube methods take a float frame's unit as 1/1024 of its extent (the paper's rule for a 10-bit
 #: body), no cube then holds enough points, and every check would see the frames come back unchanged (in 5 s an
-#: inpaint: the cube grid of that unit is large)
-FILLING = {"temporal-graph": {"spacing": 2.0}, "fu-nonlocal": {"spacing": 2.0}}
+#: inpaint: the cube grid of that unit is large). The unit is the median point spacing, not a length in coordinates,
+#: so that the unit-of-length check sees the same parameters at every scale
+FILLING = {"temporal-graph": {"spacing": "points", "cube_size": 10.0},
+           "fu-nonlocal": {"spacing": "points", "cube_size": 10.0}}
 
 
 @pytest.mark.parametrize("name", BUILTIN)
@@ -113,6 +115,18 @@ class AcceptsBlindFill(GoodFill):
         return super().inpaint(frames, regions)
 
 
+class AbsoluteGridFill(GoodFill):
+    """Fills each ball region with the points of a grid of step 4 coordinate units: a rule in absolute units."""
+
+    name = "absolute-grid-fill"
+
+    def inpaint_frame(self, points, regions):
+        axis = np.arange(-20.0, 21.0, 4.0)
+        grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+        fills = [r.center + grid[np.linalg.norm(grid, axis=1) <= r.radius] for r in regions]
+        return np.vstack([points, *fills])
+
+
 class AliasingFill(GoodFill):
     name = "aliasing-fill"
 
@@ -136,6 +150,8 @@ def test_check_method_passes_a_correct_method_and_runs_a_subset():
     (RandomFill, "deterministic", r"two runs with the same parameters differ in frame 0"),
     (AcceptsBlindFill, "blind", r"regions=None was accepted although detects_holes is False"),
     (AliasingFill, "output", r"frame 0 of the output shares memory with an input frame"),
+    (AbsoluteGridFill, "unit-of-length", r"scaled by 0.000976562 \(the same capture in other units\), frame 0 came "
+                                         r"back with \d+ points instead of \d+"),
 ])
 def test_check_method_rejects_a_method_that_breaks_the_contract(cls, check, message):
     with pytest.raises(ConformanceError, match=message) as info:
@@ -172,7 +188,7 @@ def test_check_method_command_reports_each_check_and_the_failure(capsys):
     assert main(["check-method", "none"]) == 0
     out = capsys.readouterr().out
     assert [line.split()[1] for line in out.splitlines() if line.startswith("ok")] == list(CHECKS)
-    assert "none: 12 check(s) passed" in out
+    assert f"none: {len(CHECKS)} check(s) passed" in out
     assert main(["check-method", "tests.test_conformance:GoodFill", "--param", "copies=3", "--check", "output"]) == 0
     assert "1 check(s) passed" in capsys.readouterr().out
     assert main(["check-method", "tests.test_conformance:MutatingFill"]) == 1

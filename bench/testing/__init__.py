@@ -23,6 +23,13 @@ checks, in this order (`CHECKS`):
 - ``read-only-input``: read-only frames (memory maps, shared caches) are accepted;
 - ``deterministic``: a second instance with the same parameters gives the same output, bit for bit;
 - ``no-hole-identity``: empty region lists give back the input frames unchanged;
+- ``unit-of-length``: the same sequence in other units (every coordinate and region scaled by 2^-10, a capture in
+  metres instead of millimetres, and by 2^10; powers of two, exact in floating point) gives the same output, scaled:
+  per frame the same point count within 1 % and at most 1 % of the points farther than 1e-6 spacings from the
+  unscaled output's. The 1 % leaves room for decision noise (a threshold decision flipped by the last bits of a
+  routine that is not exactly scaled; temporal-fusion 50 moves 0.02 % of a D-FAUST frame, `experiments/
+  scale_check.py`), not for a rule in absolute units (temporal-fusion 49's quadric ridge moved 1.7-3.3 % of this
+  sequence's points). Check a method whose parameters hold lengths in coordinates with those unset or relative;
 - ``blind``: ``regions=None`` gives finite frames when the method ``detects_holes``, else a
   ValueError that mentions "regions";
 - ``one-frame``: a one-frame sequence works, or is refused with a ValueError that mentions "frame";
@@ -50,8 +57,12 @@ __all__ = ["CHECKS", "ConformanceError", "check_method", "sample_sequence"]
 
 CHECKS: tuple[str, ...] = (
     "class-facts", "signature", "init-stores-parameters", "params-round-trip", "output", "inputs-untouched",
-    "read-only-input", "deterministic", "no-hole-identity", "blind", "one-frame", "bad-input",
+    "read-only-input", "deterministic", "no-hole-identity", "unit-of-length", "blind", "one-frame", "bad-input",
 )
+#: `unit-of-length`'s scales (exact in floating point) and the share of a frame's points (and of its count) that may
+#: differ: decision noise, not a rule in absolute units (module docstring)
+UNIT_SCALES = (2.0 ** -10, 2.0 ** 10)
+UNIT_MOVED_SHARE = 0.01
 
 
 class ConformanceError(AssertionError):
@@ -261,7 +272,27 @@ def _output_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
                 fail("no-hole-identity", f"with no hole region, frame {f} came back changed ({len(b)} -> {len(a)} "
                                          "points); return the input as it is")
 
-    return {"output": output, "inputs-untouched": inputs_untouched, "read-only-input": read_only_input, "deterministic": deterministic, "no-hole-identity": no_hole_identity}
+    def unit_of_length():
+        from scipy.spatial import cKDTree
+
+        from dpcbench.metrics.neighbours import point_spacing
+
+        for scale in UNIT_SCALES:
+            scaled_frames = [f * scale for f in frames]
+            scaled_regions = [[r.scaled(scale) for r in frame_regions] for frame_regions in regions]
+            out = run("unit-of-length", lambda s=scaled_frames, r=scaled_regions: cls(**state["params"]).inpaint(s, r))
+            out = check_frames("unit-of-length", out, len(frames), frames)
+            for f, (want, got) in enumerate(zip(state["out"], out)):
+                got = got / scale
+                moved = cKDTree(want).query(got)[0] > 1e-6 * point_spacing(frames[f])
+                if abs(len(got) - len(want)) > UNIT_MOVED_SHARE * len(want) or moved.mean() > UNIT_MOVED_SHARE:
+                    fail("unit-of-length", f"with every coordinate scaled by {scale:g} (the same capture in other "
+                                           f"units), frame {f} came back with {len(got)} points instead of "
+                                           f"{len(want)}, {moved.mean():.1%} of them moved; state every length "
+                                           "in the data's own point spacing, not in absolute units")
+
+    return {"output": output, "inputs-untouched": inputs_untouched, "read-only-input": read_only_input,
+            "deterministic": deterministic, "no-hole-identity": no_hole_identity, "unit-of-length": unit_of_length}
 
 
 def _robustness_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
@@ -357,6 +388,7 @@ def check_method(method: type[InpaintingMethod] | str, params: dict[str, Any] | 
              "deterministic": ("output", "read-only-input")}
     for other in ("no-hole-identity", "blind", "one-frame", "bad-input"):
         needs[other] = ("params-round-trip",)
+    needs["unit-of-length"] = ("output",)
     done: set[str] = set()
 
     def do(check: str):
