@@ -27,7 +27,7 @@ checks, in this order (`CHECKS`):
   metres instead of millimetres, and by 2^10; powers of two, exact in floating point) gives the same output, scaled:
   per frame the same point count within 1 % and at most 1 % of the points farther than 1e-6 spacings from the
   unscaled output's. The 1 % leaves room for decision noise (a threshold decision flipped by the last bits of a
-  routine that is not exactly scaled; temporal-fusion 50 moves 0.02 % of a D-FAUST frame, `experiments/
+  routine that is not exactly scaled; temporal-fusion 50 moves at most 0.02 % of a D-FAUST frame, `experiments/
   scale_check.py`), not for a rule in absolute units (temporal-fusion 49's quadric ridge moved 1.7-3.3 % of this
   sequence's points). Check a method whose parameters hold lengths in coordinates with those unset or relative;
 - ``blind``: ``regions=None`` gives finite frames when the method ``detects_holes``, else a
