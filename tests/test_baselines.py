@@ -311,7 +311,7 @@ def test_meshlab_meshes_a_frame_in_metres_as_in_millimetres():
     scale = 2.0 ** -10
     fill = MeshlabFill(output="holes-only")
     out = fill.inpaint([damaged], [regions])[0]
-    scaled = fill.inpaint([damaged * scale], [[HoleRegion.ball(r.center * scale, r.radius * scale) for r in regions]])
+    scaled = fill.inpaint([damaged * scale], [[r.scaled(scale) for r in regions]])
     np.testing.assert_array_equal(scaled[0] / scale, out)
 
 

@@ -230,6 +230,22 @@ def test_region_support_is_the_farthest_reach_of_its_points():
         assert reach <= ball.support(3 * direction) + 1e-9 and reach == pytest.approx(ball.support(direction), abs=0.01)
 
 
+def test_a_scaled_region_holds_the_scaled_points():
+    """``HoleRegion.scaled(s)``: p lies in the region exactly when s p lies in the scaled one (a ball and a rotated
+    box, s a power of two so that the scaled points are exact); the rotation and the extra keys are kept."""
+    rng = np.random.default_rng(3)
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    points = rng.uniform(-30, 30, size=(20000, 3))
+    for region in (HoleRegion.ball([3, -4, 5], 17.0, hole=2), HoleRegion.box([1, 2, -3], [9, 4, 14], rotation, hole=5)):
+        for scale in (2.0 ** -10, 2.0 ** 10):
+            scaled = region.scaled(scale)
+            np.testing.assert_array_equal(scaled.contains(points * scale), region.contains(points))
+            assert scaled.shape == region.shape and scaled.extra == region.extra
+            assert scaled.bounding_radius == pytest.approx(region.bounding_radius * scale, rel=1e-12)
+            if region.rotation is not None:
+                np.testing.assert_array_equal(scaled.rotation, region.rotation)
+
+
 def test_components_to_regions_cover_their_points():
     rng = np.random.default_rng(0)
     blob_a = rng.normal(0, 1, (200, 3))

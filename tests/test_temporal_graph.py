@@ -156,7 +156,7 @@ def test_temporal_graph_gives_the_same_output_in_any_unit_of_length():
     scale = 2.0 ** -10
     method = TemporalGraph(**FAST, spacing="points")  # the unit: the median point spacing, in any unit of length
     out = method.inpaint(damaged, regions)
-    scaled_regions = [[HoleRegion.ball(r.center * scale, r.radius * scale) for r in rr] for rr in regions]
+    scaled_regions = [[r.scaled(scale) for r in rr] for rr in regions]
     scaled = method.inpaint([frame * scale for frame in damaged], scaled_regions)
     for got, want in zip(scaled, out):
         np.testing.assert_array_equal(got / scale, want)

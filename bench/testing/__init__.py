@@ -277,6 +277,7 @@ def _output_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
 
         from dpcbench.metrics.neighbours import point_spacing
 
+        spacings = [point_spacing(frame) for frame in frames]
         for scale in UNIT_SCALES:
             scaled_frames = [f * scale for f in frames]
             scaled_regions = [[r.scaled(scale) for r in frame_regions] for frame_regions in regions]
@@ -284,7 +285,7 @@ def _output_checks(ctx: _Context) -> dict[str, Callable[[], None]]:
             out = check_frames("unit-of-length", out, len(frames), frames)
             for f, (want, got) in enumerate(zip(state["out"], out)):
                 got = got / scale
-                moved = cKDTree(want).query(got)[0] > 1e-6 * point_spacing(frames[f])
+                moved = cKDTree(want).query(got)[0] > 1e-6 * spacings[f]
                 if abs(len(got) - len(want)) > UNIT_MOVED_SHARE * len(want) or moved.mean() > UNIT_MOVED_SHARE:
                     fail("unit-of-length", f"with every coordinate scaled by {scale:g} (the same capture in other "
                                            f"units), frame {f} came back with {len(got)} points instead of "
