@@ -320,6 +320,65 @@ def test_orient_along_surface_points_every_body_outwards_like_the_analytic_norma
     assert len(np.unique(oriented[:, 2])) == 1
 
 
+def _orient_naively(points, normals, centre, neighbours=16):
+    """`orient_along_surface`'s rule spelled out: every k-NN edge in both directions, scipy's minimum spanning tree
+    of that symmetric graph, a breadth-first walk from each component's first node that flips a child whose normal
+    opposes its parent's, then each component's majority away from ``centre``."""
+    from collections import deque
+
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
+
+    count, k = len(points), min(neighbours, len(points) - 1)
+    _, near = cKDTree(points).query(points, k + 1)
+    rows, cols, weights = [], [], []
+    for i in range(count):
+        for j in near[i, 1:]:
+            e = points[j] - points[i]
+            e = e / max(np.linalg.norm(e), 1e-300)
+            steep = max(abs(e @ normals[i]), abs(e @ normals[j]))
+            rows.append(i), cols.append(j), weights.append(1.0 - abs(normals[i] @ normals[j]) + steep + 1e-9)
+    graph = coo_matrix((weights, (rows, cols)), shape=(count, count)).tocsr()
+    tree = minimum_spanning_tree(graph.maximum(graph.T))
+    tree = tree + tree.T
+    components, labels = connected_components(tree, directed=False)
+    sign = np.zeros(count)
+    for root in range(count):
+        if sign[root]:
+            continue
+        sign[root], queue = 1.0, deque([root])
+        while queue:
+            node = queue.popleft()
+            for child in tree.indices[tree.indptr[node]:tree.indptr[node + 1]]:
+                if not sign[child]:
+                    sign[child] = sign[node] * (1.0 if normals[child] @ normals[node] >= 0 else -1.0)
+                    queue.append(child)
+    oriented = normals * sign[:, None]
+    votes = np.bincount(labels, weights=np.sign(np.einsum("ij,ij->i", points - centre, oriented)), minlength=components)
+    return oriented * np.where(votes[labels] < 0, -1.0, 1.0)[:, None]
+
+
+def test_orient_along_surface_is_the_rule_spelled_out_on_voxels_with_ties():
+    """The vectorised orientation (each undirected edge once, signs by pointer jumping) against the rule written
+    edge by edge, on voxelized thin and folded parts. The normals are PCA normals, and then normals drawn from a
+    few directions: many equal edge weights and signs that depend on the path, so a tree built from other edges
+    than the rule's (or the same weights met in another order) orients some normals otherwise."""
+    from dpcbench.metrics.neighbours import estimate_normals
+
+    rng = np.random.default_rng(3)
+    directions = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [0.6, 0.8, 0], [0, 0.6, 0.8]])
+    u, v = np.meshgrid(np.arange(-12.0, 13.0), np.arange(-12.0, 13.0), indexing="ij")
+    slab = np.vstack([np.column_stack([u.ravel(), v.ravel(), np.full(u.size, z)]) for z in (0.0, 2.0)])
+    fold = np.floor(np.column_stack([u.ravel(), v.ravel(), 6.0 * np.abs(np.sin(u.ravel() / 4.0))]) + 0.5) + [40, 0, 0]
+    ball = np.floor(sphere_points(9.0, 3000, rng) + 0.5) + [0, 40, 0]
+    for points in (slab, fold, np.unique(ball, axis=0), np.vstack([slab, fold])):
+        centre = points.mean(axis=0)
+        for normals in (estimate_normals(points, 16), directions[rng.integers(0, len(directions), len(points))]):
+            normals = normals * rng.choice([-1.0, 1.0], len(points))[:, None]
+            np.testing.assert_array_equal(orient_along_surface(points, normals, centre, 16),
+                                          _orient_naively(points, normals, centre, 16))
+
+
 def sphere_points(radius: float, count: int, rng: np.random.Generator) -> np.ndarray:
     directions = rng.normal(size=(count, 3))
     return radius * directions / np.linalg.norm(directions, axis=1, keepdims=True)

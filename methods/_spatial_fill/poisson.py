@@ -431,7 +431,7 @@ def orient_along_surface(points: np.ndarray, normals: np.ndarray, centre: np.nda
     open3d 0.814 s / 50.1 %, with the edge term 0.778 s / 50.0 %; a hard cut of steep edges instead
     (|e . n| <= 0.2 ... 0.4) 0.78-0.80 s / 49.4-50.2 %. The differences are all on D-FAUST, whose
     crops are sparse (1,000-1,400 points); samba and human do not change."""
-    from scipy.sparse import coo_matrix
+    from scipy.sparse import csr_matrix, triu
     from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
 
     normals = np.asarray(normals, dtype=np.float64)
@@ -440,14 +440,17 @@ def orient_along_surface(points: np.ndarray, normals: np.ndarray, centre: np.nda
         return normals.copy()
     k = int(min(neighbours, count - 1))
     _, near = cKDTree(points).query(points, k + 1)
-    rows = np.repeat(np.arange(count), k)
-    cols = near[:, 1:].ravel()
-    edge = points[cols] - points[rows]
-    edge /= np.maximum(np.linalg.norm(edge, axis=1, keepdims=True), 1e-300)  # duplicates: a zero edge, no term
-    steep = np.maximum(np.abs(np.einsum("ij,ij->i", edge, normals[rows])), np.abs(np.einsum("ij,ij->i", edge, normals[cols])))
-    weight = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + steep + 1e-9
-    graph = coo_matrix((weight, (rows, cols)), shape=(count, count)).tocsr()
-    tree = minimum_spanning_tree(graph.maximum(graph.T))
+    cols = near[:, 1:]  # (N, k): each point's neighbours, its own row of the graph
+    edge = points[cols] - points[:, None, :]
+    edge /= np.maximum(np.linalg.norm(edge, axis=2, keepdims=True), 1e-300)  # duplicates: a zero edge, no term
+    other = normals[cols]
+    steep = np.maximum(np.abs(np.einsum("ijk,ik->ij", edge, normals)), np.abs(np.einsum("ijk,ijk->ij", edge, other)))
+    weight = 1.0 - np.abs(np.einsum("ik,ijk->ij", normals, other)) + steep + 1e-9
+    graph = csr_matrix((weight.ravel(), cols.ravel(), np.arange(0, count * k + 1, k)), shape=(count, count))
+    graph.sort_indices()
+    # each undirected edge once (i < j): scipy's Kruskal keeps an edge where it first meets it in its stable sort,
+    # which is the upper copy, so the tree is the same and the sort half as long
+    tree = minimum_spanning_tree(triu(graph.maximum(graph.T), k=1, format="csr"))
     components, labels = connected_components(tree, directed=False)
     up = np.arange(count)  # each node's parent in its component's breadth-first tree (a root: itself)
     odd = np.zeros(count, dtype=bool)  # whether the edge to the parent flips the sign
