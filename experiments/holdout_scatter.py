@@ -16,7 +16,8 @@ without it (finest octree cell 2 g), e the ring's own scatter. The three e:
 Prints one line per decision (body size, m, each e in spacings; a star where that e decides otherwise than the
 method; the held-out support's size and its reconstruction's CPU) and in all how many decisions each other e changes.
 With ``--cut K`` (repeatable) also the hold-out with its support cut to R grown by K rings (the ring is half the
-crop's shell): its miss, CPU and decision (with the local e).
+crop's shell): its miss, CPU and decision (with the local e). With ``--coarse STEPS`` (repeatable) also the held-out
+surface on an octree whose finest cell is STEPS g (the method's is 2 g): its miss and CPU.
 
 Cases: experiments/fusion_golden.py's inputs (defaults), or with ``--case`` the paper-scale benchmark inputs of
 tests/benchmarks/fusion_cases.py.
@@ -46,16 +47,25 @@ def _rms_to(samples: np.ndarray, region, ring: float, points: np.ndarray) -> flo
     return float(np.sqrt(np.mean(cKDTree(samples).query(points)[0] ** 2))) if len(samples) else 0.0
 
 
-def _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid) -> tuple[float, float]:
-    """(the ring's RMS distance m to the surface of ``outer`` at the hold-out's cell, that reconstruction's CPU s)."""
+def _depth(support: np.ndarray, grid: float, cell_steps: int) -> int:
+    """`poisson.poisson_input`'s octree depth for ``support`` at a finest cell of ``cell_steps`` g."""
+    extent = float(np.ptp(support, axis=0).max())
+    return int(np.clip(np.ceil(np.log2(max(poisson.POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
+                       poisson.POISSON_MAX_DEPTH))
+
+
+def _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid,
+          cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS) -> tuple[float, float]:
+    """(the ring's RMS distance m to the surface of ``outer`` at the hold-out's cell (or ``cell_steps`` g), that
+    reconstruction's CPU s)."""
     start = time.process_time()
     held = poisson._poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing, voxelized,
-                                   grid, surface=True, near=(region, ring), cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS)
+                                   grid, surface=True, near=(region, ring), cell_steps=cell_steps)
     cpu = time.process_time() - start
     return (float(np.sqrt(np.mean(cKDTree(held).query(ring_points)[0] ** 2))) if len(held) else np.inf), cpu
 
 
-def _trace(log: list, cuts: list[float]) -> None:
+def _trace(log: list, cuts: list[float], coarse: list[int]) -> None:
     """Wrap `poisson._holds_out` once; each decision appends a record to ``log`` (the caller empties it per case)."""
     holds_out = poisson._holds_out
 
@@ -81,8 +91,13 @@ def _trace(log: list, cuts: list[float]) -> None:
             mk, cpu_k = (_miss(kept, ring_points, region, ring, free, spacing, voxelized, grid) if len(kept) >= 32
                          else (np.inf, 0.0))
             cut.append((k, len(kept), mk / spacing, cpu_k, bool(mk * mk - e["local"] ** 2 <= bound * bound)))
+        coarser = []
+        for steps in coarse:  # the held-out support's surface on a coarser octree: its miss, CPU and depths
+            mc, cpu_c = _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid, cell_steps=steps)
+            coarser.append((steps, mc / spacing, cpu_c, _depth(outer, grid, poisson.POISSON_HOLDOUT_CELL_STEPS),
+                            _depth(outer, grid, steps)))
         log.append((len(support), m / spacing, {k: v / spacing for k, v in e.items()}, verdict, passed, len(outer),
-                    cpu, cut))
+                    cpu, cut, coarser))
         return passed
 
     poisson._holds_out = traced
@@ -103,18 +118,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--case", action="append", default=[], help="a fusion_cases.py case (repeatable)")
     parser.add_argument("--cut", action="append", default=[], type=float,
                         help="also the hold-out with its support cut to R grown by this many rings (repeatable)")
+    parser.add_argument("--coarse", action="append", default=[], type=int,
+                        help="also the held-out surface with its finest cell this many g (repeatable): its miss, CPU")
     args = parser.parse_args(argv)
     totals = {"fine": 0, "coarse": 0, "decisions": 0}
     cut_changed = dict.fromkeys(args.cut, 0)
     log: list = []
-    _trace(log, args.cut)
+    _trace(log, args.cut, args.coarse)
     for name, (frames, regions) in _cases(args.case).items():
         log.clear()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             get_method("temporal-fusion").inpaint([f.copy() for f in frames], regions)
         print(f"== {name}: {len(log)} decisions")
-        for size, m, e, verdict, passed, outer, cpu, cut in log:
+        for size, m, e, verdict, passed, outer, cpu, cut, coarser in log:
             marks = " ".join(f"{k} {v:.2f}{'' if verdict[k] == passed else '*'}" for k, v in e.items())
             print(f"   body {size:8,d}  m {m:6.2f}  e: {marks}  {'passed' if passed else 'refused'}"
                   f"  (held-out support {outer:,d}, {cpu:.2f} s CPU)")
@@ -122,6 +139,9 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"      cut to {k:g} rings: support {kept:,d}, m {mk:6.2f}, {cpu_k:.2f} s CPU, "
                       f"{'passed' if ok else 'refused'}{'' if ok == passed else '*'}")
                 cut_changed[k] += ok != passed
+            for steps, mc, cpu_c, depth, depth_c in coarser:
+                print(f"      finest cell {steps} g: m {mc:6.2f}, {cpu_c:.2f} s CPU, octree depth {depth_c} "
+                      f"(the hold-out's {depth})")
         for key in ("fine", "coarse"):
             totals[key] += sum(v[key] != p for _, _, _, v, p, *_ in log)
         totals["decisions"] += len(log)

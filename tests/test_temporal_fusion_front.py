@@ -405,6 +405,44 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
         assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
 
 
+def test_the_hold_out_decides_far_misses_at_a_first_look_one_level_coarser(monkeypatch):
+    """Step 6c's hold-out looks first at the held-out surface one octree level coarser (here depth 5, the least it
+    looks at): a miss beyond twice the bound is refused there and one within half of it passed, each with that one
+    reconstruction; in between, the hold-out's own surface decides. Every decision is the one the own surface
+    alone makes."""
+    from dpcbench.methods._spatial_fill import (
+        COARSE_LOOK_FACTOR,
+        COARSE_LOOK_MIN_DEPTH,
+        POISSON_HOLDOUT_CELL_STEPS,
+        _holds_out,
+        _poisson_points,
+        poisson,
+    )
+
+    limb = cylinder(8.0, 60.0)
+    region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
+    kept = limb[~region.contains(limb)]
+    ring = 2.0
+    inner = region.contains(kept, margin=ring)
+    held = _poisson_points(kept[~inner], lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
+                           surface=True, cell_steps=POISSON_HOLDOUT_CELL_STEPS)
+    scatter = np.mean(local_quadric(kept[inner], kept, 20)[2] ** 2)
+    exact = float(np.sqrt(np.mean(cKDTree(held).query(kept[inner])[0] ** 2) - scatter))
+    depths = []
+    mesh = poisson.poisson_mesh
+    monkeypatch.setattr(poisson, "poisson_mesh", lambda cloud, depth: depths.append(depth) or mesh(cloud, depth))
+    for bound, passes, meshes in ((exact / 8.0, False, 1), (exact * 8.0, True, 1), (exact * 1.01, True, 2),
+                                  (exact * 0.99, False, 2), (exact / (COARSE_LOOK_FACTOR * 1.5), False, 1)):
+        depths.clear()
+        assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
+        assert len(depths) == meshes and depths[0] == COARSE_LOOK_MIN_DEPTH, (bound, depths)
+        with monkeypatch.context() as alone:
+            alone.setattr(poisson, "COARSE_LOOK_MIN_DEPTH", 10 ** 6)
+            depths.clear()
+            assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes
+            assert depths == [COARSE_LOOK_MIN_DEPTH + 1]
+
+
 def test_the_hold_out_allows_for_the_capture_s_own_scatter():
     """A noisy capture (every point 1 s RMS off the limb along its normal, as MVUB's depth noise) misses any
     smooth surface by about that much, held out or not: the hold-out miss of its ring is over the bound (1 s)

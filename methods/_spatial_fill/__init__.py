@@ -22,6 +22,8 @@ from dpcbench.methods._spatial_fill.cap import (
     harmonic_height_field,
 )
 from dpcbench.methods._spatial_fill.common import (
+    COARSE_LOOK_FACTOR,
+    COARSE_LOOK_MIN_DEPTH,
     MAX_STEEP,
     POISSON_CELL_STEPS,
     POISSON_HOLDOUT_CELL_STEPS,
@@ -69,7 +71,7 @@ from dpcbench.methods._spatial_fill.spline import (
 )
 
 #: every name of the former single module, private helpers included (tests import them from here)
-__all__ = ["MAX_STEEP", "POISSON_CELL_STEPS", "POISSON_HOLDOUT_CELL_STEPS", "POISSON_MAX_DEPTH", "POISSON_SCALE",
+__all__ = ["COARSE_LOOK_FACTOR", "COARSE_LOOK_MIN_DEPTH", "MAX_STEEP", "POISSON_CELL_STEPS", "POISSON_HOLDOUT_CELL_STEPS", "POISSON_MAX_DEPTH", "POISSON_SCALE",
            "SHEET_MIN_ALIGNMENT", "SURFACE_POINTS", "_bodies", "_flat_anchors", "_holds_out", "_link_components",
            "_native_stderr_silenced", "_open_radius", "_path_parity", "_poisson_points", "_poisson_samples",
            "_sheet_bounded", "_triangles_near", "_voxel_keys", "_within_hull_of", "between_layers", "cap_fill",

@@ -12,6 +12,8 @@ from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill.common import (
+    COARSE_LOOK_FACTOR,
+    COARSE_LOOK_MIN_DEPTH,
     MAX_STEEP,
     POISSON_CELL_STEPS,
     POISSON_HOLDOUT_CELL_STEPS,
@@ -89,7 +91,11 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     ``max_holdout_spacings`` spacings once the ring's scatter e is taken out, sqrt(m^2 - e^2) <= bound, e the RMS
     of `local_quadric`'s residual at the ring's points (each fitted to its 20 nearest body points): the ring's
     noise about any smooth surface (capture noise, voxel rounding) is in m whether the surface was fitted with
-    the ring or without it, and only the rest measures how well the surface predicts what it did not see. With normals pointed away from the centroid one by one (before the spanning tree), a crop
+    the ring or without it, and only the rest measures how well the surface predicts what it did not see. Where
+    the hold-out's octree is at least `COARSE_LOOK_MIN_DEPTH` + 1 deep, the test first looks at the held-out
+    surface one level coarser (the same oriented input; about half the reconstruction's time): a net miss there
+    beyond `COARSE_LOOK_FACTOR` bounds refuses the body, one within a bound over that factor passes it, and only
+    a miss in between costs the hold-out's own surface. With normals pointed away from the centroid one by one (before the spanning tree), a crop
     holding two body parts (a hand at the hip) gave a surface that missed the inner ring by 1.7 s and the
     truth by 5-16 voxels (human default, coherent, seed 2); trusted holes there measured 0.49-0.70 s."""
     support = np.asarray(support, dtype=np.float64)
@@ -261,29 +267,45 @@ def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdou
     inner = region.contains(support, margin=ring)
     if inner.sum() < 6 or (~inner).sum() < 32:
         return True
-    outer = support[~inner]
-    held = _poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing,
-                           voxelized, grid, surface=True, near=(region, ring), cell_steps=POISSON_HOLDOUT_CELL_STEPS)
-    if not len(held):
-        return False
     ring_points = support[inner]
+    cloud, depth = poisson_input(support[~inner], grid, POISSON_HOLDOUT_CELL_STEPS)
+
+    def surface(at_depth: int) -> np.ndarray:  # the held-out surface's samples at g / 2 in R grown by the ring
+        samples = _mesh_samples(poisson_mesh(cloud, at_depth), grid, (region, ring))
+        return samples[region.contains(samples, margin=ring)]
+
     # the capture's own scatter about a smooth surface, at the ring: a local quadric's residual, no reconstruction
     # (0.05 s above to 0.17 s below the ring's distance to the body's own Poisson surface, the same decision in all
     # 99 measured: experiments/holdout_scatter.py)
     scatter = own_scatter_sq(ring_points, support)
-    bound_sq = (max_holdout_spacings * spacing) ** 2 + scatter  # held-out miss^2 - scatter^2 <= bound^2
-    cap = 4.0 * np.sqrt(bound_sq)
-    # distances capped at 4 bounds first (a k-d query for far points is slow: 6.3 s for 99k ring points
-    # 28 s off a 1M-sample surface): a capped mean over the bound already fails; else the capped ones
-    # are measured in full, so the decision is that of the exact mean
-    tree = cKDTree(held)
-    distance = tree.query(ring_points, distance_upper_bound=cap)[0]
+    bound_sq = (max_holdout_spacings * spacing) ** 2  # held-out miss^2 - scatter^2 <= bound^2
+    if depth - 1 >= COARSE_LOOK_MIN_DEPTH:
+        # a first look one level coarser (a fraction of the reconstruction): a miss far beyond the bound, or far
+        # within it, is decided there (the Longdress frame's occlusion boxes miss by 4-25 spacings)
+        coarse = surface(depth - 1)
+        if len(coarse):
+            tree = cKDTree(coarse)
+            if _misses_beyond(ring_points, tree, COARSE_LOOK_FACTOR ** 2 * bound_sq + scatter):
+                return False
+            if not _misses_beyond(ring_points, tree, bound_sq / COARSE_LOOK_FACTOR ** 2 + scatter):
+                return True
+    held = surface(depth)
+    return bool(len(held)) and not _misses_beyond(ring_points, cKDTree(held), bound_sq + scatter)
+
+
+def _misses_beyond(points: np.ndarray, tree: cKDTree, limit_sq: float) -> bool:
+    """Whether the mean squared distance of ``points`` (P, 3) to the points of ``tree`` exceeds ``limit_sq``.
+    Distances are capped at 4 sqrt(limit_sq) first (a k-d query for far points is slow: 6.3 s for 99k ring points
+    28 s off a 1M-sample surface): a capped mean over the limit already exceeds it; else the capped ones are
+    measured in full, so the answer is that of the exact mean."""
+    cap = 4.0 * np.sqrt(limit_sq)
+    distance = tree.query(points, distance_upper_bound=cap)[0]
     capped = ~np.isfinite(distance)
-    if np.mean(np.where(capped, cap, distance) ** 2) > bound_sq:
-        return False
+    if np.mean(np.where(capped, cap, distance) ** 2) > limit_sq:
+        return True
     if capped.any():
-        distance[capped] = tree.query(ring_points[capped])[0]
-    return float(np.mean(distance ** 2)) <= bound_sq
+        distance[capped] = tree.query(points[capped])[0]
+    return float(np.mean(distance ** 2)) > limit_sq
 
 
 def poisson_input(support: np.ndarray, grid: float, cell_steps: int = POISSON_CELL_STEPS):
@@ -327,7 +349,12 @@ def _poisson_samples(support: np.ndarray, grid: float, near: tuple[HoleRegion, f
     region grown by margin (`_triangles_near`: every sample there, in the same order, none far from it);
     (0, 3) when the reconstruction is empty. The callers keep only samples near R, and a crop's closed surface
     reaches far past R."""
-    mesh = poisson_mesh(*poisson_input(support, grid, cell_steps))
+    return _mesh_samples(poisson_mesh(*poisson_input(support, grid, cell_steps)), grid, near)
+
+
+def _mesh_samples(mesh, grid: float, near: tuple[HoleRegion, float] | None) -> np.ndarray:
+    """`_poisson_samples` of an open3d ``mesh``: (S, 3) at ``grid`` / 2, of the triangles that can reach ``near``'s
+    region grown by its margin when given; (0, 3) for an empty mesh."""
     if not len(mesh.triangles):
         return np.zeros((0, 3))
     vertices, triangles = np.asarray(mesh.vertices), np.asarray(mesh.triangles)

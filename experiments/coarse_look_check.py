@@ -1,0 +1,105 @@
+"""Whether the closed surface's first look one octree level coarser (`methods._spatial_fill.poisson._holds_out`,
+temporal-fusion 51) ever decides a hold-out otherwise than the hold-out's own surface alone (version 50): every
+hold-out of temporal-fusion's runs of the given presets is judged both ways.
+
+    .venv/bin/python experiments/coarse_look_check.py temporal-fusion-targets temporal-fusion-heldout \
+        temporal-fusion-heldout-frames temporal-fusion-heldout-framerate temporal-fusion-heldout-data \
+        temporal-fusion-heldout-frame [--jobs 2]
+
+Each run's damage is made as the runner makes it (the preset's sequence, generator, seed); temporal-fusion runs with
+the preset's parameters, and each `_holds_out` call is made twice: as the method makes it, and with the first look
+switched off (`COARSE_LOOK_MIN_DEPTH` out of reach). Prints per run the hold-outs, how many the first look decided
+(refused, passed) and how many of those the hold-out's own surface decides otherwise; then the totals. No
+disagreement means the run's output is that of version 50, since the output depends on the hold-outs only through
+their decisions. Exit status 1 on a disagreement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from dpcbench.bench.data.datasets import load_run_sequence
+from dpcbench.bench.execution.worker import import_entry
+from dpcbench.bench.experiment.config import expand_config, load_config
+from dpcbench.methods._spatial_fill import poisson
+
+PRESETS = Path(__file__).resolve().parents[1] / "bench" / "presets"
+
+
+def _judged_both_ways(log: list) -> None:
+    """Wrap `poisson._holds_out`: each call appends (first look decided: None, "refused" or "passed"; agrees)."""
+    holds_out = poisson._holds_out
+
+    def traced(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
+        args = (support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings)
+        passed = holds_out(*args)
+        depth_rule = poisson.COARSE_LOOK_MIN_DEPTH
+        poisson.COARSE_LOOK_MIN_DEPTH = 10 ** 6  # version 50: the hold-out's own surface alone
+        try:
+            alone = holds_out(*args)
+        finally:
+            poisson.COARSE_LOOK_MIN_DEPTH = depth_rule
+        looked = _first_look(support, region, ring, grid)
+        log.append((("passed" if passed else "refused") if looked else None, passed == alone))
+        return passed
+
+    poisson._holds_out = traced
+
+
+def _first_look(support, region, ring, grid) -> bool:
+    """Whether `_holds_out` takes a first look at this body (its coarser octree deep enough)."""
+    import numpy as np
+
+    inner = region.contains(support, margin=ring)
+    if inner.sum() < 6 or (~inner).sum() < 32:
+        return False
+    outer = support[~inner]
+    extent = float(np.ptp(outer, axis=0).max())
+    depth = int(np.clip(np.ceil(np.log2(max(poisson.POISSON_SCALE * extent / (poisson.POISSON_HOLDOUT_CELL_STEPS
+                                                                               * grid), 2.0))), 2,
+                        poisson.POISSON_MAX_DEPTH))
+    return depth - 1 >= poisson.COARSE_LOOK_MIN_DEPTH
+
+
+def check_run(spec) -> tuple[str, int, int, int, int]:
+    """(label, hold-outs, decided by the first look as refused, as passed, disagreements) of one run spec."""
+    log: list = []
+    _judged_both_ways(log)
+    truth = load_run_sequence(spec.sequence)
+    generator = import_entry(spec.holes["entry"])(**spec.holes["params"])
+    damage = generator.damage(truth.points, spec.holes["seed"])
+    method = import_entry(spec.method["entry"])(**spec.method["params"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        method.inpaint([f.copy() for f in damage.frames], damage.regions)
+    label = f"{spec.sequence.get('label', '')} {spec.holes['generator']} {spec.holes['params']} seed {spec.holes['seed']}"
+    return (label, len(log), sum(d == "refused" for d, _ in log), sum(d == "passed" for d, _ in log),
+            sum(not agrees for _, agrees in log))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("presets", nargs="+", help="preset names (bench/presets) or experiment TOML files")
+    parser.add_argument("--jobs", type=int, default=1)
+    args = parser.parse_args(argv)
+    specs = []
+    for name in args.presets:
+        path = Path(name) if name.endswith(".toml") else PRESETS / f"{name}.toml"
+        specs += [s for s in expand_config(load_config(path)) if s.method["name"] == "temporal-fusion"]
+    totals = [0, 0, 0, 0]
+    with ProcessPoolExecutor(args.jobs) as pool:
+        for label, *counts in pool.map(check_run, specs):
+            print(f"{label}: {counts[0]} hold-outs, first look refused {counts[1]}, passed {counts[2]}, "
+                  f"disagreements {counts[3]}", flush=True)
+            totals = [a + b for a, b in zip(totals, counts)]
+    print(f"{len(specs)} runs: {totals[0]} hold-outs, the first look decided {totals[1] + totals[2]} "
+          f"({totals[1]} refused, {totals[2]} passed), disagreements {totals[3]}")
+    return 1 if totals[3] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
