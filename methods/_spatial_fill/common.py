@@ -34,7 +34,7 @@ POISSON_HOLDOUT_CELL_STEPS = 2
 #: the hold-out's first look (`poisson._holds_out`, temporal-fusion 51): the held-out surface one octree level coarser
 #: still, where that octree is at least this deep, decides a body whose net miss there is beyond this factor of the
 #: bound (refused) or within the bound over it (passed); in between, the hold-out's own surface decides. Measured on
-#: 34 decisions at depth 5 to 7 (experiments/holdout_scatter.py --coarse 4): the coarser miss was 0.80-1.09 times the
+#: 31 decisions at depth 5 to 7 (experiments/holdout_scatter.py --coarse 4): the coarser miss was 0.80-1.09 times the
 #: hold-out's, so a factor 2 flips none of them; at depth 4 it was up to 3.9 times (a 3,664-point support)
 COARSE_LOOK_MIN_DEPTH = 5
 COARSE_LOOK_FACTOR = 2.0
