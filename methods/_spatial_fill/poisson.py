@@ -95,9 +95,10 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
     the hold-out's octree is at least `COARSE_LOOK_MIN_DEPTH` + 1 deep, the test first looks at the held-out
     surface one level coarser (the same oriented input; about half the reconstruction's time): a net miss there
     beyond `COARSE_LOOK_FACTOR` bounds refuses the body, one within a bound over that factor passes it, and only
-    a miss in between costs the hold-out's own surface. With normals pointed away from the centroid one by one (before the spanning tree), a crop
-    holding two body parts (a hand at the hip) gave a surface that missed the inner ring by 1.7 s and the
-    truth by 5-16 voxels (human default, coherent, seed 2); trusted holes there measured 0.49-0.70 s."""
+    a miss in between costs the hold-out's own surface. With normals pointed away from the centroid one by one
+    (before the spanning tree), a crop holding two body parts (a hand at the hip) gave a surface that missed the
+    inner ring by 1.7 s and the truth by 5-16 voxels (human default, coherent, seed 2); trusted holes there
+    measured 0.49-0.70 s."""
     support = np.asarray(support, dtype=np.float64)
     if len(support) < 32:
         return np.zeros((0, 3))
