@@ -384,12 +384,11 @@ def sphere_points(radius: float, count: int, rng: np.random.Generator) -> np.nda
     return radius * directions / np.linalg.norm(directions, axis=1, keepdims=True)
 
 
-def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
-    """Step 6c's hold-out test caps far distances first; its pass / fail must be the exact rule's: on the
-    limb hole, with the bound just above and just below the exact miss (the inner ring's RMS distance to
-    the held-out surface's samples, in full, less in quadrature its RMS distance to the surface of all
-    the points), it passes and fails."""
-    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _holds_out, _poisson_points
+def _limb_hold_out():
+    """The limb with a hole (a cylinder of radius 8, a ball of radius 7 taken out) and its hold-out at a ring of 2:
+    (kept points, region, ring, the exact net miss: the inner ring's RMS distance to the held-out surface's
+    samples, in full, less in quadrature its scatter about local quadrics)."""
+    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _poisson_points
 
     limb = cylinder(8.0, 60.0)
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
@@ -401,6 +400,17 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
     scatter = np.mean(local_quadric(kept[inner], kept, 20)[2] ** 2)
     exact = float(np.sqrt(np.mean(cKDTree(held).query(kept[inner])[0] ** 2) - scatter))
     assert 0.0 < exact < 1.0 and scatter > 0.0
+    return kept, region, ring, exact
+
+
+def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
+    """Step 6c's hold-out test caps far distances first; its pass / fail must be the exact rule's: on the
+    limb hole, with the bound just above and just below the exact miss (the inner ring's RMS distance to
+    the held-out surface's samples, in full, less in quadrature its RMS distance to the surface of all
+    the points), it passes and fails."""
+    from dpcbench.methods._spatial_fill import _holds_out
+
+    kept, region, ring, exact = _limb_hold_out()
     for bound, passes in ((exact * 1.01, True), (exact * 0.99, False), (exact / 8.0, False)):
         assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
 
@@ -410,24 +420,9 @@ def test_the_hold_out_decides_far_misses_at_a_first_look_one_level_coarser(monke
     looks at): a miss beyond twice the bound is refused there and one within half of it passed, each with that one
     reconstruction; in between, the hold-out's own surface decides. Every decision is the one the own surface
     alone makes."""
-    from dpcbench.methods._spatial_fill import (
-        COARSE_LOOK_FACTOR,
-        COARSE_LOOK_MIN_DEPTH,
-        POISSON_HOLDOUT_CELL_STEPS,
-        _holds_out,
-        _poisson_points,
-        poisson,
-    )
+    from dpcbench.methods._spatial_fill import COARSE_LOOK_FACTOR, COARSE_LOOK_MIN_DEPTH, _holds_out, poisson
 
-    limb = cylinder(8.0, 60.0)
-    region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
-    kept = limb[~region.contains(limb)]
-    ring = 2.0
-    inner = region.contains(kept, margin=ring)
-    held = _poisson_points(kept[~inner], lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
-                           surface=True, cell_steps=POISSON_HOLDOUT_CELL_STEPS)
-    scatter = np.mean(local_quadric(kept[inner], kept, 20)[2] ** 2)
-    exact = float(np.sqrt(np.mean(cKDTree(held).query(kept[inner])[0] ** 2) - scatter))
+    kept, region, ring, exact = _limb_hold_out()
     depths = []
     mesh = poisson.poisson_mesh
     monkeypatch.setattr(poisson, "poisson_mesh", lambda cloud, depth: depths.append(depth) or mesh(cloud, depth))
