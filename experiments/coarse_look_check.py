@@ -52,16 +52,10 @@ def _judged_both_ways(log: list) -> None:
 
 def _first_look(support, region, ring, grid) -> bool:
     """Whether `_holds_out` takes a first look at this body (its coarser octree deep enough)."""
-    import numpy as np
-
     inner = region.contains(support, margin=ring)
     if inner.sum() < 6 or (~inner).sum() < 32:
         return False
-    outer = support[~inner]
-    extent = float(np.ptp(outer, axis=0).max())
-    depth = int(np.clip(np.ceil(np.log2(max(poisson.POISSON_SCALE * extent / (poisson.POISSON_HOLDOUT_CELL_STEPS
-                                                                               * grid), 2.0))), 2,
-                        poisson.POISSON_MAX_DEPTH))
+    depth = poisson.octree_depth(support[~inner], grid, poisson.POISSON_HOLDOUT_CELL_STEPS)
     return depth - 1 >= poisson.COARSE_LOOK_MIN_DEPTH
 
 

@@ -47,13 +47,6 @@ def _rms_to(samples: np.ndarray, region, ring: float, points: np.ndarray) -> flo
     return float(np.sqrt(np.mean(cKDTree(samples).query(points)[0] ** 2))) if len(samples) else 0.0
 
 
-def _depth(support: np.ndarray, grid: float, cell_steps: int) -> int:
-    """`poisson.poisson_input`'s octree depth for ``support`` at a finest cell of ``cell_steps`` g."""
-    extent = float(np.ptp(support, axis=0).max())
-    return int(np.clip(np.ceil(np.log2(max(poisson.POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
-                       poisson.POISSON_MAX_DEPTH))
-
-
 def _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid,
           cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS) -> tuple[float, float]:
     """(the ring's RMS distance m to the surface of ``outer`` at the hold-out's cell (or ``cell_steps`` g), that
@@ -94,8 +87,8 @@ def _trace(log: list, cuts: list[float], coarse: list[int]) -> None:
         coarser = []
         for steps in coarse:  # the held-out support's surface on a coarser octree: its miss, CPU and depths
             mc, cpu_c = _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid, cell_steps=steps)
-            coarser.append((steps, mc / spacing, cpu_c, _depth(outer, grid, poisson.POISSON_HOLDOUT_CELL_STEPS),
-                            _depth(outer, grid, steps)))
+            depth = poisson.octree_depth(outer, grid, poisson.POISSON_HOLDOUT_CELL_STEPS)
+            coarser.append((steps, mc / spacing, cpu_c, depth, poisson.octree_depth(outer, grid, steps)))
         log.append((len(support), m / spacing, {k: v / spacing for k, v in e.items()}, verdict, passed, len(outer),
                     cpu, cut, coarser))
         return passed

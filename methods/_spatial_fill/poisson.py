@@ -324,10 +324,16 @@ def poisson_input(support: np.ndarray, grid: float, cell_steps: int = POISSON_CE
     # (p50 / p90) became 0-1.7 voxels
     cloud.normals = o3d.utility.Vector3dVector(
         orient_along_surface(support, np.asarray(cloud.normals), support.mean(axis=0), 16))
+    return cloud, octree_depth(support, grid, cell_steps)
+
+
+def octree_depth(support: np.ndarray, grid: float, cell_steps: int = POISSON_CELL_STEPS) -> int:
+    """The octree depth whose finest cell is at most ``cell_steps`` * ``grid`` over ``support`` (K, 3):
+    ceil(log2(1.1 e / (cell_steps g))), e the bounding box's largest side, 1.1 open3d's margin, at least 2 (open3d's
+    least) and at most `POISSON_MAX_DEPTH`."""
     extent = float(np.ptp(support, axis=0).max())
-    depth = int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
-                        POISSON_MAX_DEPTH))
-    return cloud, depth
+    return int(np.clip(np.ceil(np.log2(max(POISSON_SCALE * extent / (cell_steps * grid), 2.0))), 2,
+                       POISSON_MAX_DEPTH))
 
 
 def poisson_mesh(cloud, depth: int):
