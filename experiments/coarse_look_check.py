@@ -6,6 +6,9 @@ hold-out of temporal-fusion's runs of the given presets is judged both ways.
         temporal-fusion-heldout-frames temporal-fusion-heldout-framerate temporal-fusion-heldout-data \
         temporal-fusion-heldout-frame [--jobs 2]
 
+A preset may name the runs to check by their index among its temporal-fusion runs (`--list` prints them), as
+``PRESET:A-B,C``: ``temporal-fusion-targets:11-16,20`` checks runs 11 to 16 and 20.
+
 Each run's damage is made as the runner makes it (the preset's sequence, generator, seed); temporal-fusion runs with
 the preset's parameters, and each `_holds_out` call is made twice: as the method makes it, and with the first look
 switched off (`COARSE_LOOK_MIN_DEPTH` out of reach). Prints per run the hold-outs, how many the first look decided
@@ -30,39 +33,68 @@ from dpcbench.methods._spatial_fill import poisson
 PRESETS = Path(__file__).resolve().parents[1] / "bench" / "presets"
 
 
-def _judged_both_ways(log: list) -> None:
-    """Wrap `poisson._holds_out`: each call appends (first look decided: None, "refused" or "passed"; agrees)."""
-    holds_out = poisson._holds_out
+_JUDGED: list = []  # this process's hold-outs since `check_run` began: (first look decided: None, "refused", "passed"; agrees)
+
+
+def _judge_both_ways() -> None:
+    """Wrap `poisson._holds_out` (once a process: a pool worker checks many runs): each call appends to `_JUDGED`.
+    The first look decided a call when the call never reconstructed at the depth version 50 reconstructs at
+    (the depths are traced at `poisson.poisson_mesh`, so the hold-out's own guards are not repeated here)."""
+    if getattr(poisson._holds_out, "judged_both_ways", False):
+        return
+    holds_out, poisson_mesh = poisson._holds_out, poisson.poisson_mesh
+    depths: list[int] = []
+
+    def traced_mesh(cloud, depth):
+        depths.append(depth)
+        return poisson_mesh(cloud, depth)
 
     def traced(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
         args = (support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings)
+        depths.clear()
         passed = holds_out(*args)
+        looked_at = set(depths)
         depth_rule = poisson.COARSE_LOOK_MIN_DEPTH
         poisson.COARSE_LOOK_MIN_DEPTH = 10 ** 6  # version 50: the hold-out's own surface alone
+        depths.clear()
         try:
             alone = holds_out(*args)
         finally:
             poisson.COARSE_LOOK_MIN_DEPTH = depth_rule
-        looked = _first_look(support, region, ring, grid)
-        log.append((("passed" if passed else "refused") if looked else None, passed == alone))
+        decided_first = bool(depths) and not looked_at & set(depths)
+        _JUDGED.append((("passed" if passed else "refused") if decided_first else None, passed == alone))
         return passed
 
+    traced.judged_both_ways = True  # type: ignore[attr-defined]
+    poisson.poisson_mesh = traced_mesh
     poisson._holds_out = traced
 
 
-def _first_look(support, region, ring, grid) -> bool:
-    """Whether `_holds_out` takes a first look at this body (its coarser octree deep enough)."""
-    inner = region.contains(support, margin=ring)
-    if inner.sum() < 6 or (~inner).sum() < 32:
-        return False
-    depth = poisson.octree_depth(support[~inner], grid, poisson.POISSON_HOLDOUT_CELL_STEPS)
-    return depth - 1 >= poisson.COARSE_LOOK_MIN_DEPTH
+def _selected(name: str) -> list:
+    """(index, run spec) of the temporal-fusion runs of ``name`` (a preset, an experiment TOML, either with
+    ``:A-B,C``)."""
+    name, _, picks = name.partition(":")
+    path = Path(name) if name.endswith(".toml") else PRESETS / f"{name}.toml"
+    specs = [s for s in expand_config(load_config(path)) if s.method["name"] == "temporal-fusion"]
+    if not picks:
+        return list(enumerate(specs))
+    chosen: list[int] = []
+    for pick in picks.split(","):
+        first, _, last = pick.partition("-")
+        chosen += range(int(first), int(last or first) + 1)
+    if max(chosen) >= len(specs):
+        raise SystemExit(f"{name} has {len(specs)} temporal-fusion runs (0-{len(specs) - 1}); pick among them")
+    return [(i, specs[i]) for i in chosen]
+
+
+def _label(spec) -> str:
+    return f"{spec.sequence.get('label', '')} {spec.holes['generator']} {spec.holes['params']} seed {spec.holes['seed']}"
 
 
 def check_run(spec) -> tuple[str, int, int, int, int]:
     """(label, hold-outs, decided by the first look as refused, as passed, disagreements) of one run spec."""
-    log: list = []
-    _judged_both_ways(log)
+    _judge_both_ways()
+    _JUDGED.clear()
     truth = load_run_sequence(spec.sequence)
     generator = import_entry(spec.holes["entry"])(**spec.holes["params"])
     damage = generator.damage(truth.points, spec.holes["seed"])
@@ -70,8 +102,8 @@ def check_run(spec) -> tuple[str, int, int, int, int]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         method.inpaint([f.copy() for f in damage.frames], damage.regions)
-    label = f"{spec.sequence.get('label', '')} {spec.holes['generator']} {spec.holes['params']} seed {spec.holes['seed']}"
-    return (label, len(log), sum(d == "refused" for d, _ in log), sum(d == "passed" for d, _ in log),
+    log = list(_JUDGED)
+    return (_label(spec), len(log), sum(d == "refused" for d, _ in log), sum(d == "passed" for d, _ in log),
             sum(not agrees for _, agrees in log))
 
 
@@ -79,11 +111,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("presets", nargs="+", help="preset names (bench/presets) or experiment TOML files")
     parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--list", action="store_true", help="print the runs' indices and labels, check none")
     args = parser.parse_args(argv)
     specs = []
     for name in args.presets:
-        path = Path(name) if name.endswith(".toml") else PRESETS / f"{name}.toml"
-        specs += [s for s in expand_config(load_config(path)) if s.method["name"] == "temporal-fusion"]
+        chosen = _selected(name)
+        if args.list:
+            print("\n".join(f"{name.partition(':')[0]} {i}: {_label(spec)}" for i, spec in chosen))
+        specs += [spec for _, spec in chosen]
+    if args.list:
+        return 0
     totals = [0, 0, 0, 0]
     with ProcessPoolExecutor(args.jobs) as pool:
         for label, *counts in pool.map(check_run, specs):
