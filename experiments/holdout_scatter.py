@@ -47,13 +47,12 @@ def _rms_to(samples: np.ndarray, region, ring: float, points: np.ndarray) -> flo
     return float(np.sqrt(np.mean(cKDTree(samples).query(points)[0] ** 2))) if len(samples) else 0.0
 
 
-def _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid,
-          cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS) -> tuple[float, float]:
+def _miss(outer, ring_points, region, ring, grid, cell_steps=poisson.POISSON_HOLDOUT_CELL_STEPS) -> tuple[float, float]:
     """(the ring's RMS distance m to the surface of ``outer`` at the hold-out's cell (or ``cell_steps`` g), that
     reconstruction's CPU s)."""
     start = time.process_time()
-    held = poisson._poisson_points(outer, lambda p: region.contains(p, margin=ring), None, free, spacing, voxelized,
-                                   grid, surface=True, near=(region, ring), cell_steps=cell_steps)
+    held = poisson._poisson_samples(outer, grid, (region, ring), cell_steps)
+    held = held[region.contains(held, margin=ring)]
     cpu = time.process_time() - start
     return (float(np.sqrt(np.mean(cKDTree(held).query(ring_points)[0] ** 2))) if len(held) else np.inf), cpu
 
@@ -62,13 +61,13 @@ def _trace(log: list, cuts: list[float], coarse: list[int]) -> None:
     """Wrap `poisson._holds_out` once; each decision appends a record to ``log`` (the caller empties it per case)."""
     holds_out = poisson._holds_out
 
-    def traced(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
-        passed = holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings)
+    def traced(support, region, ring, spacing, grid, max_holdout_spacings):
+        passed = holds_out(support, region, ring, spacing, grid, max_holdout_spacings)
         inner = region.contains(support, margin=ring)
         if inner.sum() < 6 or (~inner).sum() < 32:
             return passed
         outer, ring_points = support[~inner], support[inner]
-        m, cpu = _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid)
+        m, cpu = _miss(outer, ring_points, region, ring, grid)
         e = {
             "fine": _rms_to(poisson._poisson_samples(support, grid, near=(region, ring)), region, ring, ring_points),
             "coarse": _rms_to(poisson._poisson_samples(support, grid, near=(region, ring),
@@ -81,12 +80,12 @@ def _trace(log: list, cuts: list[float], coarse: list[int]) -> None:
         cut = []
         for k in cuts:  # the held-out support cut to R grown by k rings: its miss, CPU and decision (local e)
             kept = outer[region.contains(outer, margin=k * ring)]
-            mk, cpu_k = (_miss(kept, ring_points, region, ring, free, spacing, voxelized, grid) if len(kept) >= 32
+            mk, cpu_k = (_miss(kept, ring_points, region, ring, grid) if len(kept) >= 32
                          else (np.inf, 0.0))
             cut.append((k, len(kept), mk / spacing, cpu_k, bool(mk * mk - e["local"] ** 2 <= bound * bound)))
         coarser = []
         for steps in coarse:  # the held-out support's surface on a coarser octree: its miss, CPU and depths
-            mc, cpu_c = _miss(outer, ring_points, region, ring, free, spacing, voxelized, grid, cell_steps=steps)
+            mc, cpu_c = _miss(outer, ring_points, region, ring, grid, steps)
             depth = poisson.octree_depth(outer, grid, poisson.POISSON_HOLDOUT_CELL_STEPS)
             coarser.append((steps, mc / spacing, cpu_c, depth, poisson.octree_depth(outer, grid, steps)))
         log.append((len(support), m / spacing, {k: v / spacing for k, v in e.items()}, verdict, passed, len(outer),

@@ -388,15 +388,12 @@ def _limb_hold_out():
     """The limb with a hole (a cylinder of radius 8, a ball of radius 7 taken out) and its hold-out at a ring of 2:
     (kept points, region, ring, the exact net miss: the inner ring's RMS distance to the held-out surface's
     samples, in full, less in quadrature its scatter about local quadrics)."""
-    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _poisson_points
-
     limb = cylinder(8.0, 60.0)
     region = HoleRegion.ball([0.0, 0.0, 8.0], 7.0)
     kept = limb[~region.contains(limb)]
     ring = 2.0
     inner = region.contains(kept, margin=ring)
-    held = _poisson_points(kept[~inner], lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0,
-                           surface=True, cell_steps=POISSON_HOLDOUT_CELL_STEPS)
+    held = _held_out_surface(kept[~inner], region, ring)
     scatter = np.mean(local_quadric(kept[inner], kept, 20)[2] ** 2)
     exact = float(np.sqrt(np.mean(cKDTree(held).query(kept[inner])[0] ** 2) - scatter))
     assert 0.0 < exact < 1.0 and scatter > 0.0
@@ -412,7 +409,7 @@ def test_the_hold_out_decision_is_that_of_the_exact_rms_distance():
 
     kept, region, ring, exact = _limb_hold_out()
     for bound, passes in ((exact * 1.01, True), (exact * 0.99, False), (exact / 8.0, False)):
-        assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
+        assert _holds_out(kept, region, ring, 1.0, 1.0, bound) is passes, (bound, exact)
 
 
 def test_the_hold_out_decides_far_misses_at_a_first_look_one_level_coarser(monkeypatch):
@@ -429,12 +426,12 @@ def test_the_hold_out_decides_far_misses_at_a_first_look_one_level_coarser(monke
     for bound, passes, meshes in ((exact / (COARSE_LOOK_FACTOR * 1.5), False, 1), (exact * 8.0, True, 1),
                                   (exact * 1.01, True, 2)):
         depths.clear()
-        assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes, (bound, exact)
+        assert _holds_out(kept, region, ring, 1.0, 1.0, bound) is passes, (bound, exact)
         assert len(depths) == meshes and depths[0] == COARSE_LOOK_MIN_DEPTH, (bound, depths)
         with monkeypatch.context() as alone:
             alone.setattr(poisson, "COARSE_LOOK_MIN_DEPTH", 10 ** 6)
             depths.clear()
-            assert _holds_out(kept, region, ring, 1.0, 1.0, False, 1.0, bound) is passes
+            assert _holds_out(kept, region, ring, 1.0, 1.0, bound) is passes
             assert depths == [COARSE_LOOK_MIN_DEPTH + 1]
 
 
@@ -452,7 +449,7 @@ def test_the_hold_out_allows_for_the_capture_s_own_scatter():
     ring = 2.0
     kept = noisy[~region.contains(noisy)]
     inner = region.contains(kept, margin=ring)
-    held = _poisson_points_for_test(kept[~inner], region, ring)
+    held = _held_out_surface(kept[~inner], region, ring)
     raw = float(np.sqrt(np.mean(cKDTree(held).query(kept[inner])[0] ** 2)))
     assert raw > 1.0  # the miss alone refuses the noisy limb
     fill = poisson_surface_fill(kept, region, cKDTree(kept), 1.0, voxelized=False, step=1.0, ring=ring)
@@ -466,11 +463,12 @@ def test_the_hold_out_allows_for_the_capture_s_own_scatter():
     assert len(poisson_surface_fill(clean, region, cKDTree(clean), 1.0, voxelized=False, step=1.0, ring=ring)) > 0
 
 
-def _poisson_points_for_test(points, region, ring):
-    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _poisson_points
+def _held_out_surface(points, region, ring):
+    """The samples at g / 2 (g = 1) of the hold-out's surface of ``points`` in ``region`` grown by ``ring``."""
+    from dpcbench.methods._spatial_fill import POISSON_HOLDOUT_CELL_STEPS, _poisson_samples
 
-    return _poisson_points(points, lambda p: region.contains(p, margin=ring), None, 1.0, 1.0, False, 1.0, surface=True,
-                           cell_steps=POISSON_HOLDOUT_CELL_STEPS)
+    samples = _poisson_samples(points, 1.0, cell_steps=POISSON_HOLDOUT_CELL_STEPS)
+    return samples[region.contains(samples, margin=ring)]
 
 
 def test_native_stderr_is_silenced_for_the_block_only(capfd):

@@ -114,7 +114,7 @@ def poisson_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTr
             return np.zeros((0, 3))
         # the hold-out first, on a coarser octree: most bodies it refuses (12 of 13 in the Longdress frame's
         # occlusion boxes) then cost no reconstruction at the finest cell
-        if ring > 0 and not _holds_out(body, region, ring, free, spacing, voxelized, grid, max_holdout_spacings):
+        if ring > 0 and not _holds_out(body, region, ring, spacing, grid, max_holdout_spacings):
             return np.zeros((0, 3))
         # only the mesh near R is sampled: the fill's points lie inside R once rounded to voxels (or thinned to
         # cells of g) (`_triangles_near`)
@@ -262,7 +262,7 @@ def _bodies(support: np.ndarray, reach: float) -> list[np.ndarray]:
     return [support[labels == labels[i]] for i in np.sort(first)]
 
 
-def _holds_out(support, region, ring, free, spacing, voxelized, grid, max_holdout_spacings) -> bool:
+def _holds_out(support, region, ring, spacing, grid, max_holdout_spacings) -> bool:
     """`poisson_surface_fill`'s hold-out test (its docstring) on ``support``: True when it passes (or when
     the ring or the rest has too few points to judge)."""
     inner = region.contains(support, margin=ring)
@@ -388,20 +388,15 @@ def _triangles_near(vertices: np.ndarray, triangles: np.ndarray, region: HoleReg
     return (np.abs(d @ rotation) <= half_extents + slack[:, None]).all(axis=1)
 
 
-def _poisson_points(support, inside, covered, free, spacing, voxelized, grid, surface=False,
+def _poisson_points(support, inside, covered, free, spacing, voxelized, grid,
                     samples=None, near=None, cell_steps=POISSON_CELL_STEPS) -> np.ndarray:
     """`poisson_surface_fill`'s surface and points (its docstring), without the hold-out test: ``inside``
-    a mask function of (P, 3) points, ``free`` the distance from ``covered`` a new point keeps. With
-    ``surface``: the surface's samples at g / 2 inside, neither rounded to voxels nor thinned nor tested
-    (the hold-out test measures the distance to the surface, not to a sampling of it: one sample a cell
-    of g lies up to ~g / 2 beside a held-out point that is on the surface). ``samples``: the surface's
+    a mask function of (P, 3) points, ``free`` the distance from ``covered`` a new point keeps. ``samples``: the surface's
     samples (`_poisson_samples` of ``support``) when already made; ``near``, ``cell_steps``: `_poisson_samples`'s
     (``near`` a region and margin that hold every point ``inside`` keeps)."""
     points = _poisson_samples(support, grid, near, cell_steps) if samples is None else samples
     if not len(points):
         return np.zeros((0, 3))
-    if surface:
-        return points[inside(points)]
     if voxelized:
         # rounded and kept inside before the unique rows: the samples cover the whole crop's surface, most of
         # it outside the region (sorting them all was 3.3 s of a 3-frame coherent run at 800k points)
