@@ -136,30 +136,18 @@ def run(only: str | None = None, coloured: bool = False) -> dict[str, str]:
     return hashes
 
 
-#: dpcbench's packages and the folders that hold them (pyproject.toml's package-dir)
-PACKAGE_DIRS = {"bench": "bench", "methods": "methods", "metrics": "metrics", "holes": "holes",
-                "testing": "bench/testing"}
-
 
 def hashes_at(revision: str, only: str | None, coloured: bool) -> dict[str, str]:
-    """The hashes of this script's cases computed by the package of git ``revision`` on this machine: its tree in a
-    temporary worktree, imported through a ``dpcbench`` folder of links put first on the path of a child process
-    (which runs this file's `run`, so both sides run the same cases and flips)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        tree, links = Path(tmp) / "tree", Path(tmp) / "path" / "dpcbench"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), revision], check=True,
-                       capture_output=True)
-        try:
-            links.mkdir(parents=True)
-            for name, folder in PACKAGE_DIRS.items():
-                (links / name).symlink_to(tree / folder, target_is_directory=True)
-            out = Path(tmp) / "hashes.json"
-            child = [sys.executable, __file__, "--json-out", str(out)] + (["--only", only] if only else [])
-            env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(links.parent), os.environ.get("PYTHONPATH", "")])}
-            subprocess.run(child + (["--coloured"] if coloured else []), check=True, env=env)
-            return json.loads(out.read_text(encoding="utf-8"))
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True)
+    """The hashes of this script's cases computed by the package of git ``revision`` on this machine
+    (`_revision.package_of`), in a child process that runs this file's `run`, so both sides run the same cases and
+    flips."""
+    from _revision import package_of
+
+    with package_of(revision) as env, tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "hashes.json"
+        child = [sys.executable, __file__, "--json-out", str(out)] + (["--only", only] if only else [])
+        subprocess.run(child + (["--coloured"] if coloured else []), check=True, env=env)
+        return json.loads(out.read_text(encoding="utf-8"))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
+from dpcbench.holes._blas import OneBlasThread
 from dpcbench.holes.geometry import check_frame, point_spacing, radius_components, tangent_basis
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.metrics.errors import UserError
@@ -104,63 +105,6 @@ def _occupied_sectors(u: np.ndarray, v: np.ndarray, mask: np.ndarray | None = No
     return np.bitwise_or.reduce(np.left_shift(ones, code), axis=0)
 
 
-class _OneBlasThread:
-    """Context manager: BLAS limited to one thread inside, restored on exit.
-
-    Why: the batched products here ((m, 3) @ (3, n) projections, (10, m) @ (m, n) moments, eigh of
-    a few 3 x 3 stacks) are many small calls, for which OpenBLAS's thread start-up costs more than
-    the arithmetic (a (16384, 3) @ (3, 57) product: 8 ms with 2 threads, 0.26 ms with one). With
-    threadpoolctl installed (not a dependency) it does this; else every OpenBLAS library loaded in
-    the process (numpy's and scipy's bundle one each) gets its own ``openblas_set_num_threads``
-    through ctypes; where none can be found (another BLAS, another OS) this does nothing. The limit
-    is process-wide while inside: BLAS calls of other threads run on one thread meanwhile.
-    """
-
-    _apis: list | None = None  # per OpenBLAS library found: (get_num_threads, set_num_threads)
-
-    @classmethod
-    def _lookup(cls) -> list:
-        if cls._apis is None:
-            cls._apis = []
-            try:
-                import ctypes
-
-                with open("/proc/self/maps") as maps:
-                    paths = sorted({line.split()[-1] for line in maps if "openblas" in line.lower()})
-                for path in paths:
-                    lib = ctypes.CDLL(path)
-                    found = [(getattr(lib, f"{p}_get_num_threads{s}", None), getattr(lib, f"{p}_set_num_threads{s}", None))
-                             for p in ("scipy_openblas", "openblas") for s in ("64_", "")]
-                    for get, put in found:
-                        if get is not None and put is not None:
-                            get.restype = ctypes.c_int
-                            cls._apis.append((get, put))
-                            break
-            except OSError:  # no /proc (not Linux) or a library that cannot be opened: leave BLAS as it is
-                pass
-        return cls._apis
-
-    def __enter__(self):
-        try:
-            from threadpoolctl import threadpool_limits  # type: ignore[import-not-found]
-        except ImportError:
-            self._limits = None
-            self._saved = [(put, get()) for get, put in self._lookup()]
-            for put, _ in self._saved:
-                put(1)
-        else:
-            self._limits = threadpool_limits(limits=1, user_api="blas")
-        return self
-
-    def __exit__(self, *exc):
-        if self._limits is not None:
-            self._limits.restore_original_limits()
-        else:
-            for put, threads in self._saved:
-                put(threads)
-        return False
-
-
 def _smallest_eigenvectors(cov: np.ndarray) -> np.ndarray:
     """(n, 3) unit eigenvectors of the smallest eigenvalue of the symmetric (n, 3, 3) ``cov`` (sign arbitrary).
 
@@ -194,7 +138,7 @@ def _smallest_eigenvectors(cov: np.ndarray) -> np.ndarray:
     weak = ~(norm > 1e-9 * scale ** 2)
     vec[~weak] /= norm[~weak, None]
     if weak.any():
-        with _OneBlasThread():
+        with OneBlasThread():
             vec[weak] = np.linalg.eigh(cov[weak])[1][:, :, 0]  # eigh: eigenvalues ascending
     return vec
 
@@ -475,7 +419,7 @@ def _boundary(points: np.ndarray, k: int, gap: float, tree: cKDTree | None, inte
     if ninth is not None:
         wanted[ninth_of] = True
     grid = _voxel_coordinates(points)
-    with _OneBlasThread():
+    with OneBlasThread():
         if grid is not None:
             leftover: list[np.ndarray] = []
             for rows, offsets, mask in _voxel_neighbourhoods(grid, k, leftover):

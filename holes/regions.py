@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from dpcbench.holes._blas import rows_times
 from dpcbench.metrics.errors import UserError
 
 if TYPE_CHECKING:  # imported where used: every CLI command loads this module, few need scipy
@@ -129,7 +130,7 @@ class HoleRegion:
         if self.shape == "ball":
             return np.einsum("ij,ij->i", d, d) <= (self.radius + margin) ** 2
         half_extents, rotation = self._box()
-        return (np.abs(d @ rotation) <= half_extents + margin).all(axis=1)
+        return (np.abs(rows_times(d, rotation)) <= half_extents + margin).all(axis=1)
 
     def scaled(self, factor: float) -> HoleRegion:
         """The region with every length multiplied by ``factor`` > 0 (its centre, radius or half extents; its

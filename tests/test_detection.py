@@ -361,12 +361,12 @@ def kdtree_ninth(points, rows):
 
 def test_one_blas_thread_inside_and_restored_after():
     """The batched linear algebra runs with BLAS on one thread; the caller's setting comes back after."""
-    from dpcbench.holes.detection import _OneBlasThread
+    from dpcbench.holes._blas import OneBlasThread
 
-    apis = _OneBlasThread._lookup()
+    apis = OneBlasThread._lookup()
     if not apis:
         pytest.skip("no OpenBLAS found through /proc/self/maps (another BLAS or OS)")
     before = [get() for get, _ in apis]
-    with _OneBlasThread():
+    with OneBlasThread():
         assert [get() for get, _ in apis] == [1] * len(apis)
     assert [get() for get, _ in apis] == before

@@ -246,6 +246,35 @@ def test_a_scaled_region_holds_the_scaled_points():
                 np.testing.assert_array_equal(scaled.rotation, region.rotation)
 
 
+def test_rows_times_is_the_product_on_one_blas_thread(monkeypatch):
+    """`rows_times` gives ``rows @ matrix`` bit for bit, computes it with every OpenBLAS held to one thread (seen
+    from inside the product) and leaves the thread counts as it found them. A box region's test goes through it."""
+    from dpcbench.holes import _blas, regions
+
+    apis = _blas.OneBlasThread._lookup()
+    if not apis:
+        pytest.skip("no OpenBLAS found through /proc/self/maps (another BLAS or OS)")
+    seen = []
+
+    class Probe(np.ndarray):
+        __array_ufunc__ = None  # so that ``rows @ probe`` asks the probe
+
+        def __rmatmul__(self, rows):
+            seen.append([get() for get, _ in apis])
+            return rows @ self.view(np.ndarray)
+
+    rng = np.random.default_rng(4)
+    rows, rotation = rng.normal(size=(300000, 3)), np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    before = [get() for get, _ in apis]
+    np.testing.assert_array_equal(_blas.rows_times(rows, rotation.view(Probe)), rows @ rotation)
+    assert seen == [[1] * len(apis)]
+    assert [get() for get, _ in apis] == before
+    calls = []
+    monkeypatch.setattr(regions, "rows_times", lambda a, b: calls.append(len(a)) or a @ b)
+    HoleRegion.box([0.1, -0.2, 0.3], [0.5, 1.0, 0.7], rotation).contains(rows)
+    assert calls == [len(rows)]
+
+
 def test_components_to_regions_cover_their_points():
     rng = np.random.default_rng(0)
     blob_a = rng.normal(0, 1, (200, 3))

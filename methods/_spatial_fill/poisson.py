@@ -10,6 +10,7 @@ from contextlib import contextmanager
 import numpy as np
 from scipy.spatial import cKDTree
 
+from dpcbench.holes._blas import rows_times
 from dpcbench.holes.regions import HoleRegion
 from dpcbench.methods._spatial_fill.common import (
     COARSE_LOOK_FACTOR,
@@ -385,7 +386,7 @@ def _triangles_near(vertices: np.ndarray, triangles: np.ndarray, region: HoleReg
         return np.sqrt(np.einsum("ij,ij->i", d, d)) <= region.radius + slack
     half_extents, rotation = region.half_extents, region.rotation
     assert half_extents is not None and rotation is not None  # a box region has both (HoleRegion.__post_init__)
-    return (np.abs(d @ rotation) <= half_extents + slack[:, None]).all(axis=1)
+    return (np.abs(rows_times(d, rotation)) <= half_extents + slack[:, None]).all(axis=1)
 
 
 def _poisson_points(support, inside, covered, free, spacing, voxelized, grid,
