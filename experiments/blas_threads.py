@@ -49,6 +49,11 @@ def _child(case: str) -> dict:
     return {"cpu": cpu, "main": main, "wall": wall, "sha256": digest[:16]}
 
 
+def _default_threads(env) -> dict[str, str]:
+    """``env`` without the variables that set OpenBLAS's thread count (OpenBLAS also reads OMP_NUM_THREADS)."""
+    return {k: v for k, v in env.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("cases", nargs="+", help="fusion_cases.py case names")
@@ -59,14 +64,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.child:
         print(json.dumps(_child(args.cases[0])))
         return 0
-    own = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
-    arms = {setting: {**own, **extra} for setting, extra in SETTINGS.items()}
+    arms = {setting: {**_default_threads(os.environ), **extra} for setting, extra in SETTINGS.items()}
     with contextlib.ExitStack() as stack:
         if args.against:
             from _revision import package_of
 
-            arms[REVISION + args.against] = {k: v for k, v in stack.enter_context(package_of(args.against)).items()
-                                             if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+            arms[REVISION + args.against] = _default_threads(stack.enter_context(package_of(args.against)))
         for case in args.cases:
             for round_ in range(args.rounds):
                 # the order alternates between rounds, so a drift of the machine's speed favours no arm

@@ -49,8 +49,7 @@ def _judge_both_ways() -> None:
         depths.append(depth)
         return poisson_mesh(cloud, depth)
 
-    def traced(support, region, ring, spacing, grid, max_holdout_spacings):
-        args = (support, region, ring, spacing, grid, max_holdout_spacings)
+    def traced(*args):
         depths.clear()
         passed = holds_out(*args)
         looked_at = set(depths)
