@@ -339,6 +339,34 @@ def test_oracle_on_a_plane_with_a_hole():
     assert count == mask.sum() and rms == pytest.approx(0.3)
 
 
+def test_refusal_oracle_keeps_exactly_the_fill_points_within_the_limit():
+    import numpy as np
+
+    from dpcbench.bench.core.errors import UserError
+    from dpcbench.bench.results.oracle import refused_fill, score_refusals
+    from dpcbench.metrics.scoring import DEFAULT_MAX_PSNR
+
+    truth, damaged, mask = _plane_with_hole()  # a unit grid: one spacing is 1
+    hole = truth[mask]
+    on, off = hole[::2], hole[1::2] + [0.0, 0.0, 2.0]  # half the fill on the plane, half 2 spacings above it
+    result = np.vstack([damaged, off[:5], on, off[5:]])
+    assert np.array_equal(refused_fill(truth, damaged, result, 1.0), np.vstack([damaged, on]))  # the result's order
+    assert np.array_equal(refused_fill(truth, damaged, result, 2.5), result)
+    assert len(refused_fill(truth, damaged, result, 1.999)) == len(damaged) + len(on)
+    scores = score_refusals([truth], [damaged], [result], [1, 2.5])
+    assert list(scores) == ["method", "refusal < 1 s", "refusal < 2.5 s"]
+    d2 = {label: s["frame"]["mean"]["gpsnr_d2"] for label, s in scores.items()}
+    # closed form: every point kept at 1 s lies on the plane, so no point-to-plane error is left
+    assert d2["refusal < 1 s"] == DEFAULT_MAX_PSNR > d2["method"] == d2["refusal < 2.5 s"]
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(UserError, match="limit"):
+            refused_fill(truth, damaged, result, bad)
+        with pytest.raises(UserError, match="limit"):
+            score_refusals([truth], [damaged], [result], [bad])
+    with pytest.raises(UserError, match="of the same sequence"):
+        score_refusals([truth], [damaged], [result, result], [1])
+
+
 def test_oracle_command(tmp_path, capsys):
     import json
 
@@ -367,6 +395,20 @@ def test_oracle_command(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["d2_break_even"]["sigma"] == 0.0
     assert main(argv[:-1] + ["--variant", "none", "--break-even"]) == 0
     assert "D2 break-even: a complete fill within 0 units" in capsys.readouterr().out
+    # the refusal oracle: the lifted fill is 0.25 spacings off, so a limit of 0.1 refuses all of it, 1 none
+    assert main(argv + ["--variant", "none", "--method-result", str(tmp_path / "result"), "--refusal", "0.1,1"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    refusal = {label: by["frame"] for label, by in payload["refusal"].items()}
+    assert list(refusal) == ["method", "refusal < 0.1 s", "refusal < 1 s"]
+    assert refusal["refusal < 0.1 s"] == payload["variants"]["none"]["frame"]
+    assert refusal["refusal < 1 s"] == refusal["method"] != refusal["refusal < 0.1 s"]
+    assert main(argv[:-1] + ["--variant", "none", "--method-result", str(tmp_path / "result"), "--refusal", "1"]) == 0
+    assert "refusal oracle:" in capsys.readouterr().out
+    for bad, message in ((["--refusal", "1"], "give it with --method-result"),
+                         (["--method-result", str(tmp_path / "result"), "--refusal", "0.5,x"], "'x' is no limit")):
+        assert main(argv + ["--variant", "none"] + bad) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err, err
     assert main(argv + ["--variant", "none", "--colour"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "has frames without colour" in err

@@ -39,6 +39,12 @@ colour estimate, not better geometry.
 `off_surface_rms` measures a method's off-surface error: the RMS over its fill points (result
 points farther than 1% of the spacing from every damaged point) of ``|(p - q) . n_q|``, q the
 nearest truth point and n_q the truth's PCA normal there (D2's point-to-plane distance).
+
+`refused_fill` and `score_refusals` are the refusal oracle: a method's result without its fill points whose
+``|(p - q) . n_q|`` is at least a limit (in spacings of the damaged frame, `metrics.neighbours.point_spacing`, the
+unit of `d2_break_even`). That is what a refusal rule that knew every fill point's true error would keep, point by point
+(a hole refused whole is a special case), so where no limit brings D2 up to no fill's at the D1 a target asks, no
+refusal rule does, and the target takes fill points nearer the truth.
 Scores are those of `metrics.score_sequence` (whole frame, and in the hole regions when given).
 """
 
@@ -124,22 +130,46 @@ def oracle_fill(truth: np.ndarray, damaged: np.ndarray, variant: str, *, mask: n
     return np.vstack([damaged, fill])
 
 
-def off_surface_rms(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
-                    k: int = DEFAULT_NEIGHBOURS) -> tuple[float, int]:
-    """(RMS point-to-plane distance of the result's fill points to the truth, their count); (nan, 0)
-    when the result adds no point."""
+def fill_offsets(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
+                 k: int = DEFAULT_NEIGHBOURS) -> tuple[np.ndarray, np.ndarray]:
+    """(mask (R,) of the ``result``'s fill points: those farther than MATCH_SHARE x spacing(damaged) from every
+    damaged point; their point-to-plane distances (F,) to the truth, ``|(p - q) . n_q|``, q the nearest truth point
+    and n_q the truth's PCA normal of its ``k`` nearest points there)."""
     from dpcbench.metrics.neighbours import estimate_normals
 
     truth, result = np.asarray(truth, dtype=float), np.asarray(result, dtype=float)
     d, _ = cKDTree(np.asarray(damaged, dtype=float)).query(result, k=1)
-    fill = result[d > MATCH_SHARE * spacing(damaged)]
+    is_fill = d > MATCH_SHARE * spacing(damaged)
+    fill = result[is_fill]
     if not len(fill):
-        return float("nan"), 0
+        return is_fill, np.zeros(0)
     tree = cKDTree(truth)
     _, nearest = tree.query(fill, k=1)
     normals = estimate_normals(truth, k, queries=truth[nearest], tree=tree)
-    distance = np.einsum("ij,ij->i", fill - truth[nearest], normals)
-    return float(np.sqrt(np.mean(distance ** 2))), len(fill)
+    return is_fill, np.abs(np.einsum("ij,ij->i", fill - truth[nearest], normals))
+
+
+def off_surface_rms(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
+                    k: int = DEFAULT_NEIGHBOURS) -> tuple[float, int]:
+    """(RMS point-to-plane distance of the result's fill points to the truth (`fill_offsets`), their count);
+    (nan, 0) when the result adds no point."""
+    _, distance = fill_offsets(truth, damaged, result, k)
+    if not len(distance):
+        return float("nan"), 0
+    return float(np.sqrt(np.mean(distance ** 2))), len(distance)
+
+
+def refused_fill(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray, limit: float,
+                 k: int = DEFAULT_NEIGHBOURS) -> np.ndarray:
+    """The method's ``result`` (R, 3) without the fill points whose point-to-plane distance to the truth
+    (`fill_offsets`) is ``limit`` (coordinate units) or more, in the result's row order: (M, 3) (module docstring,
+    the refusal oracle)."""
+    if not (np.isfinite(limit) and limit > 0):
+        raise UserError(f"refusal oracle: the limit must be a distance > 0, got {limit!r}")
+    is_fill, distance = fill_offsets(truth, damaged, result, k)
+    keep = np.ones(len(is_fill), dtype=bool)
+    keep[np.flatnonzero(is_fill)[distance >= limit]] = False
+    return np.asarray(result, dtype=float)[keep]
 
 
 def d2_break_even(truth: list[np.ndarray], damaged: list[np.ndarray], *, masks: list | None = None,
@@ -210,6 +240,38 @@ def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=V
             scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), peak=peak, regions=regions,
                                                          reference_normals=reference_normals)
         out[variant] = scores
+    return out
+
+
+def score_refusals(truth: list[np.ndarray], damaged: list[np.ndarray], results: list[np.ndarray], limits, *,
+                   regions: list | None = None, metrics=("gpsnr_d1", "gpsnr_d2", "nshd"), peak="intrinsic",
+                   reference_normals=None) -> dict:
+    """label -> {"frame", and with ``regions`` "holes": `metrics.score_sequence` against the truth} for the method's
+    ``results`` as they are ("method") and, for each of ``limits`` (spacings of each damaged frame,
+    `metrics.neighbours.point_spacing`), the refusal oracle at it ("refusal < L s", `refused_fill`)."""
+    from dpcbench import metrics as metrics_pkg
+    from dpcbench.metrics.neighbours import point_spacing
+
+    if not len(truth) == len(damaged) == len(results):
+        raise UserError(f"{len(truth)} truth frame(s), {len(damaged)} damaged and {len(results)} result frame(s); "
+                        "give the truth, the damage and a method's result of the same sequence")
+    limits = [float(x) for x in limits]
+    bad = [x for x in limits if not (np.isfinite(x) and x > 0)]
+    if bad:
+        raise UserError(f"refusal limit {bad[0]!r}: give distances > 0, in spacings")
+    steps = [point_spacing(np.asarray(d, dtype=float)) for d in damaged]
+    sets = {"method": [np.asarray(r, dtype=float) for r in results]}
+    for limit in limits:
+        sets[f"refusal < {limit:g} s"] = [refused_fill(t, d, r, limit * step)
+                                          for t, d, r, step in zip(truth, damaged, results, steps)]
+    out = {}
+    for label, frames in sets.items():
+        scores = {"frame": metrics_pkg.score_sequence(truth, frames, list(metrics), peak=peak,
+                                                      reference_normals=reference_normals)}
+        if regions is not None:
+            scores["holes"] = metrics_pkg.score_sequence(truth, frames, list(metrics), peak=peak, regions=regions,
+                                                         reference_normals=reference_normals)
+        out[label] = scores
     return out
 
 

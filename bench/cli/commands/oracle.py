@@ -1,6 +1,7 @@
 """`dpcbench oracle TRUTH DAMAGED`: what fills that know the ground truth's surface score
 (`bench.results.oracle`): the floor (no fill), samples on the truth's surface, the truth's points jittered
-by a method's off-surface error, and the truth itself (the ceiling)."""
+by a method's off-surface error, and the truth itself (the ceiling); with ``--refusal``, a method's result without
+the fill points that lie a limit or more off the truth (what any refusal rule could reach with its fills)."""
 
 from __future__ import annotations
 
@@ -23,7 +24,8 @@ def register(subparsers) -> None:
                     "truth's tangent plane by up to half the damaged frame's spacing), smooth (the surface samples "
                     "moved onto the truth's local quadric surface: the surface known, the samples' places and their "
                     "own offsets from it not), jitter (the missing truth points moved along the truth normal by N(0, sigma^2)) "
-                    "and truth (the ceiling).")
+                    "and truth (the ceiling). With --method-result and --refusal, also that result without its fill "
+                    "points a limit or more off the truth (the refusal oracle).")
     p.add_argument("truth", help="ground-truth PLY file, or folder / glob of PLY frames")
     p.add_argument("damaged", help="damaged PLY file, or folder / glob of PLY frames (same frame count)")
     p.add_argument("--variant", action="append", dest="variants", choices=VARIANTS, metavar="NAME",
@@ -38,6 +40,10 @@ def register(subparsers) -> None:
     p.add_argument("--method-result", default=None, metavar="RESULT",
                    help="a method's inpainted frames of the same damage: sigma is its measured off-surface error "
                         "(RMS point-to-plane distance of its fill points to the truth)")
+    p.add_argument("--refusal", default=None, metavar="LIMITS",
+                   help="with --method-result: also score its result as it is and without the fill points at least "
+                        "each of these comma-separated limits (spacings) off the truth along its normal: what a "
+                        "refusal that knew each fill point's true error would score (e.g. 0.5,1)")
     p.add_argument("--peak", default="intrinsic", help="PSNR peak (as `dpcbench score`)")
     p.add_argument("--seed", type=int, default=0, help="seed of the surface and jitter samples")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -70,7 +76,13 @@ def main(args) -> int:
     import numpy as np
 
     from dpcbench.bench.data.sequences import load_sequence
-    from dpcbench.bench.results.oracle import VARIANTS, d2_break_even, off_surface_rms, score_oracles
+    from dpcbench.bench.results.oracle import (
+        VARIANTS,
+        d2_break_even,
+        off_surface_rms,
+        score_oracles,
+        score_refusals,
+    )
 
     truth = load_sequence(args.truth, colors=args.colour)
     damaged = load_sequence(args.damaged, colors=args.colour)
@@ -82,6 +94,9 @@ def main(args) -> int:
         raise UserError("--jitter and --method-result both set sigma; give one")
     if args.jitter is not None and not (math.isfinite(args.jitter) and args.jitter >= 0):
         raise UserError(f"--jitter {args.jitter:g}: must be a distance >= 0")
+    if args.refusal is not None and not args.method_result:
+        raise UserError("--refusal scores a method's result: give it with --method-result RESULT")
+    limits = _limits(args.refusal) if args.refusal is not None else None
     sigma, measured = args.jitter, None
     if args.method_result:
         result = load_sequence(args.method_result, colors=False)
@@ -111,10 +126,14 @@ def main(args) -> int:
                            sigma=sigma or 0.0, seed=args.seed, peak=args.peak, reference_normals=given_normals)
     even = (d2_break_even(truth.points, damaged.points, masks=masks, seed=args.seed, peak=args.peak,
                           reference_normals=given_normals) if args.break_even else None)
+    refusals = (score_refusals(truth.points, damaged.points, result.points, limits, regions=regions, peak=args.peak,
+                               reference_normals=given_normals) if limits else None)
     if args.json:
         payload = {"variants": {v: {scope: s["mean"] for scope, s in by.items()} for v, by in scores.items()},
                    "frames": {v: {scope: s["frames"] for scope, s in by.items()} for v, by in scores.items()},
                    "sigma": sigma, "measured": measured, "d2_break_even": even,
+                   "refusal": None if refusals is None else {label: {scope: s["mean"] for scope, s in by.items()}
+                                                             for label, by in refusals.items()},
                    "colour": None if colour is None else {f: {scope: s["mean"] for scope, s in by.items()}
                                                           for f, by in colour.items()}}
         sys.stdout.write(json.dumps(payload, default=lambda x: None if not math.isfinite(x) else x) + "\n")
@@ -128,11 +147,31 @@ def main(args) -> int:
               f"spacings) RMS of the truth along its normal scores no fill's D2 ({even['none_d2']:.2f} dB, mean over "
               "the frames; jitter oracle, seed "
               f"{args.seed}); farther off, even a complete fill scores less")
+    if refusals is not None:
+        print(f"\nrefusal oracle: {args.method_result} as it is, and without its fill points at least the limit off "
+              "the truth along its normal (spacings of each damaged frame): what a refusal that knew each fill "
+              "point's true error would score")
+        _print_table("result", refusals)
     if colour is not None:
         print("\ncolour oracle: the truth's positions, the missing points coloured from the damaged frames by the fill "
               "named (dB; a method colouring with that fill scores about this with perfect geometry)")
         _print_table("colour fill", colour)
     return 0
+
+
+def _limits(text: str) -> list[float]:
+    """``--refusal``'s comma-separated limits, each a finite number > 0."""
+    limits = []
+    for part in text.split(","):
+        try:
+            value = float(part)
+        except ValueError:
+            value = float("nan")
+        if not (math.isfinite(value) and value > 0):
+            raise UserError(f"--refusal {text}: {part.strip()!r} is no limit; give comma-separated distances > 0 in "
+                            "spacings, e.g. 0.5,1")
+        limits.append(value)
+    return limits
 
 
 def _colour_scores(args, truth, damaged, masks, regions) -> dict:
