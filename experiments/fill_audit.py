@@ -18,17 +18,18 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
   that knew every fill point's true error could reach, point by point, with the fills the method has. Where no
-  limit gives D1 at least 1 dB over ``--against``'s and D2 at or above no fill's, no refusal rule (per hole or per
+  limit gives D1 at least 1 dB over the best of the ``--against`` methods' and D2 at or above no fill's, no refusal rule (per hole or per
   point) meets both targets on that frame: it takes a closer surface. Beside it, the same for a refusal the method
   could make without the truth: each new point's disagreement, the largest point-to-plane distance from it to the
   candidate surfaces of the last resort that reach within 2 spacings of it (`candidate_accuracy.region_candidates`;
-  the plane of their 6 nearest points), new points with no candidate near kept; points whose disagreement is over
+  the plane through its nearest candidate point, normal the PCA normal of its 6 nearest), new points with no
+  candidate near kept; points whose disagreement is over
   each of `ORACLE_LIMITS` spacings refused.
 
 Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
-        [--refusal-oracle [--against METHOD]]
+        [--refusal-oracle [--against METHOD[,METHOD...]]]
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from dpcbench.bench.data.plyio import read_ply
 from dpcbench.methods.temporal_fusion import method as fusion_method
 from dpcbench.methods.temporal_fusion import spatial
 from dpcbench.metrics import psnr, resolve_peak
-from dpcbench.metrics.neighbours import point_spacing
+from dpcbench.metrics.neighbours import estimate_normals, point_spacing
 from dpcbench.metrics.pairs import CloudPair
 
 #: a stage's returned point within this many spacings of an output point is where that output point came from
@@ -148,7 +149,7 @@ def frame_psnr(pair: CloudPair, peak: float) -> tuple[float, float]:
 
 def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, result: np.ndarray, regions,
                 records, spacing: float, left_open: bool = False, refusal_oracle: bool = False,
-                against: tuple[str, np.ndarray] | None = None) -> list[str]:
+                against: dict[str, np.ndarray] | None = None) -> list[str]:
     """The report lines of one frame (see the module docstring)."""
     filled, empty = CloudPair(truth, result, normals), CloudPair(truth, damaged, normals)
     peak = resolve_peak("intrinsic", filled)
@@ -210,29 +211,31 @@ def disagreement(damaged: np.ndarray, new: np.ndarray, regions, spacing: float) 
             points = fill(support, region, cKDTree(crop)) if name != "cap" else np.zeros((0, 3))
             if len(points) < 6:
                 continue
-            distance, nearest = cKDTree(points).query(new[mine], 6)
-            patch = points[nearest]
-            centre = patch.mean(axis=1)
-            spread = patch - centre[:, None, :]
-            normal = np.linalg.eigh(np.einsum("pki,pkj->pij", spread, spread))[1][:, :, 0]
-            offset = np.abs(np.einsum("pi,pi->p", new[mine] - centre, normal)) / spacing
-            offset[distance[:, 0] > 2 * spacing] = 0.0
+            candidate = cKDTree(points)
+            distance, nearest = candidate.query(new[mine])
+            normal = estimate_normals(points, 6, queries=new[mine], tree=candidate)
+            offset = np.abs(np.einsum("pi,pi->p", new[mine] - points[nearest], normal)) / spacing
+            offset[distance > 2 * spacing] = 0.0
             out[mine] = np.maximum(out[mine], offset)
     return out
 
 
 def refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty: CloudPair,
-                         against: tuple[str, np.ndarray] | None, disagree: np.ndarray) -> list[str]:
+                         against: dict[str, np.ndarray] | None, disagree: np.ndarray) -> list[str]:
     """``--refusal-oracle``'s lines (the module docstring): per limit, the new points kept (those whose ``off`` (P,),
     their true off-surface errors in spacings, is under it; then those whose ``disagree`` (P,) is at most it) and the
-    whole-frame D1 / D2, against no fill's D2 and, given ``against`` = (name, that method's result), its D1 + 1 dB."""
+    whole-frame D1 / D2, against no fill's D2 and, given ``against`` ({method name: its result}), the best of their
+    D1 + 1 dB."""
     none_d2 = frame_psnr(empty, peak)[1]
-    other = None if against is None else (against[0], frame_psnr(CloudPair(truth, against[1], normals), peak)[0])
+    other = None
+    if against:
+        d1s = {name: frame_psnr(CloudPair(truth, result, normals), peak)[0] for name, result in against.items()}
+        other = max(d1s.items(), key=lambda item: item[1])
     head = f"  refusal oracle (no fill's D2 {none_d2:.2f}"
     lines = [head + (f"; {other[0]}'s D1 {other[1]:.2f})" if other else ")")]
-    for label, score in (("off the truth <", off), ("disagreement <=", disagree)):
+    for label, score, kept in (("off the truth <", off, np.less), ("disagreement <=", disagree, np.less_equal)):
         for limit in ORACLE_LIMITS:
-            keep = score < limit if score is off else score <= limit
+            keep = kept(score, limit)
             d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[keep]]), normals), peak)
             both = "" if other is None else ("  both targets met" if d1 >= other[1] + 1.0 and d2 >= none_d2 else "")
             lines.append(f"    keep {label} {limit:4.2f} s: {keep.sum():6d} of {len(new)} points  "
@@ -277,7 +280,8 @@ def main(argv=None) -> int:
     parser.add_argument("--refusal-oracle", action="store_true",
                         help="also the scores keeping only new points within each limit of the truth")
     parser.add_argument("--against", default=None, metavar="METHOD",
-                        help="with --refusal-oracle: a registered method whose D1 + 1 dB is the D1 target")
+                        help="with --refusal-oracle: registered methods (comma-separated) whose best D1 + 1 dB is the "
+                             "D1 target")
     args = parser.parse_args(argv)
     _, frames, regions = load_damage_or_exit(args.damaged)
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
@@ -285,11 +289,11 @@ def main(argv=None) -> int:
     instrument(log)
     params = parse_params(args.param)
     outputs = fusion_method.TemporalFusion(**params).inpaint(frames, regions)
-    others = None
+    others = {}
     if args.against:
         from dpcbench.methods.registry import get_method
 
-        others = get_method(args.against).inpaint(frames, regions)
+        others = {name: get_method(name).inpaint(frames, regions) for name in args.against.split(",")}
     spacing = 1.0 if all(np.array_equal(f, np.round(f)) for f in frames) else point_spacing(max(frames, key=len))
     wanted = range(len(frames)) if args.frames is None else [int(f) for f in args.frames.split(",")]
     for f in wanted:
@@ -297,7 +301,7 @@ def main(argv=None) -> int:
         truth = np.asarray(cloud.points, dtype=np.float64)
         normals = cloud.normals  # None: CloudPair estimates them as `dpcbench score` does
         print(f"frame {f}: {len(outputs[f]) - len(frames[f])} new points")
-        against = None if others is None else (args.against, others[f])
+        against = {name: result[f] for name, result in others.items()}
         print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
                                      args.left_open, args.refusal_oracle, against)))
     return 0
