@@ -225,8 +225,6 @@ def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=V
     """variant -> {"frame": `metrics.score_sequence` of the filled frames against the truth, whole
     frames, and "holes": the same in ``regions`` (when given)}. Frame f of variant v is filled with
     seed ``seed + f``."""
-    from dpcbench import metrics as metrics_pkg
-
     if len(truth) != len(damaged):
         raise UserError(f"{len(truth)} truth frame(s) and {len(damaged)} damaged frame(s); give sequences of the "
                         "same length")
@@ -234,13 +232,21 @@ def score_oracles(truth: list[np.ndarray], damaged: list[np.ndarray], variants=V
     for variant in variants:
         filled = [oracle_fill(t, d, variant, mask=None if masks is None else masks[f], sigma=sigma, seed=seed + f)
                   for f, (t, d) in enumerate(zip(truth, damaged))]
-        scores = {"frame": metrics_pkg.score_sequence(truth, filled, list(metrics), peak=peak,
-                                                      reference_normals=reference_normals)}
-        if regions is not None:
-            scores["holes"] = metrics_pkg.score_sequence(truth, filled, list(metrics), peak=peak, regions=regions,
-                                                         reference_normals=reference_normals)
-        out[variant] = scores
+        out[variant] = _scores(truth, filled, metrics, peak, regions, reference_normals)
     return out
+
+
+def _scores(truth: list[np.ndarray], frames: list[np.ndarray], metrics, peak, regions, reference_normals) -> dict:
+    """{"frame": `metrics.score_sequence` of ``frames`` against ``truth``, whole frames, and with ``regions`` "holes":
+    the same in them}."""
+    from dpcbench import metrics as metrics_pkg
+
+    scores = {"frame": metrics_pkg.score_sequence(truth, frames, list(metrics), peak=peak,
+                                                  reference_normals=reference_normals)}
+    if regions is not None:
+        scores["holes"] = metrics_pkg.score_sequence(truth, frames, list(metrics), peak=peak, regions=regions,
+                                                     reference_normals=reference_normals)
+    return scores
 
 
 def score_refusals(truth: list[np.ndarray], damaged: list[np.ndarray], results: list[np.ndarray], limits, *,
@@ -249,7 +255,6 @@ def score_refusals(truth: list[np.ndarray], damaged: list[np.ndarray], results: 
     """label -> {"frame", and with ``regions`` "holes": `metrics.score_sequence` against the truth} for the method's
     ``results`` as they are ("method") and, for each of ``limits`` (spacings of each damaged frame,
     `metrics.neighbours.point_spacing`), the refusal oracle at it ("refusal < L s", `refused_fill`)."""
-    from dpcbench import metrics as metrics_pkg
     from dpcbench.metrics.neighbours import point_spacing
 
     if not len(truth) == len(damaged) == len(results):
@@ -264,15 +269,7 @@ def score_refusals(truth: list[np.ndarray], damaged: list[np.ndarray], results: 
     for limit in limits:
         sets[f"refusal < {limit:g} s"] = [refused_fill(t, d, r, limit * step)
                                           for t, d, r, step in zip(truth, damaged, results, steps)]
-    out = {}
-    for label, frames in sets.items():
-        scores = {"frame": metrics_pkg.score_sequence(truth, frames, list(metrics), peak=peak,
-                                                      reference_normals=reference_normals)}
-        if regions is not None:
-            scores["holes"] = metrics_pkg.score_sequence(truth, frames, list(metrics), peak=peak, regions=regions,
-                                                         reference_normals=reference_normals)
-        out[label] = scores
-    return out
+    return {label: _scores(truth, frames, metrics, peak, regions, reference_normals) for label, frames in sets.items()}
 
 
 def score_colour_oracles(truth: list[np.ndarray], truth_colours: list[np.ndarray], damaged: list[np.ndarray],
