@@ -15,8 +15,9 @@ off-surface error exceeds it cannot score no fill's D2 even where it is complete
 
 Two more candidates that temporal-fusion does not have, with ``--extra``, each under the same hold-out:
 - ``mirror``: the frame's bilateral mirror image (the reflection across the PCA plane through the centroid whose
-  ICP fit to the frame is best), its part round the hole aligned onto the hole's rim by ICP (`MirrorPatch`): a
-  person's or an animal's other side;
+  ICP fit to the frame is best: the least RMS over the pairs within 10 spacings per share paired), its part round
+  the hole aligned onto the hole's rim by ICP (`methods._geometry.icp_align`, `MirrorPatch`): a person's or an
+  animal's other side;
 - ``nonlocal``: fu-nonlocal's fill of the hole from the rest of the frame (its cubes' most similar cube elsewhere,
   Hu et al.), the frame round the crop kept as it is.
 
@@ -43,7 +44,7 @@ from fill_audit import truth_frames
 from scipy.spatial import cKDTree
 
 from dpcbench.bench.data.plyio import read_ply
-from dpcbench.methods._geometry import sampling_step
+from dpcbench.methods._geometry import icp_align, sampling_step
 from dpcbench.methods._spatial_fill.best import candidates, holdout_miss
 from dpcbench.methods._spatial_fill.cap import cap_fill
 from dpcbench.methods._spatial_fill.common import SURFACE_POINTS
@@ -77,28 +78,21 @@ class MirrorPatch:
         self.spacing = spacing
         centre = damaged.mean(axis=0)
         sample = damaged[:: max(1, len(damaged) // 30000)]
+        sample_tree, reach = cKDTree(sample), 10 * spacing
         best = None
         for axis in np.linalg.svd(damaged - centre, full_matrices=False)[2]:
             reflection = np.eye(3) - 2.0 * np.outer(axis, axis)
-            fit = self._icp((sample - centre) @ reflection.T + centre, sample, 10 * spacing)
-            cost = fit.inlier_rmse / max(fit.fitness, 1e-3)
+            reflected = (sample - centre) @ reflection.T + centre
+            rotation, translation = icp_align(reflected, sample, reach, max_iterations=60)
+            # the fit's RMS over the pairs within reach, per share of the sample paired (open3d's inlier RMSE / fitness)
+            distance = sample_tree.query(reflected @ rotation.T + translation, distance_upper_bound=reach)[0]
+            paired = np.isfinite(distance)
+            cost = np.sqrt(np.mean(distance[paired] ** 2)) / max(paired.mean(), 1e-3) if paired.any() else np.inf
             if best is None or cost < best[0]:
-                best = (cost, reflection, fit.transformation)
-        _, reflection, transform = best
-        self.mirrored = ((damaged - centre) @ reflection.T + centre) @ transform[:3, :3].T + transform[:3, 3]
+                best = (cost, reflection, rotation, translation)
+        _, reflection, rotation, translation = best
+        self.mirrored = ((damaged - centre) @ reflection.T + centre) @ rotation.T + translation
         self.tree = cKDTree(self.mirrored)
-
-    @staticmethod
-    def _icp(source: np.ndarray, target: np.ndarray, reach: float):
-        import open3d as o3d
-
-        def cloud(points):
-            return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-
-        return o3d.pipelines.registration.registration_icp(
-            cloud(source), cloud(target), reach, np.eye(4),
-            o3d.pipelines.registration.TransformationEstimationPointToPoint(),
-            o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=60))
 
     def candidate(self, crop: np.ndarray, region, shell: float):
         """(support, fill): the mirror image's points within the crop's reach of ``region``, aligned on what of the
@@ -109,8 +103,8 @@ class MirrorPatch:
             patch = self.mirrored[self.tree.query_ball_point(region.center, region.bounding_radius + 2 * shell)]
             if len(rim) < 12 or len(patch) < 12:
                 return np.zeros((0, 3))
-            transform = self._icp(patch, rim, 3 * self.spacing).transformation
-            moved = patch @ transform[:3, :3].T + transform[:3, 3]
+            rotation, translation = icp_align(patch, rim, 3 * self.spacing, max_iterations=60)
+            moved = patch @ rotation.T + translation
             moved = moved[region.contains(moved)]
             return moved if covered is None else moved[covered.query(moved)[0] > self.spacing]
 
