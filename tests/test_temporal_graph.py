@@ -671,27 +671,36 @@ def _pinned_result(child) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
-@pytest.fixture(scope="module")
-def pinned_children():
-    """Both pinned children, started together: each is one thread, so on two cores the second costs no wall time."""
+def _pinned_hashes() -> dict:
+    """Both pinned children's hashes, the children started together: each is one thread, so on two cores the second
+    costs no wall time."""
     children = {"golden": _start_pinned(_GOLDEN_CHILD), "switch": _start_pinned(_SWITCH_CHILD)}
-    yield children
-    for child in children.values():
-        if child.poll() is None:
-            child.kill()
-            child.communicate()
+    try:
+        return {name: _pinned_result(child) for name, child in children.items()}
+    finally:
+        for child in children.values():
+            if child.poll() is None:
+                child.kill()
+                child.communicate()
+
+
+@pytest.fixture(scope="session")
+def pinned_hashes(computed_once):
+    """The pinned children's hashes, computed once per test session (the children take about 100 s of CPU; under
+    pytest-xdist each worker would otherwise start its own: `conftest.computed_once`)."""
+    return computed_once("temporal-graph-pinned-hashes", _pinned_hashes)
 
 
 @pytest.fixture(scope="module")
-def pinned_output_hashes(pinned_children):
+def pinned_output_hashes(pinned_hashes):
     """The output hashes, computed in a child process at the pinned instruction-set level."""
-    return _pinned_result(pinned_children["golden"])
+    return pinned_hashes["golden"]
 
 
 @pytest.fixture(scope="module")
-def pinned_switch_hashes(pinned_children):
+def pinned_switch_hashes(pinned_hashes):
     """Output hashes of the paper configuration and of each switch flipped on its case, at the pinned level."""
-    return _pinned_result(pinned_children["switch"])
+    return pinned_hashes["switch"]
 
 
 @pytest.mark.parametrize("case_name,config", sorted(GOLDEN_OUTPUT_HASHES))
