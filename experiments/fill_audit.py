@@ -15,6 +15,9 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--left-open``, for each hole region the whole-frame D1 / D2 of the result with that region's new points
   taken out (those within 2 spacings of it, as above): what leaving that one hole open would score, the rest
   filled. A refusal rule can reach D2 at or above no fill only where this shows it, and this shows its D1 cost;
+- with ``--against M1,M2``, each region's AB1 of those methods' results too;
+- with ``--last-resort-where-covered``, the method with its last resort (`spatial.BestSurface`) run also in a region
+  that copies, the reused fill or partial copies cover in part (the method's own test asks for an emptied region);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
   that knew every fill point's true error could reach, point by point, with the fills the method has. Where no
@@ -29,7 +32,7 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
-        [--refusal-oracle [--against METHOD[,METHOD...]]]
+        [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered]
 """
 
 from __future__ import annotations
@@ -175,6 +178,7 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
         lines.append(f"  stage {stage:14s} points {at.sum():6d} off RMS {np.sqrt(np.mean(off[at] ** 2)):5.2f} s "
                      f"(> 2 s: {np.mean(off[at] > 2):4.0%})  BA2 {new_ba2[at].sum():9.0f}")
     reference = filled.reference
+    others = {name: CloudPair(truth, other, normals) for name, other in (against or {}).items()}
     for k, region in enumerate(regions):
         inside = region.contains(reference, margin=2 * spacing)
         mine = region.contains(new, margin=2 * spacing)
@@ -183,6 +187,9 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
                      f"AB1 {filled.ref_to_res.sq_dist[inside].sum():9.0f} (open {empty.ref_to_res.sq_dist[inside].sum():9.0f})"
                      f"  AB2 {filled.plane_ref_to_res[inside].sum():8.0f} (open {empty.plane_ref_to_res[inside].sum():8.0f})"
                      f"  BA2 {new_ba2[mine].sum():8.0f}  [{stages}]")
+        if others:
+            lines.append("    AB1 of " + ", ".join(f"{name} {pair.ref_to_res.sq_dist[inside].sum():.0f}"
+                                                   for name, pair in others.items()))
         if left_open:
             d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[~mine]]), normals), peak)
             lines.append(f"    left open, the rest filled: D1 {d1:6.2f} D2 {d2:6.2f}")
@@ -243,6 +250,17 @@ def refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty: CloudPa
     return lines
 
 
+def last_resort_where_covered() -> None:
+    """Let `spatial.BestSurface` run wherever every strategy before it refused, outside occlusion boxes, also where
+    copies, the reused fill or partial copies cover part of the region (the method's own test asks for an emptied
+    region: `spatial.BestSurface.applies`)."""
+
+    def applies(cfg, hole, state):
+        return bool(cfg.best_surface and not len(state.spatial) and not len(state.sheet_fill) and not hole.in_box)
+
+    spatial.BestSurface.applies = staticmethod(applies)
+
+
 def truth_frames(truth: Path, damaged: Path) -> list[Path]:
     """The truth's PLY files for the damaged frames: ``truth`` itself when a file; else the files of the folder that
     the damage record (holes.json ``input_files``) names, or all of its PLY files in natural order."""
@@ -280,9 +298,14 @@ def main(argv=None) -> int:
     parser.add_argument("--refusal-oracle", action="store_true",
                         help="also the scores keeping only new points within each limit of the truth")
     parser.add_argument("--against", default=None, metavar="METHOD",
-                        help="with --refusal-oracle: registered methods (comma-separated) whose best D1 + 1 dB is the "
-                             "D1 target")
+                        help="registered methods (comma-separated): their AB1 in each region, and with "
+                             "--refusal-oracle their best D1 + 1 dB is the D1 target")
+    parser.add_argument("--last-resort-where-covered", action="store_true",
+                        help="run the cascade's last resort (BestSurface) also where copies, the reused fill or partial "
+                             "copies cover part of the region (the method runs it only in an emptied region)")
     args = parser.parse_args(argv)
+    if args.last_resort_where_covered:
+        last_resort_where_covered()
     _, frames, regions = load_damage_or_exit(args.damaged)
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()
