@@ -187,9 +187,39 @@ def test_colour_target_only_on_rows_that_scored_colour():
     assert report.count_line("tuning", COLOUR_TARGETS[0]).startswith(
         "colour (cpsnr_y) in the holes the best on 0 of 1 rows (0 beyond noise; 1 missed beyond noise)")
     text = report.markdown()
-    assert "| Y in the holes − best other's (dB) |" in text and "-0.50 [-0.50, -0.50] vs graph, n 8: missed" in text
+    assert "| Y in the holes − best other's (dB) |" in text and "-0.50 [-0.50, -0.50] vs graph, n 8, 0 of 2 seeds: missed" in text
     # without colour anywhere: no colour column
     assert compute_margins(plain, "fusion", {"tune": ("tuning", None)}).targets() == TARGETS
+
+
+def test_a_row_that_meets_a_target_on_its_mean_shows_the_seeds_that_miss_it():
+    """Three seeds x 2 frames: fusion 3 dB over graph on seeds 0 and 1 and 0.5 dB under it on seed 2. The row's mean
+    (+1.83 dB) meets D1 >= best other + 1 dB; seed 2 misses it on its own, and the report says so in the cell, in the
+    seed-by-seed line and in the CSV."""
+    import numpy as np
+
+    from dpcbench.bench.reporting.margins import compute_margins
+
+    base = np.array([[30.0, 31.0], [32.0, 33.0], [34.0, 35.0]])
+    gain = np.array([[3.0, 3.0], [3.0, 3.0], [-0.5, -0.5]])
+    obs = _frame([_obs("tune", "r", "R", "fusion", base + gain), _obs("tune", "r", "R", "graph", base),
+                  _obs("tune", "r", "R", "none", base - 5)])
+    report = compute_margins(obs, "fusion", {"tune": ("tuning", None)})
+    m = report.rows[0].margins["d1"]
+    assert m.margin == pytest.approx(11 / 6) and m.met and (m.n, m.seeds, m.seeds_met) == (6, 3, 2)
+    d1 = next(t for t in report_targets() if t.key == "d1")
+    assert report.seed_line("tuning", d1) == ("D1 >= best other + 1 dB, seed by seed: 1 of the 1 rows that meet it on "
+                                              "the mean have a seed that misses it on its own (1 such seeds)")
+    text = report.markdown()
+    assert "vs graph, n 6, 2 of 3 seeds: met" in text and "seed by seed: 1 of the 1 rows" in text
+    header, *lines = report.csv().splitlines()
+    assert header.endswith(",seeds,seeds_met")
+    assert any(line.startswith("tuning,tune,,R,fusion,d1,") and line.endswith(",3,2") for line in lines)
+    # one seed per row: no seed-by-seed line, no seeds in the cell
+    single = compute_margins(_frame([_obs("tune", "r", "R", "fusion", base[:1] + 3), _obs("tune", "r", "R", "graph",
+                                                                                          base[:1])]),
+                             "fusion", {"tune": ("tuning", None)})
+    assert single.seed_line("tuning", d1) is None and " seeds:" not in single.markdown()
 
 
 def report_targets():

@@ -27,6 +27,10 @@ included; every configuration of every other method, ``none`` too). A target is 
     met / missed, within noise     otherwise
     ..., n too small       n < stats.min_pairs(1): no test of n pairs can reach ALPHA
 
+Beside it, seed by seed (a seed is one damage of the row: one draw of its holes), how many seeds' own mean of d
+meets the threshold: a row's mean can meet a target that some of its damages miss (`MarginReport.seed_line` counts
+those rows).
+
 With the smooth-surface oracle (`oracle_observations`, ``dpcbench margins --oracle``: samples on the ground
 truth's own smooth surface at the damaged frame's spacing, neither at the truth's sample places nor with their own
 offsets from the surface, `bench.results.oracle` variant ``smooth``, scored on each cell's damaged
@@ -143,6 +147,8 @@ class Margin:
     high: float
     n: int
     p_value: float           # Wilcoxon signed-rank of d - threshold, two-sided
+    seeds: int = 0           # the seeds (damages) behind the n pairs
+    seeds_met: int = 0       # those whose own mean of d meets the threshold
 
     @property
     def defined(self) -> bool:
@@ -220,6 +226,18 @@ class MarginReport:
                 "met_beyond": sum(m.met and m.beyond_noise for m in margins),
                 "missed_beyond": sum((not m.met) and m.beyond_noise for m in margins)}
 
+    def seed_line(self, role: str, target: Target) -> str | None:
+        """How many of the rows that meet ``target`` on their mean hold a seed (a damage) whose own mean misses it;
+        None where no row of ``role`` has more than one seed."""
+        margins = [r.margins[target.key] for r in self.rows
+                   if r.role == role and target.key in r.margins and r.margins[target.key].defined]
+        if not any(m.seeds > 1 for m in margins):
+            return None
+        met = [m for m in margins if m.met]
+        below = [m for m in met if m.seeds_met < m.seeds]
+        return (f"{target.title}, seed by seed: {len(below)} of the {len(met)} rows that meet it on the mean have a "
+                f"seed that misses it on its own ({sum(m.seeds - m.seeds_met for m in below)} such seeds)")
+
     def count_line(self, role: str, target: Target) -> str:
         c = self.counts(role, target)
         return (f"{target.title} on {c['met']} of {c['rows']} rows ({c['met_beyond']} beyond noise; "
@@ -259,13 +277,18 @@ class MarginReport:
             lines.append("")
             for t in targets:
                 lines.append(f"- {md_escape(self.count_line(role, t))}")
+            for t in targets:
+                seeds = self.seed_line(role, t)
+                if seeds:
+                    lines.append(f"- {md_escape(seeds)}")
             reach = self.out_of_reach_line(role)
             if reach:
                 lines.append(f"- {md_escape(reach)}")
             lines.append("")
         lines += ["Each margin: mean of the paired differences d over (seed, frame) pairs, oriented so that "
                   "d > 0 is better for the method, [paired bootstrap 95% interval], the method it is measured "
-                  "against, n pairs, and the verdict against the target's threshold (met / missed: the interval "
+                  "against, n pairs, of k seeds (damages, where a row has more than one) those whose own mean "
+                  "of d meets the threshold, and the verdict against the target's threshold (met / missed: the interval "
                   f"is on that side of it and the Wilcoxon signed-rank p of d − threshold <= {stats.ALPHA}; "
                   f"within noise otherwise; n too small below n = {stats.min_pairs(1)}). D1, D2 and NSHD are "
                   "whole-frame values at the intrinsic peak; temporal consistency is one value per seed, in the "
@@ -280,7 +303,7 @@ class MarginReport:
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(["role", "experiment", "holds_out", "row", "method", "target", "metric", "scope", "peak",
                          "against", "method_mean", "against_mean", "margin", "low", "high", "n", "threshold",
-                         "p_value", "met", "verdict"])
+                         "p_value", "met", "verdict", "seeds", "seeds_met"])
         for r in self.rows:
             for t in targets:
                 if t.key not in r.margins:
@@ -289,7 +312,8 @@ class MarginReport:
                 writer.writerow([r.role, csv_safe(r.experiment), csv_safe(self.roles[r.experiment][1] or ""),
                                  csv_safe(r.label), csv_safe(r.method), t.key, t.metric, t.scope, t.peak,
                                  csv_safe(m.against or ""), _g(m.method_mean), _g(m.against_mean), _g(m.margin),
-                                 _g(m.low), _g(m.high), m.n, t.threshold, _g(m.p_value), m.met, m.verdict])
+                                 _g(m.low), _g(m.high), m.n, t.threshold, _g(m.p_value), m.met, m.verdict,
+                                 m.seeds, m.seeds_met])
         return buf.getvalue()
 
 
@@ -314,7 +338,8 @@ def _margin_cell(m: Margin) -> str:
         def show(x):
             return f"{x:+.3g}"
     interval = "" if math.isnan(m.low) else f" [{show(m.low)}, {show(m.high)}]"
-    return f"{show(m.margin)}{interval} vs {m.against}, n {m.n}: {m.verdict}"
+    seeds = f", {m.seeds_met} of {m.seeds} seeds" if m.seeds > 1 else ""
+    return f"{show(m.margin)}{interval} vs {m.against}, n {m.n}{seeds}: {m.verdict}"
 
 
 # -- the computation ---------------------------------------------------------------------------
@@ -348,8 +373,12 @@ def margin(obs: dict[str, dict], method: str, target: Target) -> Margin:
     if not len(d):
         return Margin(target, against, own, theirs, nan, nan, nan, 0, nan)
     low, high = stats.mean_difference_interval(d)
+    # per seed (one damage of the row): a row's mean can meet the target while some of its damages miss it
+    seed_of = np.array([seed for seed, _ in keys])
+    seed_means = [float(d[seed_of == seed].mean()) for seed in np.unique(seed_of)]
     return Margin(target, against, own, theirs, float(d.mean()), low, high, len(d),
-                  stats.signed_rank_p(d - target.threshold))
+                  stats.signed_rank_p(d - target.threshold), len(seed_means),
+                  sum(x >= target.threshold for x in seed_means))
 
 
 def compute_margins(obs: pd.DataFrame, method: str, roles: dict[str, tuple[str, str | None]],
