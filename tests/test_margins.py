@@ -220,6 +220,8 @@ def test_a_row_that_meets_a_target_on_its_mean_shows_the_seeds_that_miss_it():
                                                                                           base[:1])]),
                              "fusion", {"tune": ("tuning", None)})
     assert single.seed_line("tuning", d1) is None and " seeds:" not in single.markdown()
+    # no row meets D2 here (no D2 values at all): no D2 line
+    assert report.seed_line("tuning", next(t for t in report_targets() if t.key == "d2")) is None
 
 
 def report_targets():

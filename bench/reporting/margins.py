@@ -228,12 +228,12 @@ class MarginReport:
 
     def seed_line(self, role: str, target: Target) -> str | None:
         """How many of the rows that meet ``target`` on their mean hold a seed (a damage) whose own mean misses it;
-        None where no row of ``role`` has more than one seed."""
+        None where no row of ``role`` has more than one seed or none meets the target."""
         margins = [r.margins[target.key] for r in self.rows
                    if r.role == role and target.key in r.margins and r.margins[target.key].defined]
-        if not any(m.seeds > 1 for m in margins):
-            return None
         met = [m for m in margins if m.met]
+        if not any(m.seeds > 1 for m in met):
+            return None
         below = [m for m in met if m.seeds_met < m.seeds]
         return (f"{target.title}, seed by seed: {len(below)} of the {len(met)} rows that meet it on the mean have a "
                 f"seed that misses it on its own ({sum(m.seeds - m.seeds_met for m in below)} such seeds)")
