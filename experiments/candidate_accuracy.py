@@ -134,9 +134,8 @@ def nonlocal_candidate(damaged: np.ndarray, crop_rows: np.ndarray, crop: np.ndar
 
 def capacity_line(rim: np.ndarray, hidden: np.ndarray, spacing: float) -> str:
     """``--capacity``'s line for one hole (module docstring)."""
-    from scipy.interpolate import RBFInterpolator
-
     from dpcbench.methods._spatial_fill.common import MAX_STEEP, even_subset, fit_height_field
+    from dpcbench.methods._spatial_fill.spline import height_spline
 
     if len(rim) < 12 or not len(hidden):
         return "  capacity: too few points"
@@ -147,7 +146,7 @@ def capacity_line(rim: np.ndarray, hidden: np.ndarray, spacing: float) -> str:
     def heights_miss(known: np.ndarray) -> float:
         known = even_subset(known, SURFACE_POINTS)
         uv, h = (known - centre) @ axes[:2].T / spacing, (known - centre) @ axes[2] / spacing
-        spline = RBFInterpolator(uv, h, kernel="thin_plate_spline", smoothing=1.0, degree=2)
+        spline = height_spline(uv, h)
         at = (hidden - centre) @ axes[:2].T / spacing
         return float(np.sqrt(np.mean((spline(at) - (hidden - centre) @ axes[2] / spacing) ** 2)))
 

@@ -164,12 +164,24 @@ def refused_fill(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray, lim
     """The method's ``result`` (R, 3) without the fill points whose point-to-plane distance to the truth
     (`fill_offsets`) is ``limit`` (coordinate units) or more, in the result's row order: (M, 3) (module docstring,
     the refusal oracle)."""
-    if not (np.isfinite(limit) and limit > 0):
-        raise UserError(f"refusal oracle: the limit must be a distance > 0, got {limit!r}")
+    return refused_fills(truth, damaged, result, [limit], k)[0]
+
+
+def refused_fills(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray, limits,
+                  k: int = DEFAULT_NEIGHBOURS) -> list[np.ndarray]:
+    """`refused_fill` at each of ``limits`` (coordinate units), the fill points' offsets measured once."""
+    limits = [float(x) for x in limits]
+    for limit in limits:
+        if not (np.isfinite(limit) and limit > 0):
+            raise UserError(f"refusal oracle: the limit must be a distance > 0, got {limit!r}")
     is_fill, distance = fill_offsets(truth, damaged, result, k)
-    keep = np.ones(len(is_fill), dtype=bool)
-    keep[np.flatnonzero(is_fill)[distance >= limit]] = False
-    return np.asarray(result, dtype=float)[keep]
+    rows, result = np.flatnonzero(is_fill), np.asarray(result, dtype=float)
+    kept = []
+    for limit in limits:
+        keep = np.ones(len(result), dtype=bool)
+        keep[rows[distance >= limit]] = False
+        kept.append(result[keep])
+    return kept
 
 
 def d2_break_even(truth: list[np.ndarray], damaged: list[np.ndarray], *, masks: list | None = None,
@@ -264,11 +276,12 @@ def score_refusals(truth: list[np.ndarray], damaged: list[np.ndarray], results: 
     bad = [x for x in limits if not (np.isfinite(x) and x > 0)]
     if bad:
         raise UserError(f"refusal limit {bad[0]!r}: give distances > 0, in spacings")
-    steps = [point_spacing(np.asarray(d, dtype=float)) for d in damaged]
+    # per frame, the result at every limit (in that frame's spacings), its fill points' offsets measured once
+    refused = [refused_fills(t, d, r, [limit * point_spacing(np.asarray(d, dtype=float)) for limit in limits])
+               for t, d, r in zip(truth, damaged, results)]
     sets = {"method": [np.asarray(r, dtype=float) for r in results]}
-    for limit in limits:
-        sets[f"refusal < {limit:g} s"] = [refused_fill(t, d, r, limit * step)
-                                          for t, d, r, step in zip(truth, damaged, results, steps)]
+    for i, limit in enumerate(limits):
+        sets[f"refusal < {limit:g} s"] = [frame[i] for frame in refused]
     return {label: _scores(truth, frames, metrics, peak, regions, reference_normals) for label, frames in sets.items()}
 
 

@@ -200,7 +200,7 @@ def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered
     radius 5 cut by a ball of radius 8 (`test_tube_fill_bridges_a_limb_the_hole_cuts_through`): the joint Poisson
     fill covered half the hidden voxels (within 1.5) and lay up to 4.5 voxels off the wall; this fill covers
     all of them, within 1.4 of the wall."""
-    from scipy.interpolate import RBFInterpolator
+    from dpcbench.methods._spatial_fill.spline import height_spline
 
     ends = [body[region.contains(body, margin=3 * spacing) & ~region.contains(body)].mean(axis=0)
             for body in (first, second)]
@@ -229,9 +229,8 @@ def tube_fill(first: np.ndarray, second: np.ndarray, region: HoleRegion, covered
         tt = np.concatenate([t[mask], t[upper], t[lower]])
         pp = np.concatenate([phi[mask], phi[upper] - 2 * np.pi, phi[lower] + 2 * np.pi])
         rr = np.concatenate([rho[mask], rho[upper], rho[lower]])
-        # thin-plate spline in point-spacing units, smoothing 1, as step 6
-        return RBFInterpolator(np.column_stack([tt, pp * arc]) / spacing, rr / spacing, kernel="thin_plate_spline",
-                               smoothing=1.0, degree=1)
+        # thin-plate spline in point-spacing units, as step 6, with a linear polynomial
+        return height_spline(np.column_stack([tt, pp * arc]) / spacing, rr / spacing, degree=1)
 
     if ring > 0:
         inner = region.contains(support, margin=ring)

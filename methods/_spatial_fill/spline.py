@@ -21,6 +21,15 @@ from dpcbench.methods._spatial_fill.common import (
 from dpcbench.metrics.neighbours import estimate_normals
 
 
+def height_spline(uv: np.ndarray, heights: np.ndarray, degree: int = 2):
+    """The thin-plate spline of ``heights`` (K,) over ``uv`` (K, 2), both in point spacings (scipy's
+    ``RBFInterpolator``: the biharmonic membrane through the rim, the smooth surface that bends least; smoothing 1: the
+    rim's heights are samples with ~0.3-0.5 s noise; a polynomial of ``degree``): a callable (M, 2) -> (M,)."""
+    from scipy.interpolate import RBFInterpolator
+
+    return RBFInterpolator(uv, heights, kernel="thin_plate_spline", smoothing=1.0, degree=degree)
+
+
 def rim_sheet(support: np.ndarray, region: HoleRegion, ring: float, spacing: float, *,
               min_cos: float = 0.5, link_spacings: float = 3.0) -> np.ndarray | None:
     """The sheet of ``support`` (K, 3) that ``region`` lies in (step 6f of `methods.temporal_fusion`), or None.
@@ -82,7 +91,6 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
     centre, axes, _coef, _rms, steep = fit_height_field(support)
     if steep > max_steep:
         return np.zeros((0, 3))
-    from scipy.interpolate import RBFInterpolator
     from scipy.spatial import ConvexHull, QhullError
 
     support = even_subset(support, SURFACE_POINTS)
@@ -119,15 +127,11 @@ def rim_surface_fill(support: np.ndarray, region: HoleRegion, covered: cKDTree |
         # hole's edge does
         inner = region.contains(support, margin=ring)
         if inner.sum() >= 6 and (~inner).sum() >= 12:
-            outer_spline = RBFInterpolator(uv[~inner] / spacing, heights[~inner], kernel="thin_plate_spline",
-                                           smoothing=1.0, degree=2)
+            outer_spline = height_spline(uv[~inner] / spacing, heights[~inner])
             held_out = float(np.sqrt(np.mean((outer_spline(uv[inner] / spacing) - heights[inner]) ** 2)))
             if held_out > max_holdout_spacings:
                 return np.zeros((0, 3))
-    # thin-plate spline in point-spacing units (the biharmonic membrane through the rim, the smooth
-    # surface that bends least); smoothing 1: the rim's heights are samples with ~0.3-0.5 s noise
-    spline = RBFInterpolator(uv / spacing, heights, kernel="thin_plate_spline",
-                             smoothing=1.0, degree=degree)
+    spline = height_spline(uv / spacing, heights, degree)
     u, v = grid[:, 0], grid[:, 1]
     h = spline(grid / spacing) * spacing
     points = centre + u[:, None] * axes[0] + v[:, None] * axes[1] + h[:, None] * axes[2]
