@@ -1,6 +1,7 @@
 """Two versions of one method in one results store, row by row: whole-frame D1 / D2 / NSHD of each and of no fill,
 and the paired difference (new - old) over the row's (frame, seed) pairs with its 95% interval
-(`bench.results.stats.paired`: paired bootstrap and Wilcoxon), so a change of output is judged against noise.
+(`bench.results.stats.paired`: bootstrap over whole damages, a seed with all its frames, and Wilcoxon), so a change
+of output is judged against noise.
 
     dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # at the old version
     dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # again at the new one
@@ -80,7 +81,8 @@ def main(argv=None) -> int:
             shared = set(new[row][metric]) & set(old[row][metric])  # the means over the pairs compared
             a, b, floor = ({key: values[key] for key in shared if key in values}
                            for values in (new[row][metric], old[row][metric], none[row][metric]))
-            comparison = paired(a, b, higher_is_better=True)  # new - old as it stands (no sign flip)
+            # new - old as it stands (no sign flip); the interval resamples whole damages (a seed, its frames)
+            comparison = paired(a, b, higher_is_better=True, damage=lambda key: key[0])
             scale = 1e9 if metric == "nshd" else 1.0
 
             cells.append(" / ".join(f"{_mean(v) * scale:.2f}" for v in (b, a, floor)))

@@ -57,6 +57,61 @@ def test_bootstrap_interval_matches_the_exact_bootstrap_distribution():
     assert all(math.isnan(x) for x in stats.mean_difference_interval([1.0]))
 
 
+
+# -- whole damages resampled (a seed with all its frames) --------------------------------------------------------
+def test_damages_whose_frames_agree_give_the_interval_from_the_lowest_damage_to_the_highest():
+    # 3 damages x 4 frames, each damage's d the same in all its frames: a damage drawn three times has
+    # probability 1/27 > 2.5 %, so the interval's ends are the lowest and the highest damage's means, exactly
+    d = np.repeat([1.0, 2.0, 4.0], 4)
+    seeds = np.repeat([7, 8, 9], 4)
+    assert stats.mean_difference_interval(d, groups=seeds) == (1.0, 4.0)
+    assert stats.mean_difference_interval(d, groups=seeds) == stats.mean_difference_interval(d, groups=seeds)
+    # the pairs' interval reads the 12 frames as 12 damages: narrower, inside (1, 4)
+    low, high = stats.mean_difference_interval(d)
+    assert 1.0 < low < high < 4.0 and high - low < 2.0
+    # one damage, or one value a damage: nothing to resample but the pairs
+    assert stats.mean_difference_interval(d, groups=[0] * 12) == stats.mean_difference_interval(d)
+    assert stats.mean_difference_interval(d, groups=range(12)) == stats.mean_difference_interval(d)
+    with pytest.raises(ValueError, match="labels"):
+        stats.mean_difference_interval(d, groups=[0, 1])
+
+
+def test_two_stage_bootstrap_has_the_closed_form_variance():
+    # G clusters of m values each: a replicate is the mean of G cluster means, each of m values drawn from a
+    # cluster drawn at random, so Var = (between + within / m) / G with between = mean_c (mean_c - mean)^2 and
+    # within = mean_c of each cluster's population variance
+    rng = np.random.default_rng(3)
+    m, clusters = 5, 4
+    values = rng.normal(0.0, 1.0, (clusters, m)) + np.array([[0.0], [3.0], [-1.0], [5.0]])
+    which = np.repeat(np.arange(clusters), m)
+    reps = stats.cluster_bootstrap_means([values.ravel()], which, 40000, 0, lambda sums, counts: sums[0] / counts)
+    cluster_means = values.mean(axis=1)
+    between = np.mean((cluster_means - cluster_means.mean()) ** 2)
+    within = np.mean(values.var(axis=1))
+    assert np.var(reps) == pytest.approx((between + within / m) / clusters, rel=0.03)
+    assert np.mean(reps) == pytest.approx(values.mean(), abs=0.03)
+    # the pairs stay paired: a ratio of two sums over the same draws of proportional values is the factor
+    ratios = stats.cluster_bootstrap_means([2.0 * values.ravel() + 40, values.ravel() + 20], which, 1000, 0,
+                                           lambda sums, counts: sums[0] / sums[1])
+    assert ratios == pytest.approx(np.full(1000, 2.0))
+
+
+def test_a_winner_on_some_damages_only_is_not_bold():
+    # 3 damages x 10 frames: the first method wins by 3 on two damages and loses by 1 on the third. Read as 30
+    # independent pairs it is best beyond noise; over whole damages its margin's interval holds 0
+    rng = np.random.default_rng(1)
+    gain = {0: 3.0, 1: 3.0, 2: -1.0}
+    base = {(f, s): 30.0 + rng.normal(0, 1) for s in gain for f in range(10)}
+    a = {k: v + gain[k[1]] + rng.normal(0, 0.1) for k, v in base.items()}
+    pairs = stats.row_verdict({"a": a, "b": base}, higher_is_better=True)
+    damages = stats.row_verdict({"a": a, "b": base}, higher_is_better=True, damage=lambda key: key[1])
+    assert pairs.bold == "a" and pairs.comparisons["b"].low > 0
+    assert damages.bold is None and damages.verdicts == {"a": stats.TIED, "b": stats.TIED}
+    assert damages.comparisons["b"].low < 0 < damages.comparisons["b"].high
+    assert damages.comparisons["b"].p_value == pairs.comparisons["b"].p_value  # the same signed-rank test
+    ratio, low, high = stats.ratio_interval(a, base, damage=lambda key: key[1])
+    assert low < 1.0 < ratio < high
+
 def test_mean_interval_is_students_t():
     lo, hi = stats.mean_interval([1.0, 2.0, 3.0])
     half = 4.302652729911275 / math.sqrt(3)  # t(0.975, 2) * s / sqrt(n), s = 1
@@ -132,3 +187,24 @@ def test_paired_orients_by_direction():
     a, b = {(0, 0): 1.0, (1, 0): 2.0}, {(0, 0): 2.0, (1, 0): 4.0}
     assert stats.paired(a, b, True).mean_difference == pytest.approx(-1.5)
     assert stats.paired(a, b, False).mean_difference == pytest.approx(1.5)
+
+
+def test_the_tables_judge_a_row_over_whole_damages():
+    # the case above through a results table: (frame, seed) pairs, the seed the damage
+    import pandas as pd
+
+    from dpcbench.bench.reporting.tables import comparison_table
+
+    rng = np.random.default_rng(1)
+    records = []
+    for seed, gain in ((0, 3.0), (1, 3.0), (2, -1.0)):
+        for frame in range(10):
+            base = 30.0 + rng.normal(0, 1)
+            records += [{"sequence": "s", "method": "a", "frame": frame, "seed": seed, "value": base + gain},
+                        {"sequence": "s", "method": "b", "frame": frame, "seed": seed, "value": base}]
+    df = pd.DataFrame(records).assign(metric="gpsnr_d1", scope="frame", peak="intrinsic")
+    table = comparison_table(df, "gpsnr_d1", peak="intrinsic", column_of=lambda sel: sel["method"])
+    verdict = table.verdict("s")
+    assert verdict.best == "a" and verdict.bold is None and verdict.tied == {"a", "b"}
+    # without the damages, the 30 pairs would have made "a" bold
+    assert stats.row_verdict({c: table.observations[("s", c)] for c in "ab"}, True).bold == "a"

@@ -15,8 +15,9 @@ both have with finite values:
 
     d_i = s * (x_i - y_i)          s = +1 where higher is better (PSNR), -1 where lower is (NSHD, TC)
 
-so ``d > 0`` means the method did better; the margin is ``mean(d)``, with the paired bootstrap 95%
-interval of that mean (`bench.results.stats.mean_difference_interval`) and the two-sided Wilcoxon signed-
+so ``d > 0`` means the method did better; the margin is ``mean(d)``, with the bootstrap 95% interval of that
+mean that resamples whole damages (a seed with all its frames: `bench.results.stats.mean_difference_interval`
+with the seeds as groups; the frames of one damage are not independent pairs) and the two-sided Wilcoxon signed-
 rank p-value of ``d - t`` (`bench.results.stats.signed_rank_p`), t the target's threshold. "Against" is
 either the floor (``none``: no fill) or the best other method of the row (the best mean, sign
 included; every configuration of every other method, ``none`` too). A target is **met** when
@@ -286,7 +287,8 @@ class MarginReport:
                 lines.append(f"- {md_escape(reach)}")
             lines.append("")
         lines += ["Each margin: mean of the paired differences d over (seed, frame) pairs, oriented so that "
-                  "d > 0 is better for the method, [paired bootstrap 95% interval], the method it is measured "
+                  "d > 0 is better for the method, [bootstrap 95% interval, resampling whole seeds with their frames], "
+                  "the method it is measured "
                   "against, n pairs, of k seeds (damages, where a row has more than one) those whose own mean "
                   "of d meets the threshold, and the verdict against the target's threshold (met / missed: the interval "
                   f"is on that side of it and the Wilcoxon signed-rank p of d − threshold <= {stats.ALPHA}; "
@@ -372,9 +374,10 @@ def margin(obs: dict[str, dict], method: str, target: Target) -> Margin:
     theirs = float(np.mean(list(obs[against].values())))
     if not len(d):
         return Margin(target, against, own, theirs, nan, nan, nan, 0, nan)
-    low, high = stats.mean_difference_interval(d)
-    # per seed (one damage of the row): a row's mean can meet the target while some of its damages miss it
+    # per seed (one damage of the row): the interval resamples whole damages, and a row's mean can meet the
+    # target while some of its damages miss it
     seed_of = np.array([seed for seed, _ in keys])
+    low, high = stats.mean_difference_interval(d, groups=seed_of)
     seed_means = [float(d[seed_of == seed].mean()) for seed in np.unique(seed_of)]
     return Margin(target, against, own, theirs, float(d.mean()), low, high, len(d),
                   stats.signed_rank_p(d - target.threshold), len(seed_means),

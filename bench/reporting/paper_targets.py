@@ -8,8 +8,8 @@ holes. Beside it each row gives Hu and Proposed minus no fill (both must be abov
 Lozes (the paper's Hu > Lozes).
 
 Each comparison pairs the two columns' values on the (frame, seed) pairs both have:
-``d_i = x_a,i - x_b,i``; its mean, the paired bootstrap 95% interval and the two-sided Wilcoxon
-signed-rank p of ``d`` (`bench.results.stats.paired`, the procedure of every table's marks). The
+``d_i = x_a,i - x_b,i``; its mean, the bootstrap 95% interval that resamples whole damages (a seed with
+all its frames) and the two-sided Wilcoxon signed-rank p of ``d`` (`bench.results.stats.paired`, the procedure of every table's marks). The
 target's verdict tests ``d - t`` against 0 the same way (t the row's threshold): "reached" when the
 interval lies at or above t and that p <= `stats.ALPHA`, "not reached" when the interval lies below
 t and that p <= ALPHA, else "not decided at this n" (the mean says on which side it falls). One test a
@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dpcbench.bench.reporting.tables import damage_of
 from dpcbench.bench.results import stats
 
 #: Proposed - Hu (dB, whole-frame D1) each kind of hole must reach (issue 50)
@@ -61,16 +62,17 @@ class TargetRow:
 def _compare(table, row: str, a: str, b: str | None) -> stats.PairedComparison | None:
     if b is None or (row, a) not in table.observations or (row, b) not in table.observations:
         return None
-    return stats.paired(table.observations[(row, a)], table.observations[(row, b)], True, f"{a} - {b}")
+    return stats.paired(table.observations[(row, a)], table.observations[(row, b)], True, f"{a} - {b}", damage_of)
 
 
-def target_verdict(d, target: float) -> tuple[str, float]:
-    """(verdict, Wilcoxon p of d - target) of the paired differences ``d`` against ``target`` (module docstring)."""
+def target_verdict(d, target: float, damages=None) -> tuple[str, float]:
+    """(verdict, Wilcoxon p of d - target) of the paired differences ``d`` against ``target`` (module docstring);
+    ``damages``: each difference's damage (hole seed), whole damages resampled for the interval."""
     d = np.asarray(d, dtype=float)
     if len(d) < 2:
         return UNDECIDED, math.nan
     shifted = d - target
-    low, high = stats.mean_difference_interval(shifted)
+    low, high = stats.mean_difference_interval(shifted, groups=damages)
     p = stats.signed_rank_p(shifted)
     if low >= 0 and p <= stats.ALPHA:
         return REACHED, p
@@ -90,7 +92,7 @@ def target_rows(table, rows: list[str] | None = None) -> list[TargetRow]:
         target = TARGET_DB[hole_kind(row)]
         a, b = table.observations[(row, PROPOSED)], table.observations[(row, HU)]
         keys = sorted(k for k in set(a) & set(b) if math.isfinite(a[k]) and math.isfinite(b[k]))
-        verdict, p = target_verdict([a[k] - b[k] for k in keys], target)
+        verdict, p = target_verdict([a[k] - b[k] for k in keys], target, [damage_of(k) for k in keys])
         out.append(TargetRow(row, target, over, p, verdict, _compare(table, row, HU, table.floor),
                              _compare(table, row, PROPOSED, table.floor), _compare(table, row, HU, LOZES)))
     return out

@@ -6,8 +6,8 @@ A cell is the mean over the values of one metric in one scope with one PSNR peak
 results store's tidy table (`bench.results.store.ResultsStore.results_frame`), with the Student-t 95%
 interval of that mean (`bench.results.stats.mean_interval`). Columns are compared paired, on the same
 (frame, seed) pairs (`bench.results.stats.row_verdict`): bold marks the row's best when it is better than
-every other column beyond its interval (Wilcoxon signed-rank, Holm-corrected, and a paired bootstrap
-interval), `TIED_MARK` every column not distinguishable from the best; a row with too few pairs for
+every other column beyond its interval (Wilcoxon signed-rank, Holm-corrected, and a bootstrap interval that
+resamples whole damages: a seed with all its frames), `TIED_MARK` every column not distinguishable from the best; a row with too few pairs for
 any claim has no bold and the caption says why. `FLOOR_MARK` marks a cell worse than the floor
 (`FLOOR_METHOD`, the damaged input left as it is). Every value of a table has the same number of
 decimals, the paper's published values too: when given, they are printed as extra rows
@@ -30,6 +30,12 @@ import pandas as pd
 from dpcbench.bench.reporting.latex_tables import latex_escape  # noqa: F401  (re-exported)
 from dpcbench.bench.results import stats
 from dpcbench.bench.results.compare import FLOOR_MARK, FLOOR_METHOD, TIED_MARK  # noqa: F401  (re-exported; their one source)
+
+
+def damage_of(key: tuple[int, int]) -> int:
+    """The damage of a table's pair key (frame, seed): its hole seed. The comparisons resample whole damages
+    (`bench.results.stats.mean_difference_interval`)."""
+    return key[1]
 
 
 def higher_is_better(metric: str) -> bool | None:
@@ -146,7 +152,8 @@ class ComparisonTable:
         cache = self.__dict__.setdefault("_verdicts", {})
         if row not in cache:
             cache[row] = stats.row_verdict({c: self.observations[(row, c)] for c in self.columns
-                                            if (row, c) in self.observations}, self.higher_is_better)
+                                            if (row, c) in self.observations}, self.higher_is_better,
+                                           damage=damage_of)
         return cache[row]
 
     def interval(self, row: str, col: str) -> tuple[float, float]:

@@ -9,13 +9,22 @@ method is run on the same frames with the same hole seeds, so its observations p
 2. **Paired differences** against it, for every other method m, over the (frame, seed) pairs both
    have with finite values: ``d_i = s * (x_best,i - x_m,i)`` with ``s = +1`` when higher is better,
    ``-1`` otherwise, so ``d_i > 0`` means the best did better on pair i.
-3. **A 95% interval of the mean difference**: `scipy.stats.bootstrap` of ``mean(d)`` over the pairs
-   (resampling whole pairs: the paired bootstrap), ``method="percentile"``, ``n_resamples =
-   N_RESAMPLES``, random generator seeded with `SEED` (the same interval on every run). Differences
-   that are all equal give the one-point interval ``[d, d]``.
+3. **A 95% interval of the mean difference**, percentile bootstrap, ``n_resamples = N_RESAMPLES``, random
+   generator seeded with `SEED` (the same interval on every run), resampling whole *damages*: the
+   damages (hole seeds) are drawn with replacement, then each drawn damage's pairs (its frames) with
+   replacement, and the statistic is the mean of every d drawn (a two-stage cluster bootstrap,
+   `mean_difference_interval` with ``groups``; Davison and Hinkley 1997, sec. 3.8). The frames of one damage
+   are not independent pairs: coherent holes and occlusion rigs hide the same surface in every frame, and a
+   method carries its fill from frame to frame, so resampling single pairs reads ten frames of one damage as
+   ten damages (`experiments/damage_intervals.py` prints both intervals of every margin). With one damage,
+   or one pair a damage, the pairs are resampled (`scipy.stats.bootstrap`, the paired bootstrap). With
+   three damages whose frames agree (each damage's d the same in all its frames), the interval runs from
+   the lowest damage's mean to the highest's (a damage drawn three times has probability 1/27 > 2.5 %).
+   Differences that are all equal give the one-point interval ``[d, d]``.
 4. **A Wilcoxon signed-rank test** of ``d`` (`scipy.stats.wilcoxon`, two-sided, zero differences
    dropped, ``method="auto"``: the exact null distribution for small samples without ties); all
-   differences zero gives p = 1.
+   differences zero gives p = 1. It counts the pairs as independent; the interval of step 3 is the check
+   across damages, and every verdict below asks both.
 5. **Holm's correction** over the row's k = (methods - 1) comparisons (`holm`): the sorted p-values
    ``p_(1) <= ... <= p_(k)`` become ``max_{j<=i} min(1, (k - j + 1) p_(j))``.
 6. **Verdicts**: m is *worse* than the best when its interval lies above 0 (``low > 0``) and its
@@ -50,7 +59,8 @@ SEED = 0
 
 BEST, TIED, WORSE, NO_CLAIM = "best", "tied-best", "worse", "no claim"
 TEST_NAME = ("paired Wilcoxon signed-rank test against the row's best (two-sided), Holm-corrected over the "
-             "row's methods, with a paired bootstrap 95% interval of the mean difference")
+             "row's methods, with a bootstrap 95% interval of the mean difference that resamples whole damages "
+             "(hole seeds, all their frames)")
 
 
 def min_pairs(comparisons: int = 1, alpha: float = ALPHA) -> int:
@@ -79,18 +89,61 @@ def holm(p_values: list[float]) -> list[float]:
 
 
 def mean_difference_interval(d, confidence: float = CONFIDENCE, n_resamples: int = N_RESAMPLES,
-                             seed: int = SEED) -> tuple[float, float]:
-    """Percentile-bootstrap ``confidence`` interval of mean(d) (`scipy.stats.bootstrap`, resampling
-    the pairs' differences ``d``, generator seeded with ``seed``); ``(d0, d0)`` when every d is d0,
-    ``(nan, nan)`` for fewer than 2 values."""
+                             seed: int = SEED, groups=None) -> tuple[float, float]:
+    """Percentile-bootstrap ``confidence`` interval of mean(d), generator seeded with ``seed``: resampling the
+    pairs' differences ``d`` (`scipy.stats.bootstrap`), or with ``groups`` (one label a value: its damage,
+    e.g. the hole seed) and at least two damages, some with several values, resampling whole damages
+    (`cluster_bootstrap_means`); ``(d0, d0)`` when every d is d0, ``(nan, nan)`` for fewer than 2 values."""
     d = np.asarray(d, dtype=float)
     if len(d) < 2:
         return (math.nan, math.nan)
     if np.all(d == d[0]):
         return (float(d[0]), float(d[0]))
+    clustered = _clusters(groups, len(d))
+    if clustered is not None:
+        means = cluster_bootstrap_means([d], clustered, n_resamples, seed, lambda sums, counts: sums[0] / counts)
+        low, high = np.percentile(means, [50 * (1 - confidence), 50 * (1 + confidence)])
+        return (float(low), float(high))
     res = _st.bootstrap((d,), np.mean, confidence_level=confidence, n_resamples=n_resamples, method="percentile",
                         rng=np.random.default_rng(seed), vectorized=True)
     return (float(res.confidence_interval.low), float(res.confidence_interval.high))
+
+
+def _clusters(groups, n: int) -> np.ndarray | None:
+    """Each value's damage index (0..G-1) from its labels ``groups`` (n,), or None where a cluster bootstrap
+    is not called for: no labels, one damage (nothing to resample but its frames) or one value a damage (the
+    same as resampling pairs)."""
+    if groups is None:
+        return None
+    labels = list(groups)
+    if len(labels) != n:
+        raise ValueError(f"groups has {len(labels)} labels for {n} values")
+    index: dict = {}
+    which = np.array([index.setdefault(label, len(index)) for label in labels])
+    return which if 1 < len(index) < n else None
+
+
+def cluster_bootstrap_means(values: list[np.ndarray], which: np.ndarray, n_resamples: int, seed: int, statistic):
+    """The two-stage bootstrap replicates of ``statistic(sums, counts)`` (n_resamples,): G clusters (``which``
+    (n,): each value's cluster, 0..G-1) drawn G times with replacement, then, for each cluster drawn, as many of
+    its values as it has, drawn with replacement; ``sums[j]`` the sum of ``values[j]`` (n,) over the values
+    drawn (the same positions for every j: pairs stay paired), ``counts`` their number. Resampling within a
+    cluster too keeps its frames' own spread, which resampling clusters alone loses when few clusters agree
+    (two seeds with equal means would give a zero-width interval). By hand: scipy's ``bootstrap`` resamples
+    single observations, not groups of them."""
+    rng = np.random.default_rng(seed)
+    groups = int(which.max()) + 1
+    members = [np.flatnonzero(which == c) for c in range(groups)]
+    draw = rng.integers(0, groups, size=(n_resamples, groups))
+    sums = [np.zeros(n_resamples) for _ in values]
+    counts = np.zeros(n_resamples)
+    for c, index in enumerate(members):
+        rows, _ = np.nonzero(draw == c)  # one row per time cluster c is drawn, in row-major order
+        picks = index[rng.integers(0, len(index), size=(len(rows), len(index)))]  # (times drawn, its size)
+        for total, v in zip(sums, values):
+            np.add.at(total, rows, v[picks].sum(axis=1))
+        np.add.at(counts, rows, len(index))
+    return statistic(sums, counts)
 
 
 def signed_rank_p(d) -> float:
@@ -159,22 +212,25 @@ class RowVerdict:
         return {m for m, v in self.verdicts.items() if v == TIED}
 
 
-def paired(a: dict, b: dict, higher_is_better: bool = True, name: str = "") -> PairedComparison:
+def paired(a: dict, b: dict, higher_is_better: bool = True, name: str = "", damage=None) -> PairedComparison:
     """``a`` against ``b`` over their shared pair keys (finite values): d = s * (a - b), s = +1 when
     higher is better, else -1 (d > 0: a did better); mean, bootstrap interval and Wilcoxon p (raw;
-    ``p_holm`` is set to it: correct several with `holm`)."""
+    ``p_holm`` is set to it: correct several with `holm`). ``damage``: a function of a pair key giving its
+    damage (e.g. the hole seed of a (frame, seed) key): the interval resamples whole damages
+    (`mean_difference_interval`)."""
     sign = 1.0 if higher_is_better else -1.0
     keys = sorted(k for k in set(a) & set(b) if math.isfinite(a[k]) and math.isfinite(b[k]))
     d = np.array([sign * (a[k] - b[k]) for k in keys])
-    low, high = mean_difference_interval(d)
+    low, high = mean_difference_interval(d, groups=None if damage is None else [damage(k) for k in keys])
     p = signed_rank_p(d)
     return PairedComparison(name, len(d), float(d.mean()) if len(d) else math.nan, low, high, p, p)
 
 
 def ratio_interval(a: dict, b: dict, confidence: float = CONFIDENCE, n_resamples: int = N_RESAMPLES,
-                   seed: int = SEED) -> tuple[float, float, float]:
+                   seed: int = SEED, damage=None) -> tuple[float, float, float]:
     """(mean(a) / mean(b), low, high) over the shared pair keys: a percentile-bootstrap interval of the
-    ratio of means, resampling whole pairs (`scipy.stats.bootstrap` with ``paired=True``, seeded)."""
+    ratio of means, resampling whole pairs (`scipy.stats.bootstrap` with ``paired=True``, seeded), or with
+    ``damage`` (a function of a pair key giving its damage, as in `paired`) whole damages."""
     keys = sorted(k for k in set(a) & set(b) if math.isfinite(a[k]) and math.isfinite(b[k]))
     x, y = np.array([a[k] for k in keys]), np.array([b[k] for k in keys])
     if len(keys) == 0 or y.mean() == 0:
@@ -182,17 +238,23 @@ def ratio_interval(a: dict, b: dict, confidence: float = CONFIDENCE, n_resamples
     ratio = float(x.mean() / y.mean())
     if len(keys) < 2 or (np.all(x == x[0]) and np.all(y == y[0])):
         return (ratio, ratio, ratio) if len(keys) >= 2 else (ratio, math.nan, math.nan)
+    clustered = _clusters(None if damage is None else [damage(k) for k in keys], len(keys))
+    if clustered is not None:
+        ratios = cluster_bootstrap_means([x, y], clustered, n_resamples, seed, lambda sums, counts: sums[0] / sums[1])
+        low, high = np.percentile(ratios, [50 * (1 - confidence), 50 * (1 + confidence)])
+        return (ratio, float(low), float(high))
     res = _st.bootstrap((x, y), lambda u, v, axis=-1: u.mean(axis=axis) / v.mean(axis=axis), paired=True,
                         confidence_level=confidence, n_resamples=n_resamples, method="percentile",
                         rng=np.random.default_rng(seed), vectorized=True)
     return (ratio, float(res.confidence_interval.low), float(res.confidence_interval.high))
 
 
-def row_verdict(observations: dict[str, dict], higher_is_better: bool | None) -> RowVerdict:
+def row_verdict(observations: dict[str, dict], higher_is_better: bool | None, damage=None) -> RowVerdict:
     """The verdicts of one row (see the module docstring for the procedure).
 
     observations: method -> {pair key (e.g. (frame, seed)): value}. Non-finite values are left out.
     higher_is_better: the metric's direction; None gives no best and no verdicts.
+    damage: a function of a pair key giving its damage (`paired`); the intervals resample whole damages.
     """
     obs = {m: {k: float(v) for k, v in pairs.items() if v is not None and math.isfinite(float(v))}
            for m, pairs in observations.items()}
@@ -206,7 +268,7 @@ def row_verdict(observations: dict[str, dict], higher_is_better: bool | None) ->
     needed = min_pairs(len(others))
     if not others:
         return RowVerdict(best=best, n=len(obs[best]), needed=needed, verdicts={best: NO_CLAIM})
-    comparisons = {m: paired(obs[best], obs[m], higher_is_better, m) for m in others}
+    comparisons = {m: paired(obs[best], obs[m], higher_is_better, m, damage) for m in others}
     for m, p in zip(others, holm([comparisons[m].p_value if not math.isnan(comparisons[m].p_value) else 1.0
                                   for m in others])):
         comparisons[m].p_holm = p

@@ -14,7 +14,8 @@ def register(subparsers) -> None:
                         "per row, on tuning and held-out data side by side",
         description="Per row (sequence x holes) of every experiment read: the method's whole-frame D1 minus the best "
                     "other method's, D2 minus no fill's, the best other NSHD minus its NSHD and the best other "
-                    "temporal consistency in the holes minus its own, each with its paired bootstrap 95% interval, "
+                    "temporal consistency in the holes minus its own, each with its bootstrap 95% interval (whole "
+                    "seeds resampled, each with all its frames), "
                     "n (frames x seeds) and whether the target is met beyond noise; then a count per target and data "
                     "role (experiment.data_role: tuning or heldout). Markdown on stdout; with --out also "
                     "margins.md and margins.csv.",
