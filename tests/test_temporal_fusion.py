@@ -1898,3 +1898,28 @@ def test_farther_frames_are_aligned_only_where_the_adjacent_ones_did_not_both_se
     np.testing.assert_array_equal(outputs[0], outputs[1])
     with pytest.raises(ValueError, match="adjacent_first must be true or false"):
         TemporalFusion(adjacent_first=1).inpaint([np.zeros((10, 3))] * 2, None)
+
+
+# -- version 52: integer coordinates sparser than a voxelization ---------------------------------------------------
+def test_integer_coordinates_sparser_than_a_voxelization_are_filled_at_their_own_spacing():
+    """A capture whose coordinates were rounded to a grid finer than its sampling (a bumpy sphere of radius 100
+    grid units, 20,000 samples rounded: spacing ~2.5 units) is no voxelization. Taken for one (spacing 1, the fill
+    snapped to the grid at one point per unit) the method adds several times the missing points and D2 falls below
+    leaving the holes open; at its own spacing it adds fewer points than are missing, and D1 and D2 beat no fill."""
+    from dpcbench.methods.registry import get_method
+    from dpcbench.methods.temporal_fusion.method import VOXELIZED_SPACING_MAX
+    from dpcbench.metrics import score_frame
+    from dpcbench.metrics.neighbours import point_spacing
+    from dpcbench.testing import bumpy_sphere
+
+    truth = [np.unique(np.floor(bumpy_sphere(20000, f) * 2.0 + 0.5), axis=0) for f in range(2)]
+    assert point_spacing(truth[0]) > VOXELIZED_SPACING_MAX
+    regions = [[HoleRegion("ball", t[5], 10.0), HoleRegion("ball", t[900], 10.0)] for t in truth]
+    damaged = [t[~(r[0].contains(t) | r[1].contains(t))] for t, r in zip(truth, regions)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = get_method("temporal-fusion").inpaint(damaged, regions)
+    for t, d, o in zip(truth, damaged, out):
+        assert 0 < len(o) - len(d) <= len(t) - len(d)
+        filled, open_ = (score_frame(t, x, ["gpsnr_d1", "gpsnr_d2"]) for x in (o, d))
+        assert filled["gpsnr_d1"] > open_["gpsnr_d1"] + 5 and filled["gpsnr_d2"] > open_["gpsnr_d2"]

@@ -6,7 +6,8 @@ beats any graph fill; where no frame holds it (coherent holes, occlusions) a spa
 sit on the surface and stay put from frame to frame. docs/temporal-fusion.md has the decision record of every
 step and switch, with its measurement.
 
-Units: lengths in point spacings s (`metrics.neighbours.point_spacing` of the largest frame; 1 on voxelized data)
+Units: lengths in point spacings s (`metrics.neighbours.point_spacing` of the largest frame; 1 on voxelized data:
+integer coordinates at a spacing of at most 1.5 voxels, `method.VOXELIZED_SPACING_MAX`)
 or hole radii r (a region's bounding radius); time in frames.
 
 Frames are processed in order (reuse takes frame f-1's result), then from the last to the first for the holes

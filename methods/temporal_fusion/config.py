@@ -99,7 +99,8 @@ class FusionConfig:
                                          "in a region that keeps captured points")
     best_surface: bool = _knob(True, "bool", "a hole every spatial strategy refused takes the candidate surface with "
                                "the least hold-out miss, unless leaving it open is predicted to cost less D1")
-    snap: bool | str = _knob("auto", "snap", "voxelize the output when the input is voxelized (True/False force it)")
+    snap: bool | str = _knob("auto", "snap", "voxelize the output when the input is voxelized: integer coordinates "
+                             "at a spacing of at most 1.5 voxels (True/False force it)")
 
     @classmethod
     def of(cls, params: dict[str, Any], method: str = "temporal-fusion") -> FusionConfig:

@@ -149,7 +149,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "51"  # the history of each version: docs/temporal-fusion.md
+    version = "52"  # the history of each version: docs/temporal-fusion.md
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
@@ -274,14 +274,26 @@ class TemporalFusion(InpaintingMethod):
         return outputs, (out_colours if colours is not None else None)
 
 
+#: the most a voxelized capture's point spacing (`point_spacing`, in voxels) may be: a voxelization holds every
+#: voxel its surface crosses (spacing 1, as on every integer sequence at hand), a surface sampled every second voxel
+#: has spacing 2, and integer data sparser than midway between them is a capture whose coordinates were rounded (a
+#: scan in whole millimetres), not a voxelization: its own spacing is the unit and the output is not voxelized
+VOXELIZED_SPACING_MAX = 1.5
+
+
 def _sequence(cfg: FusionConfig, frames, regions, tree_of, colours=None) -> SequenceData:
-    """The `SequenceData` of a run: the spacing s of the largest frame (1 on integer data), the spatial fill's
-    grid step (1 / sqrt(areal density) on unvoxelized data, so a square grid has the frame's density), the fit
-    sizes, and the frames' colours as float64 (None without colour)."""
-    integer = all(np.array_equal(frame, np.round(frame)) for frame in frames)
-    voxelized = cfg.snap is True or (cfg.snap == "auto" and integer)
+    """The `SequenceData` of a run: the spacing s of the largest frame (1 on voxelized data: integer coordinates
+    and a spacing of at most `VOXELIZED_SPACING_MAX` voxels), the spatial fill's grid step (1 / sqrt(areal
+    density) on unvoxelized data, so a square grid has the frame's density), the fit sizes, and the frames'
+    colours as float64 (None without colour)."""
     largest = max(range(len(frames)), key=lambda g: len(frames[g]))
-    spacing = 1.0 if integer else point_spacing(frames[largest], tree=tree_of(largest))
+    integer = all(np.array_equal(frame, np.round(frame)) for frame in frames)
+    # (a frame too small to measure a spacing keeps the grid's: 1)
+    spacing = point_spacing(frames[largest], tree=tree_of(largest)) \
+        if not integer or len(frames[largest]) >= 9 else 1.0
+    integer = integer and spacing <= VOXELIZED_SPACING_MAX
+    voxelized = cfg.snap is True or (cfg.snap == "auto" and integer)
+    spacing = 1.0 if integer else spacing
     step = spacing if integer else sampling_step(frames[largest])
     return SequenceData(frames, regions, tree_of, spacing, step, voxelized, cfg.fit_neighbours(voxelized),
                         cfg.fit_neighbours(False),
