@@ -84,14 +84,14 @@ def test_two_stage_bootstrap_has_the_closed_form_variance():
     m, clusters = 5, 4
     values = rng.normal(0.0, 1.0, (clusters, m)) + np.array([[0.0], [3.0], [-1.0], [5.0]])
     which = np.repeat(np.arange(clusters), m)
-    reps = stats.cluster_bootstrap_means([values.ravel()], which, 40000, 0, lambda sums, counts: sums[0] / counts)
+    reps = stats.cluster_bootstrap([values.ravel()], which, 40000, 0, lambda sums, counts: sums[0] / counts)
     cluster_means = values.mean(axis=1)
     between = np.mean((cluster_means - cluster_means.mean()) ** 2)
     within = np.mean(values.var(axis=1))
     assert np.var(reps) == pytest.approx((between + within / m) / clusters, rel=0.03)
     assert np.mean(reps) == pytest.approx(values.mean(), abs=0.03)
     # the pairs stay paired: a ratio of two sums over the same draws of proportional values is the factor
-    ratios = stats.cluster_bootstrap_means([2.0 * values.ravel() + 40, values.ravel() + 20], which, 1000, 0,
+    ratios = stats.cluster_bootstrap([2.0 * values.ravel() + 40, values.ravel() + 20], which, 1000, 0,
                                            lambda sums, counts: sums[0] / sums[1])
     assert ratios == pytest.approx(np.full(1000, 2.0))
 

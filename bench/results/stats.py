@@ -93,7 +93,7 @@ def mean_difference_interval(d, confidence: float = CONFIDENCE, n_resamples: int
     """Percentile-bootstrap ``confidence`` interval of mean(d), generator seeded with ``seed``: resampling the
     pairs' differences ``d`` (`scipy.stats.bootstrap`), or with ``groups`` (one label a value: its damage,
     e.g. the hole seed) and at least two damages, some with several values, resampling whole damages
-    (`cluster_bootstrap_means`); ``(d0, d0)`` when every d is d0, ``(nan, nan)`` for fewer than 2 values."""
+    (`cluster_bootstrap`); ``(d0, d0)`` when every d is d0, ``(nan, nan)`` for fewer than 2 values."""
     d = np.asarray(d, dtype=float)
     if len(d) < 2:
         return (math.nan, math.nan)
@@ -101,7 +101,7 @@ def mean_difference_interval(d, confidence: float = CONFIDENCE, n_resamples: int
         return (float(d[0]), float(d[0]))
     clustered = _clusters(groups, len(d))
     if clustered is not None:
-        means = cluster_bootstrap_means([d], clustered, n_resamples, seed, lambda sums, counts: sums[0] / counts)
+        means = cluster_bootstrap([d], clustered, n_resamples, seed, lambda sums, counts: sums[0] / counts)
         low, high = np.percentile(means, [50 * (1 - confidence), 50 * (1 + confidence)])
         return (float(low), float(high))
     res = _st.bootstrap((d,), np.mean, confidence_level=confidence, n_resamples=n_resamples, method="percentile",
@@ -123,7 +123,7 @@ def _clusters(groups, n: int) -> np.ndarray | None:
     return which if 1 < len(index) < n else None
 
 
-def cluster_bootstrap_means(values: list[np.ndarray], which: np.ndarray, n_resamples: int, seed: int, statistic):
+def cluster_bootstrap(values: list[np.ndarray], which: np.ndarray, n_resamples: int, seed: int, statistic):
     """The two-stage bootstrap replicates of ``statistic(sums, counts)`` (n_resamples,): G clusters (``which``
     (n,): each value's cluster, 0..G-1) drawn G times with replacement, then, for each cluster drawn, as many of
     its values as it has, drawn with replacement; ``sums[j]`` the sum of ``values[j]`` (n,) over the values
@@ -240,7 +240,7 @@ def ratio_interval(a: dict, b: dict, confidence: float = CONFIDENCE, n_resamples
         return (ratio, ratio, ratio) if len(keys) >= 2 else (ratio, math.nan, math.nan)
     clustered = _clusters(None if damage is None else [damage(k) for k in keys], len(keys))
     if clustered is not None:
-        ratios = cluster_bootstrap_means([x, y], clustered, n_resamples, seed, lambda sums, counts: sums[0] / sums[1])
+        ratios = cluster_bootstrap([x, y], clustered, n_resamples, seed, lambda sums, counts: sums[0] / sums[1])
         low, high = np.percentile(ratios, [50 * (1 - confidence), 50 * (1 + confidence)])
         return (ratio, float(low), float(high))
     res = _st.bootstrap((x, y), lambda u, v, axis=-1: u.mean(axis=axis) / v.mean(axis=axis), paired=True,

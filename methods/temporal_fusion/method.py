@@ -34,6 +34,7 @@ from dpcbench.methods.temporal_fusion.settle import (
 from dpcbench.methods.temporal_fusion.spatial import spatial_fill
 from dpcbench.methods.temporal_fusion.voxels import rows_in, snap_to_voxels
 from dpcbench.metrics.neighbours import point_spacing
+from dpcbench.metrics.pairs import on_integer_grid
 
 
 def fill_region(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegion, previous_fill: np.ndarray,
@@ -287,14 +288,14 @@ def _sequence(cfg: FusionConfig, frames, regions, tree_of, colours=None) -> Sequ
     density) on unvoxelized data, so a square grid has the frame's density), the fit sizes, and the frames'
     colours as float64 (None without colour)."""
     largest = max(range(len(frames)), key=lambda g: len(frames[g]))
-    integer = all(np.array_equal(frame, np.round(frame)) for frame in frames)
+    integer = all(on_integer_grid(frame) for frame in frames)
     # (a frame too small to measure a spacing keeps the grid's: 1)
-    spacing = point_spacing(frames[largest], tree=tree_of(largest)) \
+    measured = point_spacing(frames[largest], tree=tree_of(largest)) \
         if not integer or len(frames[largest]) >= 9 else 1.0
-    integer = integer and spacing <= VOXELIZED_SPACING_MAX
-    voxelized = cfg.snap is True or (cfg.snap == "auto" and integer)
-    spacing = 1.0 if integer else spacing
-    step = spacing if integer else sampling_step(frames[largest])
+    voxel_data = integer and measured <= VOXELIZED_SPACING_MAX
+    voxelized = cfg.snap is True or (cfg.snap == "auto" and voxel_data)
+    spacing = 1.0 if voxel_data else measured
+    step = spacing if voxel_data else sampling_step(frames[largest])
     return SequenceData(frames, regions, tree_of, spacing, step, voxelized, cfg.fit_neighbours(voxelized),
                         cfg.fit_neighbours(False),
                         None if colours is None else [np.asarray(c, dtype=np.float64) for c in colours])
