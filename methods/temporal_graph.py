@@ -114,6 +114,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from dpcbench.holes.regions import check_regions_near, union_mask
 from dpcbench.methods._cubes import (
     CellGrid,
     TargetCubeOrder,
@@ -812,7 +813,7 @@ class _CubeGraphInpainting(InpaintingMethod):
             regions = [list(detect_holes(frame)) for frame in frames]
         for f in range(len(frames)):
             if regions[f]:
-                self._check_regions(f, frames[f], regions[f], unit, tree_of(f))
+                self._check_regions(f, frames[f], regions[f], unit, integer, tree_of(f))
         beta = self._beta()
         link_distance = self._link_distance(frames[largest], tree_of(largest), unit, integer) if beta > 0 else None
         # a slot of the paper's M^3 grid of a cube: one voxel; on unvoxelized data one point spacing
@@ -866,19 +867,23 @@ class _CubeGraphInpainting(InpaintingMethod):
         spacing = 1.0 if integer else point_spacing(frame, tree=tree)
         return self.link_radius * max(unit, spacing)
 
-    def _check_regions(self, f: int, frame: np.ndarray, frame_regions: list, unit: float, tree: cKDTree) -> None:
-        reach = self.cube_size * unit
-        inside = np.zeros(len(frame), dtype=bool)
-        for region in frame_regions:
-            dist, _ = tree.query(region.center)
-            if dist > region.bounding_radius + reach:
-                raise UserError(
-                    f"{self.name}: frame {f}: hole region centred at {np.round(region.center, 3).tolist()} "
-                    f"is {dist:.3g} away from the nearest point, farther than its size plus one cube "
-                    f"({region.bounding_radius + reach:.3g}); the regions do not belong to this cloud "
-                    "(wrong holes.json or wrong frame order?)")
-            inside |= region.contains(frame)
-        if inside.all():
+    def _check_regions(self, f: int, frame: np.ndarray, frame_regions: list, unit: float, integer: bool,
+                       tree: cKDTree) -> None:
+        """Refuse regions farther from ``frame`` than their size plus one cube and two point spacings
+        (`holes.regions.check_regions_near`), and regions that cover every point.
+
+        The spacings: a hole's centre lies within its size plus the sampling gap around it of the points left,
+        and on a frame sparser than the cube (a few hundred points) that gap is longer than a cube.
+        """
+        if integer:
+            spacing = 1.0
+        elif len(frame) >= 9:
+            spacing = point_spacing(frame, tree=tree)
+        else:  # too few points for a spacing: any region within the frame's extent belongs to it
+            spacing = float(np.ptp(frame, axis=0).max()) if len(frame) else 0.0
+        check_regions_near(frame, frame_regions, self.cube_size * unit + 2 * spacing, tree=tree, who=self.name,
+                           frame_index=f)
+        if union_mask(frame_regions, frame).all():
             raise UserError(f"{self.name}: frame {f}: the hole regions cover every point of the frame; "
                              "nothing is left to fill from")
 

@@ -393,6 +393,20 @@ def test_bad_parameters_are_refused(params, match):
         TemporalGraph(**params).inpaint(damaged, hole)
 
 
+@pytest.mark.parametrize("method", [FuNonlocal, TemporalGraph])
+def test_a_hole_in_a_frame_sparser_than_the_cube_is_not_refused(method):
+    # 121 points 10.3 apart: the cube (20 units of 1/1024 of the extent) is 2.0, so the gap that a
+    # one-point hole leaves (10.3) is longer than the hole's size plus one cube, yet the hole belongs to the frame
+    grid = np.stack(np.meshgrid(np.arange(11.0), np.arange(11.0), indexing="ij"), -1).reshape(-1, 2) * 10.3 + 0.1
+    frame = np.c_[grid, np.zeros(len(grid))]
+    damaged = frame[~np.all(frame[:, :2] == grid[60], axis=1)]
+    hole = [HoleRegion.ball(frame[60], 1.0)]
+    out = method().inpaint([damaged, damaged.copy()], [hole, hole])
+    assert [len(o) >= len(damaged) for o in out] == [True, True]
+    with pytest.raises(ValueError, match="do not belong to this cloud"):
+        method().inpaint([damaged, damaged.copy()], [hole, [HoleRegion.ball([500.0, 500.0, 500.0], 5.0)]])
+
+
 def test_bad_inputs_are_refused():
     damaged, hole, _ = plane_sequence()
     with pytest.raises(ValueError, match="zero points"):
