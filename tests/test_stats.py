@@ -118,6 +118,31 @@ def test_mean_interval_is_students_t():
     assert (lo, hi) == pytest.approx((2 - half, 2 + half))
 
 
+def test_mean_interval_over_damages_is_the_t_interval_of_their_means():
+    # three damages of four frames each: the frames' spread inside a damage is not the damage's noise
+    frames = np.array([-1.5, -0.5, 0.5, 1.5])
+    damage_means = np.array([20.0, 21.0, 23.0])
+    values = np.concatenate([m + frames for m in damage_means])
+    seeds = np.repeat([0, 1, 2], 4)
+    half = 4.302652729911275 * damage_means.std(ddof=1) / math.sqrt(3)  # t(0.975, 2) * sd of the means / sqrt(G)
+    assert stats.mean_interval(values, groups=seeds) == pytest.approx((damage_means.mean() - half,
+                                                                      damage_means.mean() + half))
+    ungrouped = stats.mean_interval(values)
+    assert ungrouped[1] - ungrouped[0] < 2 * half  # twelve values read as twelve damages: too narrow
+    # unequal damages: the cluster-robust form, by hand, over the finite values only
+    values = np.array([1.0, 2.0, 4.0, 7.0, 8.0, np.nan])
+    seeds = [0, 0, 0, 1, 1, 2]
+    m = 22 / 5
+    se = math.sqrt(2 / 1 * ((1 + 2 + 4 - 3 * m) ** 2 + (7 + 8 - 2 * m) ** 2)) / 5
+    assert stats.mean_interval(values, groups=seeds) == pytest.approx((m - 12.706204736174707 * se,
+                                                                      m + 12.706204736174707 * se))
+    # one value a damage, or one damage: the ungrouped interval
+    assert stats.mean_interval([1.0, 2.0, 3.0], groups=[5, 6, 7]) == pytest.approx(stats.mean_interval([1.0, 2.0, 3.0]))
+    assert stats.mean_interval([1.0, 2.0, 3.0], groups=[5, 5, 5]) == pytest.approx(stats.mean_interval([1.0, 2.0, 3.0]))
+    with pytest.raises(ValueError, match="labels"):
+        stats.mean_interval([1.0, 2.0], groups=[0])
+
+
 def _rows(values: dict[str, list[float]]) -> dict:
     return {m: {(f, 0): v for f, v in enumerate(vals)} for m, vals in values.items()}
 
@@ -208,3 +233,8 @@ def test_the_tables_judge_a_row_over_whole_damages():
     assert verdict.best == "a" and verdict.bold is None and verdict.tied == {"a", "b"}
     # without the damages, the 30 pairs would have made "a" bold
     assert stats.row_verdict({c: table.observations[("s", c)] for c in "ab"}, True).bold == "a"
+    # a cell's interval is over the damages too: the t interval of a's three damage means (two degrees of freedom)
+    a = table.observations[("s", "a")]
+    means = [np.mean([v for (_, seed), v in a.items() if seed == s]) for s in range(3)]
+    half = 4.302652729911275 * np.std(means, ddof=1) / math.sqrt(3)
+    assert table.interval("s", "a") == pytest.approx((np.mean(means) - half, np.mean(means) + half))

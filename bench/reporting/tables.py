@@ -4,7 +4,8 @@
 A cell is the mean over the values of one metric in one scope with one PSNR peak, one value per
 (frame, seed) of the row's sequence and damage (several seeds pool their frames), read from the
 results store's tidy table (`bench.results.store.ResultsStore.results_frame`), with the Student-t 95%
-interval of that mean (`bench.results.stats.mean_interval`). Columns are compared paired, on the same
+interval of that mean over whole damages (`bench.results.stats.mean_interval` with the seeds as ``groups``: the
+frames of one seed share its holes, so the seed is the unit; one seed: over its frames). Columns are compared paired, on the same
 (frame, seed) pairs (`bench.results.stats.row_verdict`): bold marks the row's best when it is better than
 every other column beyond its interval (Wilcoxon signed-rank, Holm-corrected, and a bootstrap interval that
 resamples whole damages: a seed with all its frames), `TIED_MARK` every column not distinguishable from the best; a row with too few pairs for
@@ -118,7 +119,7 @@ class ComparisonTable:
     mean / std / n: per (row, column), the mean, the sample standard deviation (ddof=1) and the
     count of the cell's values; observations: per (row, column), {(frame, seed): value} (unscaled),
     the pairs `bench.results.stats` compares; ``floor``: the column that leaves the holes open (no fill).
-    A cell shows its mean and the Student-t 95% interval of the mean (`bench.results.stats.mean_interval`).
+    A cell shows its mean and the Student-t 95% interval of the mean over whole damages (`interval`).
     """
 
     title: str
@@ -157,9 +158,10 @@ class ComparisonTable:
         return cache[row]
 
     def interval(self, row: str, col: str) -> tuple[float, float]:
-        """The 95% interval of the cell's mean, unscaled ((nan, nan) for fewer than 2 values)."""
-        values = list(self.observations.get((row, col), {}).values())
-        return stats.mean_interval(values)
+        """The 95% interval of the cell's mean, unscaled ((nan, nan) for fewer than 2 values): Student t with the
+        damages (`damage_of`) as the unit, `bench.results.stats.mean_interval` with ``groups``."""
+        pairs = self.observations.get((row, col), {})
+        return stats.mean_interval(list(pairs.values()), groups=[damage_of(key) for key in pairs])
 
     def below_floor(self, row: str, col: str) -> bool:
         """Whether the cell's mean is worse than the floor column's mean of its row."""
@@ -230,9 +232,11 @@ class ComparisonTable:
             self.higher_is_better]
         text = (f"Metric `{self.metric}` ({direction}){peak}, scope `{self.scope}` "
                 f"({'whole frame' if self.scope == 'frame' else 'hole regions only'}){scale}. "
-                + ("Cells: mean ± half-width of the 95% interval of the mean (Student t, symmetric)" if latex
-                   else "Cells: mean [95% interval of the mean, Student t]")
-                + f" over {self.sample_size()} per cell (all frames of all seeds).")
+                + ("Cells: mean ± half-width of the 95% interval of the mean" if latex
+                   else "Cells: mean [95% interval of the mean]")
+                + " (Student t over whole damages: a seed's frames share its holes, so the seeds are the unit, with "
+                  "their count - 1 degrees of freedom; one seed: over its frames)"
+                + f"; {self.sample_size()} per cell (all frames of all seeds).")
         if self.paper:
             text += (f" Rows {'in italics' if latex else 'marked (paper)'}: the paper's published values, rounded to "
                      f"the table's {self._digits()} decimals (the CSV keeps them as printed).")

@@ -157,16 +157,38 @@ def signed_rank_p(d) -> float:
     return float(_st.wilcoxon(d, zero_method="wilcox", alternative="two-sided", method="auto").pvalue)
 
 
-def mean_interval(values, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Student-t ``confidence`` interval of the mean of ``values`` (finite ones):
-    ``mean ± t_{(1+c)/2, n-1} * s / sqrt(n)`` with s the sample standard deviation (ddof=1);
-    ``(nan, nan)`` for fewer than 2 values."""
+def mean_interval(values, confidence: float = CONFIDENCE, groups=None) -> tuple[float, float]:
+    """Student-t ``confidence`` interval of the mean m of ``values`` (finite ones), ``(nan, nan)`` for fewer than 2.
+
+    Without ``groups``: ``m ± t_{(1+c)/2, n-1} * s / sqrt(n)``, s the sample standard deviation (ddof=1).
+    With ``groups`` (one label a value: its damage, e.g. the hole seed) and G >= 2 damages, the values of one
+    damage are not independent (they share its holes), so the damage is the unit: ``m ± t_{(1+c)/2, G-1} * se``,
+    ``se**2 = G / (G - 1) * sum_g (sum_{i in g} (x_i - m))**2 / n**2`` (the cluster-robust standard error with
+    its small-sample factor and G - 1 degrees of freedom; Cameron and Miller 2015, sec. VI). With equal
+    damages it is the t interval of the G damage means; with one value a damage, the ungrouped interval. One
+    damage: the ungrouped interval over its values (the only spread there is). By hand: no core dependency
+    computes it (statsmodels does, for regressions).
+    """
     v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
+    finite = np.isfinite(v)
+    v = v[finite]
     if len(v) < 2:
         return (math.nan, math.nan)
-    m, s = float(v.mean()), float(v.std(ddof=1))
-    half = float(_st.t.ppf((1 + confidence) / 2, len(v) - 1)) * s / math.sqrt(len(v))
+    m = float(v.mean())
+    which = None
+    if groups is not None:
+        labels = list(groups)
+        if len(labels) != len(finite):
+            raise ValueError(f"groups has {len(labels)} labels for {len(finite)} values")
+        index: dict = {}
+        which = np.array([index.setdefault(label, len(index)) for label, keep in zip(labels, finite) if keep])
+    if which is not None and which.max() >= 1:
+        damages = int(which.max()) + 1
+        residual_sums = np.bincount(which, weights=v - m, minlength=damages)
+        se = math.sqrt(damages / (damages - 1) * float(np.sum(residual_sums ** 2))) / len(v)
+        half = float(_st.t.ppf((1 + confidence) / 2, damages - 1)) * se
+    else:
+        half = float(_st.t.ppf((1 + confidence) / 2, len(v) - 1)) * float(v.std(ddof=1)) / math.sqrt(len(v))
     return (m - half, m + half)
 
 

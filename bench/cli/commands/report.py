@@ -12,10 +12,10 @@ from dpcbench.bench.core.errors import UserError
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "report", help="method comparison report (Markdown, LaTeX, CSV tables and figures) from a results store",
-        description="Tables (rows = sequences, columns = methods, mean and 95% interval over frames x seeds; bold: "
-                    "best beyond every other's interval, paired Wilcoxon signed-rank with Holm; the no-fill floor "
-                    "marked) "
-                    "for every metric and scope of an experiment, bar charts, per-frame curves, runtime, failures.",
+        description="Tables (rows = sequences, columns = methods, the mean over frames x seeds and its 95% interval "
+                    "over whole damages (seeds); bold: best beyond every other's interval, paired Wilcoxon "
+                    "signed-rank with Holm; the no-fill floor marked) for every metric and scope of an experiment, "
+                    "bar charts, per-frame curves, runtime, failures.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("results", help="results store (SQLite file) or a folder holding results.sqlite")
     p.add_argument("--experiment", default=None, help="experiment name (default: the only one, else required)")
