@@ -1,7 +1,8 @@
-"""Which sequences of the presets temporal-fusion treats as voxelized: integer coordinates at a point spacing of at
-most `VOXELIZED_SPACING_MAX` voxels (methods/temporal_fusion/method.py). Version 52 changed only what happens to
-integer data sparser than that, so where every integer sequence prints a spacing of at most 1.5, version 52 gives
-those presets' runs the output of version 51.
+"""Which sequences of the presets the methods treat as voxelized: integer coordinates at a point spacing of at
+most `VOXELIZED_SPACING_MAX` voxels (`metrics.neighbours.is_voxelization`, used by temporal-fusion, fu-nonlocal and
+temporal-graph). temporal-fusion 52, fu-nonlocal 8 and temporal-graph 10 changed only what happens to integer data
+sparser than that, so where every integer sequence prints a spacing of at most 1.5, they give those presets' runs
+the output of the versions before.
 
     .venv/bin/python experiments/voxelized_check.py [PRESET_OR_TOML ...]   # default: every preset in bench/presets
 
@@ -18,8 +19,7 @@ import numpy as np
 
 from dpcbench.bench.data.datasets import load_run_sequence
 from dpcbench.bench.experiment.config import load_config
-from dpcbench.methods.temporal_fusion.method import VOXELIZED_SPACING_MAX
-from dpcbench.metrics.neighbours import point_spacing
+from dpcbench.metrics.neighbours import is_voxelization, point_spacing
 
 PRESETS = Path(__file__).resolve().parent.parent / "bench" / "presets"
 
@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> None:
             largest = max(frames, key=len)
             integer = all(np.array_equal(f, np.round(f)) for f in frames)
             spacing = point_spacing(largest)
-            voxelized = integer and spacing <= VOXELIZED_SPACING_MAX
+            voxelized = is_voxelization(frames)
             print(f"{path.stem}: {getattr(sequence, 'label', None) or getattr(sequence, 'name', key[:60])}: "
                   f"{'integer' if integer else 'float'}, spacing {spacing:.3f}, {len(largest)} points, "
                   f"{'voxelized' if voxelized else 'not voxelized'}")

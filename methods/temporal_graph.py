@@ -71,8 +71,8 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    and the point lies off that frame's surface (farther than ``off_surface`` link radii from the
    plane of its 8 nearest points there): a gap in a neighbour, e.g. in an inpainted f-1's own
    fill, is no evidence against a point on the surface continued.
-10. Voxelized input (all coordinates integers) [snap]: the new points are turned into the grid voxels of
-   the surface they sample (`voxelize_fill`: voxels within half a voxel of the local tangent plane),
+10. Voxelized input (integer coordinates about one voxel apart, `metrics.neighbours.is_voxelization`) [snap]: the
+   new points are turned into the grid voxels of the surface they sample (`voxelize_fill`: voxels within half a voxel of the local tangent plane),
    minus voxels already occupied.
 
 Colour (``inpaint_with_colours``, fill "auto"; the paper's future work, "attribute inpainting"): colour is a
@@ -128,7 +128,7 @@ from dpcbench.methods._registration import RigidFit, align_best
 from dpcbench.methods.base import InpaintingMethod, Regions
 from dpcbench.methods.progress import frame_done
 from dpcbench.metrics.errors import UserError
-from dpcbench.metrics.neighbours import estimate_normals, point_spacing
+from dpcbench.metrics.neighbours import estimate_normals, is_voxelization, point_spacing
 
 if TYPE_CHECKING:
     from dpcbench.holes.regions import HoleRegion
@@ -366,18 +366,20 @@ class InterSource:
 # and the post-processing (`drop_contradicted_rows`, `voxelize_fill`, `finish_frame`).
 
 
-def cube_unit(frame: np.ndarray, tree: cKDTree | None, spacing: float | str | None, integer: bool, name: str) -> float:
+def cube_unit(frame: np.ndarray, tree: cKDTree | None, spacing: float | str | None, voxel_data: bool,
+              name: str) -> float:
     """The unit u (coordinates) of every length parameter, from the largest ``frame`` (N, 3).
 
     spacing="points": the median point spacing (`holes.geometry.point_spacing`); a number: that
-    number; None: 1 on voxelized (``integer``) data, else 1/1024 of the largest bounding-box side
+    number; None: 1 on voxelized data (``voxel_data``: `metrics.neighbours.is_voxelization`), else 1/1024 of the
+    largest bounding-box side
     (the paper sets M "according to the coordinate range of P_f": M = 20 on a body 1023 units tall).
     """
     if spacing == "points":
         return point_spacing(frame, tree=tree)
     if spacing is not None:
         return float(spacing)
-    if integer:
+    if voxel_data:
         return 1.0  # one voxel, whatever the bit depth
     extent = float(np.ptp(frame, axis=0).max())
     if not extent > 0:
@@ -802,24 +804,24 @@ class _CubeGraphInpainting(InpaintingMethod):
                 trees[f] = cKDTree(frames[f])
             return trees[f]
 
-        integer = all(np.array_equal(f, np.round(f)) for f in frames)
-        voxelized = self.snap is True or (self.snap == "auto" and integer)
         largest = max(range(len(frames)), key=lambda f: len(frames[f]))
+        voxel_data = is_voxelization(frames, tree_of(largest))
+        voxelized = self.snap is True or (self.snap == "auto" and voxel_data)
         unit = cube_unit(frames[largest], tree_of(largest) if self.spacing == "points" else None, self.spacing,
-                         integer, self.name)
+                         voxel_data, self.name)
         if regions is None:
             from dpcbench.holes.detection import detect_holes  # lazily: blind protocol only
 
             regions = [list(detect_holes(frame)) for frame in frames]
         for f in range(len(frames)):
             if regions[f]:
-                self._check_regions(f, frames[f], regions[f], unit, integer, tree_of(f))
+                self._check_regions(f, frames[f], regions[f], unit, voxel_data, tree_of(f))
         beta = self._beta()
-        link_distance = self._link_distance(frames[largest], tree_of(largest), unit, integer) if beta > 0 else None
+        link_distance = self._link_distance(frames[largest], tree_of(largest), unit, voxel_data) if beta > 0 else None
         # a slot of the paper's M^3 grid of a cube: one voxel; on unvoxelized data one point spacing
         slot = None
         if self.new_points == "empty-slots":
-            slot = unit if integer else max(unit, point_spacing(frames[largest], tree=tree_of(largest)))
+            slot = unit if voxel_data else max(unit, point_spacing(frames[largest], tree=tree_of(largest)))
         if beta > 0 and len(frames) == 1:
             warnings.warn(f"{self.name}: a one-frame sequence has no neighbouring frames; "
                           "using the spatial terms only (as fu-nonlocal)", stacklevel=2)
@@ -857,17 +859,17 @@ class _CubeGraphInpainting(InpaintingMethod):
             frame_done(f + 1, len(frames))
         return outputs, (out_colours if colours is not None else None)
 
-    def _link_distance(self, frame: np.ndarray, tree: cKDTree, unit: float, integer: bool) -> float:
+    def _link_distance(self, frame: np.ndarray, tree: cKDTree, unit: float, voxel_data: bool) -> float:
         """Longest temporal link: ``link_radius`` point spacings, each at least one unit.
 
         A link joins a point to its counterpart in the neighbouring frame's sampling, so its length
         is measured in point spacings (one voxel on voxelized data), not in the cube's unit (see
         docs/notes-journal.md for the measurement on dfaust).
         """
-        spacing = 1.0 if integer else point_spacing(frame, tree=tree)
+        spacing = 1.0 if voxel_data else point_spacing(frame, tree=tree)
         return self.link_radius * max(unit, spacing)
 
-    def _check_regions(self, f: int, frame: np.ndarray, frame_regions: list, unit: float, integer: bool,
+    def _check_regions(self, f: int, frame: np.ndarray, frame_regions: list, unit: float, voxel_data: bool,
                        tree: cKDTree) -> None:
         """Refuse regions farther from ``frame`` than their size plus one cube and two point spacings
         (`holes.regions.check_regions_near`), and regions that cover every point.
@@ -875,7 +877,7 @@ class _CubeGraphInpainting(InpaintingMethod):
         The spacings: a hole's centre lies within its size plus the sampling gap around it of the points left,
         and on a frame sparser than the cube (a few hundred points) that gap is longer than a cube.
         """
-        if integer:
+        if voxel_data:
             spacing = 1.0
         elif len(frame) >= 9:
             spacing = point_spacing(frame, tree=tree)
@@ -1164,10 +1166,11 @@ class TemporalGraph(_CubeGraphInpainting):
 
     name = "temporal-graph"
     summary = "temporal graph inpainting (Fu, Hu, Guo ICME 2020): intra- and inter-frame source cubes on a graph"
-    version = "9"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
+    version = "10"  # 2: link_radius in point spacings; 3: off_surface; 4: variants and switches, free-mode fix;
     # 5: ICP pairs independent of the CPU; 6: paper variant known points fixed + snap (variant literal added);
     # 7: colours solved on the cube's graph (`cube_colours`; the geometry unchanged); 8: the generic harmonic colour
-    # fill without temporal terms (beta = 0, one frame); 9: ICP's stopping test in the data's unit (CHANGELOG)
+    # fill without temporal terms (beta = 0, one frame); 9: ICP's stopping test in the data's unit; 10: integer data
+    # sparser than a voxelization is not voxelized (CHANGELOG)
     uses_neighbour_frames = True
     _temporal = True
 
@@ -1219,10 +1222,11 @@ class FuNonlocal(_CubeGraphInpainting):
 
     name = "fu-nonlocal"
     summary = "non-local graph inpainting of each frame (Hu, Fu, Guo TIP 2019): temporal-graph with beta = 0"
-    version = "7"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
+    version = "8"  # 2: variants and switches, free-mode fix; 3: ICP pairs independent of the CPU;
     # 4: paper variant known points fixed + snap (variant literal added); 5: colours solved on the cube's graph
     # 6: without temporal terms the generic harmonic colour fill (the cube-by-cube solve measured worse);
-    # 7: ICP's stopping test in the data's unit (CHANGELOG)
+    # 7: ICP's stopping test in the data's unit; 8: integer data sparser than a voxelization is not voxelized
+    # (CHANGELOG)
     uses_neighbour_frames = False
     _temporal = False
     # not parameters: the temporal terms are off by definition, so there is no temporal evidence

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dpcbench.metrics.errors import UserError
+from dpcbench.metrics.grid import is_integer_grid
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
@@ -143,6 +144,25 @@ def point_spacing(points: np.ndarray, tree: cKDTree | None = None, sample: int =
     if not spacing > 0:
         raise UserError("the points are (almost all) duplicates: cannot estimate a point spacing")
     return spacing
+
+
+#: the most a voxelized capture's point spacing (`point_spacing`, in voxels) may be: a voxelization holds every
+#: voxel its surface crosses (spacing 1, as on every integer sequence at hand), a surface sampled every second voxel
+#: has spacing 2, and integer data sparser than midway between them is a capture whose coordinates were rounded (a
+#: scan in whole millimetres), not a voxelization
+VOXELIZED_SPACING_MAX = 1.5
+
+
+def is_voxelization(frames, tree: cKDTree | None = None) -> bool:
+    """Whether a sequence of frames (each (N_f, 3)) is a voxelization: every coordinate of every frame an integer
+    (`grid.is_integer_grid`) and the largest frame's `point_spacing` at most `VOXELIZED_SPACING_MAX` voxels (a
+    largest frame of under 9 points: its coordinates alone decide). ``tree``: a cKDTree of the largest frame to
+    reuse. The spacing is measured only on integer data."""
+    frames = [np.asarray(frame) for frame in frames]
+    if not frames or not all(is_integer_grid(frame) for frame in frames):
+        return False
+    largest = max(frames, key=len)
+    return len(largest) < 9 or point_spacing(largest, tree=tree) <= VOXELIZED_SPACING_MAX
 
 
 def median_neighbour_distance(points: np.ndarray, sample: int | None = 20000, tree: cKDTree | None = None,

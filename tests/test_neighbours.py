@@ -5,7 +5,13 @@ import pytest
 from scipy.spatial import cKDTree
 
 from dpcbench.bench.core.errors import UserError
-from dpcbench.metrics.neighbours import estimate_normals, median_neighbour_distance, point_spacing, probe
+from dpcbench.metrics.neighbours import (
+    estimate_normals,
+    is_voxelization,
+    median_neighbour_distance,
+    point_spacing,
+    probe,
+)
 
 
 def _sphere(n: int, seed: int = 0) -> np.ndarray:
@@ -62,6 +68,18 @@ def test_point_spacing_is_one_on_a_unit_grid_and_scales():
         point_spacing(_grid(2))
     with pytest.raises(UserError, match="duplicates"):
         point_spacing(np.zeros((50, 3)))
+
+
+def test_a_voxelization_is_integer_coordinates_about_one_voxel_apart():
+    assert is_voxelization([_grid(40), _grid(30)])  # spacing 1 (the largest frame's)
+    assert is_voxelization([_grid(40, 1.0) * [1, 1, 0] + [0, 0, 5]])
+    assert not is_voxelization([_grid(40, 2.0)])  # integer, spacing 2: a sampling every second voxel
+    assert is_voxelization([_grid(40), _grid(10, 3.0)[:, [2, 0, 1]] + [7, 0, 0]])  # the largest frame decides
+    # if every frame is on the grid: a frame off it makes the sequence unvoxelized
+    assert not is_voxelization([_grid(40), _grid(40) + 0.5])
+    assert not is_voxelization([_grid(40) + 0.25])
+    assert is_voxelization([_grid(2, 7.0)])  # under 9 points: the coordinates alone
+    assert not is_voxelization([])
 
 
 def test_median_neighbour_distance_grid_and_duplicates():

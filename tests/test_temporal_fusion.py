@@ -1907,9 +1907,8 @@ def test_integer_coordinates_sparser_than_a_voxelization_are_filled_at_their_own
     snapped to the grid at one point per unit) the method adds several times the missing points and D2 falls below
     leaving the holes open; at its own spacing it adds fewer points than are missing, and D1 and D2 beat no fill."""
     from dpcbench.methods.registry import get_method
-    from dpcbench.methods.temporal_fusion.method import VOXELIZED_SPACING_MAX
     from dpcbench.metrics import score_frame
-    from dpcbench.metrics.neighbours import point_spacing
+    from dpcbench.metrics.neighbours import VOXELIZED_SPACING_MAX, point_spacing
     from dpcbench.testing import bumpy_sphere
 
     truth = [np.unique(np.floor(bumpy_sphere(20000, f) * 2.0 + 0.5), axis=0) for f in range(2)]

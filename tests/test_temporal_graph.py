@@ -407,6 +407,23 @@ def test_a_hole_in_a_frame_sparser_than_the_cube_is_not_refused(method):
         method().inpaint([damaged, damaged.copy()], [hole, [HoleRegion.ball([500.0, 500.0, 500.0], 5.0)]])
 
 
+@pytest.mark.parametrize("method", [FuNonlocal, TemporalGraph])
+def test_integer_coordinates_sparser_than_a_voxelization_are_treated_as_unrounded(method):
+    # a plane sampled every 3 grid units: integer coordinates, no voxelization (metrics.neighbours.is_voxelization).
+    # Taken for one (unit 1, a new point per voxel) the method laid 108 points into a hole missing 21; it must do
+    # what it does on the same samples a quarter unit off the grid
+    grid = np.stack(np.meshgrid(np.arange(40.0), np.arange(40.0), indexing="ij"), -1).reshape(-1, 2) * 3
+    frame = np.c_[grid, np.zeros(len(grid))]
+    hole = HoleRegion.ball([60.0, 60.0, 0.0], 7.0)
+    damaged = frame[~hole.contains(frame)]
+    added = {}
+    for offset in (0.0, 0.25):
+        moved = HoleRegion.ball([60.0 + offset, 60.0 + offset, offset], 7.0)
+        out = method().inpaint([damaged + offset, damaged + offset], [[moved], [moved]])
+        added[offset] = [len(o) - len(damaged) for o in out]
+    assert added[0.0] == added[0.25] and max(added[0.0]) <= len(frame) - len(damaged)
+
+
 def test_bad_inputs_are_refused():
     damaged, hole, _ = plane_sequence()
     with pytest.raises(ValueError, match="zero points"):
@@ -439,11 +456,11 @@ def test_temporal_links_are_measured_in_point_spacings():
     # a float plane sampled every 3 units, 1023 units wide: the cube unit is 1, the spacing 3
     grid = np.stack(np.meshgrid(np.arange(0, 1024, 3.0), np.arange(0, 1024, 3.0), indexing="ij"), -1).reshape(-1, 2)
     plane = np.column_stack([grid + 0.25, np.full(len(grid), 0.5)])
-    assert method._link_distance(plane, cKDTree(plane), 1.0, integer=False) == pytest.approx(2.5 * 3.0, rel=0.01)
+    assert method._link_distance(plane, cKDTree(plane), 1.0, voxel_data=False) == pytest.approx(2.5 * 3.0, rel=0.01)
     # the unit bounds it from below (a sampling finer than the unit), and voxels are one spacing
-    assert method._link_distance(plane, cKDTree(plane), 10.0, integer=False) == pytest.approx(25.0)
+    assert method._link_distance(plane, cKDTree(plane), 10.0, voxel_data=False) == pytest.approx(25.0)
     voxels = voxel_plane()
-    assert method._link_distance(voxels, cKDTree(voxels), 1.0, integer=True) == pytest.approx(2.5)
+    assert method._link_distance(voxels, cKDTree(voxels), 1.0, voxel_data=True) == pytest.approx(2.5)
 
 
 def test_a_gap_in_the_neighbour_does_not_contradict_a_row_on_its_surface():

@@ -7,7 +7,7 @@ sit on the surface and stay put from frame to frame. docs/temporal-fusion.md has
 step and switch, with its measurement.
 
 Units: lengths in point spacings s (`metrics.neighbours.point_spacing` of the largest frame; 1 on voxelized data:
-integer coordinates at a spacing of at most 1.5 voxels, `method.VOXELIZED_SPACING_MAX`)
+integer coordinates at a spacing of at most 1.5 voxels, `metrics.neighbours.is_voxelization`)
 or hole radii r (a region's bounding radius); time in frames.
 
 Frames are processed in order (reuse takes frame f-1's result), then from the last to the first for the holes

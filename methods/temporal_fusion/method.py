@@ -33,8 +33,7 @@ from dpcbench.methods.temporal_fusion.settle import (
 )
 from dpcbench.methods.temporal_fusion.spatial import spatial_fill
 from dpcbench.methods.temporal_fusion.voxels import rows_in, snap_to_voxels
-from dpcbench.metrics.neighbours import point_spacing
-from dpcbench.metrics.pairs import on_integer_grid
+from dpcbench.metrics.neighbours import is_voxelization, point_spacing
 
 
 def fill_region(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegion, previous_fill: np.ndarray,
@@ -275,26 +274,17 @@ class TemporalFusion(InpaintingMethod):
         return outputs, (out_colours if colours is not None else None)
 
 
-#: the most a voxelized capture's point spacing (`point_spacing`, in voxels) may be: a voxelization holds every
-#: voxel its surface crosses (spacing 1, as on every integer sequence at hand), a surface sampled every second voxel
-#: has spacing 2, and integer data sparser than midway between them is a capture whose coordinates were rounded (a
-#: scan in whole millimetres), not a voxelization: its own spacing is the unit and the output is not voxelized
-VOXELIZED_SPACING_MAX = 1.5
 
 
 def _sequence(cfg: FusionConfig, frames, regions, tree_of, colours=None) -> SequenceData:
     """The `SequenceData` of a run: the spacing s of the largest frame (1 on voxelized data: integer coordinates
-    and a spacing of at most `VOXELIZED_SPACING_MAX` voxels), the spatial fill's grid step (1 / sqrt(areal
+    and a spacing of at most 1.5 voxels, `metrics.neighbours.is_voxelization`), the spatial fill's grid step (1 / sqrt(areal
     density) on unvoxelized data, so a square grid has the frame's density), the fit sizes, and the frames'
     colours as float64 (None without colour)."""
     largest = max(range(len(frames)), key=lambda g: len(frames[g]))
-    integer = all(on_integer_grid(frame) for frame in frames)
-    # (a frame too small to measure a spacing keeps the grid's: 1)
-    measured = point_spacing(frames[largest], tree=tree_of(largest)) \
-        if not integer or len(frames[largest]) >= 9 else 1.0
-    voxel_data = integer and measured <= VOXELIZED_SPACING_MAX
+    voxel_data = is_voxelization(frames, tree_of(largest))
     voxelized = cfg.snap is True or (cfg.snap == "auto" and voxel_data)
-    spacing = 1.0 if voxel_data else measured
+    spacing = 1.0 if voxel_data else point_spacing(frames[largest], tree=tree_of(largest))
     step = spacing if voxel_data else sampling_step(frames[largest])
     return SequenceData(frames, regions, tree_of, spacing, step, voxelized, cfg.fit_neighbours(voxelized),
                         cfg.fit_neighbours(False),
