@@ -72,8 +72,8 @@ output and f+1 the damaged input (the paper's commented text: results feed later
    plane of its 8 nearest points there): a gap in a neighbour, e.g. in an inpainted f-1's own
    fill, is no evidence against a point on the surface continued.
 10. Voxelized input (integer coordinates about one voxel apart, `metrics.neighbours.is_voxelization`) [snap]: the
-   new points are turned into the grid voxels of the surface they sample (`voxelize_fill`: voxels within half a voxel of the local tangent plane),
-   minus voxels already occupied.
+   new points are turned into the grid voxels of the surface they sample (`voxelize_fill`: voxels within half a
+   voxel of the local tangent plane), minus voxels already occupied.
 
 Colour (``inpaint_with_colours``, fill "auto"; the paper's future work, "attribute inpainting"): colour is a
 further signal on each target cube's graph (`cube_colours`). The same Eq. (5)-(6) system as the positions (the
@@ -370,10 +370,10 @@ def cube_unit(frame: np.ndarray, tree: cKDTree | None, spacing: float | str | No
               name: str) -> float:
     """The unit u (coordinates) of every length parameter, from the largest ``frame`` (N, 3).
 
-    spacing="points": the median point spacing (`holes.geometry.point_spacing`); a number: that
+    spacing="points": the median point spacing (`metrics.neighbours.point_spacing`); a number: that
     number; None: 1 on voxelized data (``voxel_data``: `metrics.neighbours.is_voxelization`), else 1/1024 of the
-    largest bounding-box side
-    (the paper sets M "according to the coordinate range of P_f": M = 20 on a body 1023 units tall).
+    largest bounding-box side (the paper sets M "according to the coordinate range of P_f": M = 20 on a body 1023
+    units tall).
     """
     if spacing == "points":
         return point_spacing(frame, tree=tree)

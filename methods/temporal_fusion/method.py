@@ -274,11 +274,9 @@ class TemporalFusion(InpaintingMethod):
         return outputs, (out_colours if colours is not None else None)
 
 
-
-
 def _sequence(cfg: FusionConfig, frames, regions, tree_of, colours=None) -> SequenceData:
     """The `SequenceData` of a run: the spacing s of the largest frame (1 on voxelized data: integer coordinates
-    and a spacing of at most 1.5 voxels, `metrics.neighbours.is_voxelization`), the spatial fill's grid step (1 / sqrt(areal
+    about one voxel apart, `metrics.neighbours.is_voxelization`), the spatial fill's grid step (1 / sqrt(areal
     density) on unvoxelized data, so a square grid has the frame's density), the fit sizes, and the frames'
     colours as float64 (None without colour)."""
     largest = max(range(len(frames)), key=lambda g: len(frames[g]))
