@@ -115,12 +115,18 @@ def _clusters(groups, n: int) -> np.ndarray | None:
     same as resampling pairs)."""
     if groups is None:
         return None
+    which = _damage_index(groups, n)
+    damages = int(which.max()) + 1
+    return which if 1 < damages < n else None
+
+
+def _damage_index(groups, n: int) -> np.ndarray:
+    """Each value's damage index (n,), 0..G-1 in order of first appearance, from its labels ``groups`` (n,)."""
     labels = list(groups)
     if len(labels) != n:
         raise ValueError(f"groups has {len(labels)} labels for {n} values")
     index: dict = {}
-    which = np.array([index.setdefault(label, len(index)) for label in labels])
-    return which if 1 < len(index) < n else None
+    return np.array([index.setdefault(label, len(index)) for label in labels])
 
 
 def cluster_bootstrap(values: list[np.ndarray], which: np.ndarray, n_resamples: int, seed: int, statistic):
@@ -175,13 +181,8 @@ def mean_interval(values, confidence: float = CONFIDENCE, groups=None) -> tuple[
     if len(v) < 2:
         return (math.nan, math.nan)
     m = float(v.mean())
-    which = None
-    if groups is not None:
-        labels = list(groups)
-        if len(labels) != len(finite):
-            raise ValueError(f"groups has {len(labels)} labels for {len(finite)} values")
-        index: dict = {}
-        which = np.array([index.setdefault(label, len(index)) for label, keep in zip(labels, finite) if keep])
+    # the damages that keep a finite value, renumbered 0..G-1
+    which = None if groups is None else np.unique(_damage_index(groups, len(finite))[finite], return_inverse=True)[1]
     if which is not None and which.max() >= 1:
         damages = int(which.max()) + 1
         residual_sums = np.bincount(which, weights=v - m, minlength=damages)
