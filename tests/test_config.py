@@ -125,6 +125,18 @@ def test_method_version_and_data_change_ids(seq_dir, monkeypatch):
     assert set(_ids(base)).isdisjoint(ids)
 
 
+def test_a_coarser_voxel_grid_is_other_data_with_its_own_ids(seq_dir):
+    """``voxel_size`` on PLY frames is part of the sequence's identity; 1 is the frames as they are, written or not
+    (a grid axis of both gives two sets of runs)."""
+    base = _config(seq_dir)
+    coarse = copy.deepcopy(base)
+    coarse["sequences"][0]["params"] = {"voxel_size": 2}
+    assert set(_ids(coarse)).isdisjoint(_ids(base))
+    grid = copy.deepcopy(base)
+    grid["sequences"][0]["params"] = {"voxel_size": [1, 2]}
+    assert len(_ids(grid)) == 2 * len(_ids(base))
+
+
 def test_data_is_identified_by_content_not_by_place_or_mtime(seq_dir, tmp_path, monkeypatch):
     """Touched data and a copy of it elsewhere keep their run ids; the same size with other bytes does not."""
     import os
@@ -183,6 +195,8 @@ def test_file_digest_is_cached_by_path_size_and_mtime(tmp_path, monkeypatch):
     (lambda c: c["sequences"][0].update(frames=[0, 5, 2]), "sequences[0].frames: asks for 5 frames"),
     (lambda c: c["sequences"][0].update(path="/does/not/exist"), "sequences[0].path"),
     (lambda c: c["sequences"][0].update(colour=1), "sequences[0].colour: unknown key"),
+    (lambda c: c["sequences"][0].update(params={"size": "tiny"}), "sequences[0].params: unknown parameter(s) size"),
+    (lambda c: c["sequences"][0].update(params={"voxel_size": 0}), "sequences[0].params: voxel_size must be"),
     (lambda c: c["experiment"].pop("name"), "experiment.name: missing"),
     (lambda c: c.pop("methods"), "methods: missing"),
     (lambda c: c["methods"][0]["params"].update(shift=[]), "methods[0].params.shift: an empty list"),

@@ -129,7 +129,7 @@ def test_user_folder_frames_and_params(tmp_path):
     assert len(load_dataset(str(tmp_path / "seq" / "*.ply"))) == 4
     with pytest.raises(UserError, match="has 4 frames"):
         load_dataset(tmp_path / "seq", frames=[7])
-    with pytest.raises(UserError, match="apply only to the embedded"):
+    with pytest.raises(UserError, match="unknown parameter.*size of PLY frames; they take only voxel_size"):
         load_dataset(tmp_path / "seq", size="tiny")
 
 

@@ -9,7 +9,7 @@ import dpcbench.bench.data.datasets as datasets
 from dpcbench.bench.core.errors import UserError
 from dpcbench.bench.data.datasets import load_dataset, load_run_sequence, resolve_source
 from dpcbench.bench.data.plyio import PointCloud, write_ply
-from dpcbench.bench.data.sequences import Sequence
+from dpcbench.bench.data.sequences import Sequence, coarsen_voxels
 from dpcbench.bench.data.sources import SequenceSource, frame_indices
 from dpcbench.bench.data.sources.embedded import EmbeddedSource
 from dpcbench.bench.data.sources.meshes import MeshDatasetSource, MeshFolderSource
@@ -67,7 +67,7 @@ def test_sources_load_the_frames_asked_for(tmp_path):
     seq = resolve_source(plys).load([3, 1], progress=False)
     assert isinstance(seq, Sequence) and [p.name for p in seq.files] == ["f_3.ply", "f_1.ply"]
     np.testing.assert_array_equal(seq.frames[0].points, load_dataset(plys, frames=[3]).frames[0].points)
-    with pytest.raises(UserError, match="parameters .*size.* apply only"):
+    with pytest.raises(UserError, match="unknown parameter.*size of PLY frames"):
         resolve_source(plys).load(size="tiny")
     with pytest.raises(UserError, match="frame 9 requested but the sequence has 4 frames"):
         resolve_source(plys).load([9])
@@ -106,3 +106,44 @@ def test_a_new_source_is_one_subclass():
     assert len(seq) == 2 and seq.frames[1].points[0, 2] == 2.0
     with pytest.raises(UserError, match="frame indices must be >= 0"):
         Spiral("spiral").load([-1])
+
+
+def _coarsened_by_hand(points, colors, size):
+    """`coarsen_voxels` spelled out: a dict from voxel to the colours that fall into it."""
+    cells: dict[tuple, list] = {}
+    for point, colour in zip(points, colors):
+        cells.setdefault(tuple(int(c) // size for c in point), []).append(colour)
+    keys = sorted(cells)
+    means = [np.rint(np.mean(np.asarray(cells[k], dtype=np.float64), axis=0)) for k in keys]
+    return np.asarray(keys, dtype=np.float64), np.asarray(means, dtype=np.uint8)
+
+
+def test_a_voxelized_frame_re_voxelized_on_a_coarser_grid_is_the_rule_spelled_out(tmp_path):
+    rng = np.random.default_rng(3)
+    points = rng.integers(0, 64, size=(2_000, 3)).astype(np.float64)  # many voxels of 2 and 4 hold several points
+    colors = rng.integers(0, 256, size=(2_000, 3)).astype(np.uint8)
+    normals = rng.normal(size=(2_000, 3))
+    write_ply(tmp_path / "plys" / "f_0.ply", PointCloud(points, colors, normals))
+    for size in (2, 4, 5):
+        seq = load_dataset(tmp_path / "plys", voxel_size=size)
+        expected_points, expected_colors = _coarsened_by_hand(points, colors, size)
+        frame = seq.frames[0]
+        np.testing.assert_array_equal(frame.points, expected_points)
+        np.testing.assert_array_equal(frame.colors, expected_colors)
+        assert frame.normals is None and seq.meta["voxel_size"] == size
+        assert seq.bit_depth == int(np.ceil(np.log2(expected_points.max() + 1)))
+    same = load_dataset(tmp_path / "plys", voxel_size=1).frames[0]
+    np.testing.assert_array_equal(same.points, points)
+    # two halvings are one quartering (the points; a mean of means is not the mean)
+    twice = coarsen_voxels(coarsen_voxels(PointCloud(points, colors), 2), 2)
+    np.testing.assert_array_equal(twice.points, load_dataset(tmp_path / "plys", voxel_size=4).frames[0].points)
+
+
+def test_only_voxelized_frames_take_a_coarser_grid(tmp_path):
+    write_ply(tmp_path / "floats" / "f_0.ply", PointCloud(np.random.default_rng(0).normal(size=(50, 3))))
+    with pytest.raises(UserError, match="re-voxelizes voxelized frames.*leave voxel_size out"):
+        load_dataset(tmp_path / "floats", voxel_size=2)
+    plys = _ply_folder(tmp_path / "plys")
+    for bad in (0, 1.5, True, "2"):
+        with pytest.raises(UserError, match="voxel_size must be an integer >= 1"):
+            resolve_source(plys).load(voxel_size=bad)

@@ -34,7 +34,9 @@ def add_input_options(parser) -> None:
                         help="frames to use: a count (10), a list (0,5,9) or a range (0-9); default all")
     parser.add_argument("--data-dir", default=None, help="folder holding the paper sequences")
     parser.add_argument("--dataset-param", action="append", metavar="KEY=VALUE",
-                        help="parameter of an embedded dataset (repeatable), e.g. --dataset-param size=tiny")
+                        help="parameter of the input (repeatable): an embedded dataset's (--dataset-param size=tiny), "
+                             "a mesh sequence's sampling, or voxel_size for PLY frames (re-voxelize coarser: 2 makes "
+                             "10-bit frames 9-bit)")
 
 
 def resolve_store(text: str) -> Path:

@@ -198,8 +198,8 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
     `resolve_source` then its ``load`` (see the module doc).
 
     ``params`` go to the embedded generator (e.g. ``size="tiny"``, ``motion="dance"``, ``bit_depth=9``,
-    ``seed=1``, ``cache=False``) or to the mesh sampling; they are refused for point cloud files and
-    the paper's sequences.
+    ``seed=1``, ``cache=False``) or to the mesh sampling; PLY frames (a folder, the paper's sequences) take
+    only ``voxel_size`` (`bench.data.sequences.coarsened`).
     """
     source = resolve_source(name_or_path, data_dir, name_only=name_only)
     if source.kind == "embedded" and frames is not None:
@@ -207,10 +207,6 @@ def load_dataset(name_or_path: str | os.PathLike, frames=None, data_dir=None, *,
         if top > MAX_STANDIN_FRAMES:
             raise UserError(f"{name_or_path}: {top} frames asked of an embedded stand-in; it generates at most "
                             f"{MAX_STANDIN_FRAMES} (each frame is computed): ask for fewer frames")
-    if params and source.kind in ("paper", "points"):
-        raise UserError(f"{name_or_path}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
-                        f"sequences ({', '.join(EMBEDDED)}) and to mesh sequences ({', '.join(MESHES)}, or a folder "
-                        "of OBJ/OFF/PLY meshes)")
     return source.load(frames, progress=progress, **params)
 
 

@@ -23,7 +23,8 @@ grids), and the metrics with their options::
     name = "human"                  # an embedded, paper or mesh (samba) dataset name (bench.data.datasets), or ...
     # path = "/data/longdress/Ply"  # ... a folder of PLY frames (or of OBJ/OFF/PLY meshes, sampled
                                     # with params such as points, bit_depth: bench.data.meshseq)
-    params = { size = "small" }     # passed to bench.data.datasets.load_dataset
+    params = { size = "small" }     # passed to bench.data.datasets.load_dataset; PLY frames (a path, a
+                                    # paper sequence) take only voxel_size (re-voxelize on a coarser grid)
     frames = 4                      # the first N frames, or [start, stop) as [0, 8], or every step-th
                                     # frame of [start, stop) as [0, 16, 2] (a lower frame rate)
     label = "Human (stand-in)"      # how reports name it (default: name)
@@ -268,9 +269,8 @@ def _check_dataset_params(name: str, params: dict, where: str) -> None:
     if name.lower() in MESHES:  # mesh sampling parameters are checked by the mesh loader
         return
     info = EMBEDDED.get(name.lower())
-    if info is None:
-        if params:
-            raise ConfigError(f"{where}: the paper sequence {name} takes no parameters, got {', '.join(params)}")
+    if info is None:  # a paper sequence: PLY frames
+        _check_voxel_size(params, where)
         return
     known = info.parameters()
     extra = sorted(set(params) - set(known) - {"cache"})
@@ -280,6 +280,16 @@ def _check_dataset_params(name: str, params: dict, where: str) -> None:
         check_param_types(info.generator().generate_frame, {k: v for k, v in params.items() if k != "cache"}, name)
     except UserError as err:
         raise ConfigError(f"{where}: {err}") from None
+
+
+def _check_voxel_size(params: dict, where: str) -> None:
+    """The parameters of PLY frames (a paper sequence, a folder): only ``voxel_size``, an integer >= 1."""
+    from dpcbench.bench.data.sources import voxel_size_of
+
+    try:
+        voxel_size_of(where, params)
+    except UserError as err:
+        raise ConfigError(str(err)) from None
 
 
 def _unknown_keys(table: dict, allowed: set, where: str) -> None:
@@ -332,6 +342,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         mesh_files = list_mesh_files(path)
         if mesh_files is not None:
             return _mesh_fingerprint(mesh_files, sequence)
+        _check_voxel_size(sequence.get("params", {}), f"{where}.params")
         fingerprint = _folder_fingerprint(path if path.is_dir() else path.parent)
         frames = sequence.get("frames")
         wanted = frames if isinstance(frames, int) else (max(range(*frames)) + 1 if isinstance(frames, list) else 0)

@@ -6,8 +6,8 @@ A **source** is an object with a ``name`` (how reports label it), a ``kind`` and
 
 ``frames``: None (all; an embedded sequence: its ``default_frames``), a count N (the first N), or an
 iterable of frame indices (0 = the first frame of the sequence). ``params`` are the source's own
-parameters (a generator's size and motion, a mesh sampling's points and bit depth); a source without
-parameters refuses them with a message that says which sources take them.
+parameters (a generator's size and motion, a mesh sampling's points and bit depth; PLY frames take only
+``voxel_size``, `voxel_size_of`); a source refuses the ones it does not take with a message naming those it does.
 
 The kinds, one file each:
 
@@ -54,12 +54,21 @@ class SequenceSource:
         return f"{type(self).__name__}({self.name!r})"
 
 
-def refuse_params(what: str, params: dict) -> None:
-    """The error for parameters given to a source that takes none."""
-    if params:
-        raise UserError(f"{what}: parameters ({', '.join(sorted(params))}) apply only to the embedded "
-                        "sequences and to mesh sequences (a registered one, or a folder of OBJ/OFF/PLY meshes); "
-                        "`dpcbench list datasets` names them")
+#: the one parameter of point cloud frames read from disk (a user's folder, the paper's sequences)
+VOXEL_SIZE = "voxel_size"
+
+
+def voxel_size_of(what: str, params: dict) -> int:
+    """The ``voxel_size`` of a source of PLY frames (`bench.data.sequences.coarsened`; 1 when not given);
+    UserError for any other parameter or a value that is not an integer >= 1."""
+    unknown = sorted(set(params) - {VOXEL_SIZE})
+    if unknown:
+        raise UserError(f"{what}: unknown parameter(s) {', '.join(unknown)} of PLY frames; they take only "
+                        f"{VOXEL_SIZE} (an integer >= 1: re-voxelize on a grid that many voxels coarser)")
+    size = params.get(VOXEL_SIZE, 1)
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+        raise UserError(f"{what}: {VOXEL_SIZE} must be an integer >= 1 (2 makes 10-bit frames 9-bit), got {size!r}")
+    return int(size)
 
 
 @overload

@@ -8,13 +8,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dpcbench.bench.core.errors import UserError
-from dpcbench.bench.data.sequences import Sequence, list_frame_files, load_sequence
+from dpcbench.bench.data.sequences import Sequence, coarsened, list_frame_files, load_sequence
 from dpcbench.bench.data.sources import (
     DATA_DIR_ENV,
     SequenceSource,
     data_dir_from,
     frame_indices,
-    refuse_params,
+    voxel_size_of,
 )
 
 
@@ -96,7 +96,7 @@ class PaperSource(SequenceSource):
     def load(self, frames=None, *, progress: bool = True, **params) -> Sequence:
         """Read the sequence from the local copy, checking the expected files first."""
         info = self.info
-        refuse_params(info.name, params)
+        voxel_size = voxel_size_of(info.name, params)
         root = data_dir_from(self.data_dir)
         if root is None:
             raise UserError(f"{info.title}: no data folder given. {where_to_get(info)}")
@@ -123,7 +123,7 @@ class PaperSource(SequenceSource):
             raise UserError(f"{info.title}: {folder} holds coordinates beyond {info.bit_depth} bits; is it the "
                             f"{info.bit_depth}-bit release?")
         seq.meta.update({"dataset": info.name, "source": info.source, "terms": info.terms, "folder": str(folder)})
-        return seq
+        return coarsened(seq, voxel_size)
 
 
 def find_single_frame(info: PaperDataset, data_dir: Path) -> Path | None:
