@@ -68,6 +68,28 @@ def test_generate_default_human_is_10_bit_and_large(tmp_path, capsys):
     assert frame.points.min() >= 0 and frame.points.max() <= 1023 and frame.colors is not None
 
 
+def test_generate_writes_ply_frames_re_voxelized_on_a_coarser_grid(tmp_path, capsys):
+    """`generate FOLDER --param voxel_size=2` writes the frames as `coarsen_voxels` makes them (the one thing to
+    make from PLY frames: without it the folder is refused, as before)."""
+    from dpcbench.bench.data.plyio import PointCloud, write_ply
+    from dpcbench.bench.data.sequences import coarsen_voxels
+
+    rng = np.random.default_rng(0)
+    frames = [PointCloud(rng.integers(0, 1024, size=(500, 3)).astype(np.float64),
+                         rng.integers(0, 256, size=(500, 3)).astype(np.uint8)) for _ in range(2)]
+    for i, frame in enumerate(frames):
+        write_ply(tmp_path / "vox10" / f"f_{i}.ply", frame)
+    code, out, _ = run_cli(["generate", tmp_path / "vox10", "--param", "voxel_size=2", "--out", tmp_path / "vox9"],
+                           capsys)
+    assert code == 0 and "wrote 2 frames" in out and "9-bit integer coordinates" in out
+    for frame, path in zip(frames, sorted((tmp_path / "vox9").glob("*.ply"))):
+        expected, written = coarsen_voxels(frame, 2), read_ply(path)
+        np.testing.assert_array_equal(written.points, expected.points)
+        np.testing.assert_array_equal(written.colors, expected.colors)
+    code, _, err = run_cli(["generate", tmp_path / "vox10", "--out", tmp_path / "copy"], capsys)
+    assert code == 2 and "voxel_size=K" in err and not (tmp_path / "copy").exists()
+
+
 def test_generate_info_render_round_trip(tmp_path, capsys):
     out_dir = tmp_path / "bunny"
     code, _, _ = run_cli(["generate", "bunny", "--frames", "3", "--out", out_dir, "--param", "size=tiny",
