@@ -174,6 +174,43 @@ def test_the_cascade_runs_in_order_and_stops_at_the_first_fill_it_trusts():
     assert len(spatial_fill(FusionConfig(fallback=False), seq, 0, region, crop, empty, 0, empty, False)[0]) == 0
 
 
+def test_the_spatial_surfaces_see_the_rim_within_the_surface_shell(monkeypatch):
+    """Stage spatial fits its surfaces to the rim within max(shell_factor r, surface_shell_spacings s) of R (at most the
+    crop's own rim) and holds out half that width; the crop, and so the alignments, keep the rim of `shell`."""
+    import dpcbench.methods.temporal_fusion.spatial as spatial
+
+    plane = voxel_plane() + np.array([0.25, 0.25, 0.0])
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 3.0)
+    kept = plane[~region.contains(plane)]
+    seen = []
+
+    class Record:
+        trust = "records what it is given"
+
+        @staticmethod
+        def applies(cfg, hole, state):
+            return True
+
+        @staticmethod
+        def fill(cfg, hole, state):
+            seen.append((hole.support, hole.ring))
+            return state
+
+    monkeypatch.setattr(spatial, "CASCADE", (Record,))
+    empty = np.zeros((0, 3))
+    for surface_spacings, width in ((4.0, 4.0), (2.0, 2.0), (1.0, 1.5), (9.0, 4.0)):
+        cfg = FusionConfig(surface_shell_spacings=surface_spacings)
+        assert cfg.surface_shell(region, 1.0) == width
+        seq = sequence([kept], [[region]], cfg, False, 1.0)
+        crop = crop_region(cfg, seq, 0, region)
+        assert crop.shell == 4.0  # max(0.5 r, shell_spacings s): the crop does not follow the surface shell
+        spatial.spatial_fill(cfg, seq, 0, region, crop, empty, 0, empty, False)
+        support, ring = seen.pop()
+        distance = np.linalg.norm(crop.local, axis=1)
+        np.testing.assert_array_equal(support, crop.local[distance <= 3.0 + width])  # brute force, same order
+        assert ring == width / 2
+
+
 def test_fill_region_returns_the_next_frame_s_motion_only_where_the_region_stayed_open():
     """A hole every spatial strategy is off for, in a frame whose next frame has the same hole (no source): the
     region stays open and its record carries f+1's motion for the back-fill; filled, it carries none."""

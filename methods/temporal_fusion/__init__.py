@@ -24,7 +24,8 @@ left open (back-fill takes frame f+1's). For frame f and each hole region R (giv
 5. `reuse`: frame f-1's fill moved by its motion where R is still open and the fill fits the rim; then the
    partial copies, through the agreement rule widened by their rim residual.
 6. `spatial`: where no frame saw all of R, an ordered cascade of fills on frame f's surface (spline, sheet, cap,
-   closed surface, membrane, front), each with its own trust test.
+   closed surface, membrane, front), each with its own trust test, fitted to the rim within max(0.5 r,
+   surface_shell_spacings s) of R (4 s: the crop's rim) and held out on half of it.
 7. `settle`: moved points onto the MLS surface (re-voxelized on voxelized input), no second layer over captured
    points in an occlusion box, one point per voxel.
 8. `back_fill`: once all frames are done, last to first, a hole left open takes frame f+1's fill moved back.

@@ -57,6 +57,9 @@ class FusionConfig:
                         "deform too much for a rim-driven correction", 0)
     shell_factor: float = _knob(0.5, "number", "rim width in hole radii: wide enough to fix a rotation", 0)
     shell_spacings: float = _knob(4.0, "number", "least rim width in spacings: a few rows of samples", 0, True)
+    surface_shell_spacings: float = _knob(4.0, "number", "least width of the rim the spatial surfaces are fitted to "
+                                          "and held out on (at most the rim's own): the rim's floor; 2 gained only on "
+                                          "one frame of a coarse capture (docs, 'Held-out sizes')", 0, True)
     icp_iterations: int = _knob(30, "int", "ICP iterations a call (open3d stops earlier at convergence)", 0)
     accept_spacings: float = _knob(1.0, "number", "rim residual bound: two samplings of one surface lie about "
                                    "half a spacing apart, a wrong match a spacing or more", 0, True)
@@ -116,6 +119,12 @@ class FusionConfig:
     def shell(self, region: HoleRegion, spacing: float) -> float:
         """The rim width: max(shell_factor r, shell_spacings s)."""
         return max(self.shell_factor * region.bounding_radius, self.shell_spacings * spacing)
+
+    def surface_shell(self, region: HoleRegion, spacing: float) -> float:
+        """The width of the rim the spatial surfaces see: max(shell_factor r, surface_shell_spacings s), at most
+        the rim's own (`shell`)."""
+        return min(self.shell(region, spacing),
+                   max(self.shell_factor * region.bounding_radius, self.surface_shell_spacings * spacing))
 
     def fit_neighbours(self, voxelized: bool) -> int:
         """``mls_neighbours`` resolved: "auto" is `VOXEL_FIT_NEIGHBOURS` for voxel decisions on voxelized input

@@ -155,7 +155,7 @@ class TemporalFusion(InpaintingMethod):
     detects_holes = True
 
     def __init__(self, window: int = 3, shell_factor: float = 0.5, shell_spacings: float = 4.0,
-                 icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
+                 surface_shell_spacings: float = 4.0, icp_iterations: int = 30, accept_spacings: float = 1.0, refine: bool = True, deform: bool = True,
                  deform_neighbours: int = 32, gap_spacings: float = 0.5, fill_gap_spacings: float = 1.0,
                  reuse_previous: bool = True, fallback: bool = True, surface_holdout_spacings: float = 1.0,
                  mls_neighbours: int | str = "auto", rim_fill: bool = True, poisson: bool = True,
@@ -169,6 +169,7 @@ class TemporalFusion(InpaintingMethod):
         self.window = window
         self.shell_factor = shell_factor
         self.shell_spacings = shell_spacings
+        self.surface_shell_spacings = surface_shell_spacings
         self.icp_iterations = icp_iterations
         self.accept_spacings = accept_spacings
         self.refine = refine

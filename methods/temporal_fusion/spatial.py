@@ -51,8 +51,9 @@ from dpcbench.methods.temporal_fusion.settle import keeps_captured
 @dataclass(frozen=True)
 class Opening:
     """What the cascade fills: ``region`` R with frame f's `Crop`, the points accepted so far (copies and reused
-    fill, ``copied`` of them copies), the partial copies ``seen``, the spline's ``support`` (the rim and the
-    copies), and whether R keeps captured points inside (``in_box``: an occlusion box)."""
+    fill, ``copied`` of them copies), the partial copies ``seen``, the spline's ``support`` (the rim within
+    `FusionConfig.surface_shell` of R and the copies), the hold-out ``ring`` (half that width), and whether R keeps
+    captured points inside (``in_box``: an occlusion box)."""
 
     region: HoleRegion
     crop: Crop
@@ -60,6 +61,7 @@ class Opening:
     copied: int
     seen: np.ndarray
     support: np.ndarray
+    ring: float
     in_box: bool
     seq: SequenceData
 
@@ -80,7 +82,7 @@ class Cascade:
 def _surface(cfg: FusionConfig, hole: Opening, support: np.ndarray, covered: cKDTree) -> np.ndarray:
     seq = hole.seq
     return rim_surface_fill(support, hole.region, covered, seq.spacing, voxelized=seq.voxelized, step=seq.step,
-                            max_holdout_spacings=cfg.surface_holdout_spacings, ring=hole.crop.shell / 2,
+                            max_holdout_spacings=cfg.surface_holdout_spacings, ring=hole.ring,
                             gap_spacings=cfg.fill_gap_spacings)
 
 
@@ -106,7 +108,7 @@ class SheetSpline:
 
     @staticmethod
     def fill(cfg: FusionConfig, hole: Opening, state: Cascade) -> Cascade:
-        sheet = rim_sheet(hole.support, hole.region, hole.crop.shell / 2, hole.seq.spacing)
+        sheet = rim_sheet(hole.support, hole.region, hole.ring, hole.seq.spacing)
         if sheet is None:
             return state
         sheet_fill = _surface(cfg, hole, sheet, state.covered)
@@ -149,7 +151,7 @@ class ClosedSurface:
         seq = hole.seq
         spatial = poisson_surface_fill(np.vstack([hole.crop.local, hole.accepted]), hole.region, state.covered,
                                        seq.spacing, voxelized=seq.voxelized, step=seq.step,
-                                       gap_spacings=cfg.fill_gap_spacings, ring=hole.crop.shell / 2,
+                                       gap_spacings=cfg.fill_gap_spacings, ring=hole.ring,
                                        max_holdout_spacings=cfg.surface_holdout_spacings,
                                        separate_bodies=cfg.poisson_bodies, bridge_ends=cfg.poisson_bridges)
         return replace(state, spatial=spatial, poisson_fill=spatial)
@@ -228,11 +230,11 @@ class BestSurface:
         seq = hole.seq
         surfaces = candidates(hole.support, np.vstack([hole.crop.local, hole.accepted]), hole.region, seq.spacing,
                               voxelized=seq.voxelized, step=seq.step, gap_spacings=cfg.fill_gap_spacings,
-                              ring=hole.crop.shell / 2, sheet=cfg.sheet, closed=cfg.poisson)
+                              ring=hole.ring, sheet=cfg.sheet, closed=cfg.poisson)
         # the open part's error is measured to everything the output holds round it (the frame's points, the copies,
         # the reused fill, the partial copies), not to the captured points alone: in a persistent hole the reused fill
         # covers most of it
-        _, spatial = best_surface_fill(state.covered, hole.region, state.covered, surfaces, hole.crop.shell / 2,
+        _, spatial = best_surface_fill(state.covered, hole.region, state.covered, surfaces, hole.ring,
                                        seq.spacing)
         # built afresh in each frame, as the caps and membranes: its error is larger than the trusted fills', and
         # carried on by the next frame's reuse it would be carried into every later frame of a persistent hole
@@ -251,8 +253,10 @@ def spatial_fill(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegio
     if not cfg.fallback or full_copy:
         return np.zeros((0, 3)), ()
     covered = cKDTree(np.vstack([crop.local, accepted, seen])) if len(accepted) or len(seen) else crop.tree
-    support = np.vstack([crop.rim, accepted[:copied]]) if copied else crop.rim
-    hole = Opening(region, crop, accepted, copied, seen, support,
+    width = cfg.surface_shell(region, seq.spacing)
+    rim = crop.rim if width >= crop.shell else crop.rim[region.contains(crop.rim, margin=width)]
+    support = np.vstack([rim, accepted[:copied]]) if copied else rim
+    hole = Opening(region, crop, accepted, copied, seen, support, width / 2,
                    keeps_captured(seq.tree_of(f), seq.frames[f], region), seq)
     state = Cascade(np.zeros((0, 3)), covered, np.zeros((0, 3)), np.zeros((0, 3)))
     for strategy in CASCADE:
