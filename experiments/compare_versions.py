@@ -7,7 +7,7 @@ of output is judged against noise.
     dpcbench run experiments/speed-quality.toml --store q.sqlite --executor serial     # again at the new one
     .venv/bin/python experiments/compare_versions.py q.sqlite --method temporal-fusion --old 42 --new 43
 
-A row is a sequence and a kind of holes (all its seeds, every experiment of the store); "beyond noise" when the
+A row is a sequence and its holes, generator and parameters (all its seeds, every experiment of the store); "beyond noise" when the
 interval excludes 0, or with ``--decision-noise DB`` when it lies wholly beyond +-DB dB (D1 and D2; NSHD is judged
 against 0 still): the frames' spread does not hold the method's decision noise, and a paired interval over frames
 can exclude 0 for a change that moved only which thresholds a few points fell on
@@ -28,29 +28,38 @@ from dpcbench.bench.results.stats import paired
 METRICS = (("gpsnr_d1", "D1"), ("gpsnr_d2", "D2"), ("nshd", "NSHD"))
 
 
+def _holes(holes: str, params: str | None) -> str:
+    """A row's holes as the report names them: the generator and its parameters (small and medium region holes of
+    the same seeds are two rows, not one)."""
+    import json
+
+    values = json.loads(params) if params else {}
+    return f"{holes}" + (f" ({', '.join(f'{k}={v}' for k, v in sorted(values.items()))})" if values else "")
+
+
 def _values(connection, method: str, version: str | None) -> dict:
     """(sequence, holes) -> metric -> {(seed, frame): value} of the done runs of ``method`` (at ``version``)."""
-    query = ("select r.sequence, r.holes, r.seed, s.frame, s.metric, s.value from runs r "
+    query = ("select r.sequence, r.holes, r.holes_params, r.seed, s.frame, s.metric, s.value from runs r "
              "join results s on s.run_id = r.run_id where r.status = 'done' and r.method = ? and s.scope = 'frame'")
     args: list = [method]
     if version is not None:
         query += " and r.method_version = ?"
         args.append(version)
     out: dict = defaultdict(lambda: defaultdict(dict))
-    for sequence, holes, seed, frame, metric, value in connection.execute(query, args):
-        out[(sequence, holes)][metric][(seed, frame)] = value
+    for sequence, holes, params, seed, frame, metric, value in connection.execute(query, args):
+        out[(sequence, _holes(holes, params))][metric][(seed, frame)] = value
     return out
 
 
 def _frames_digest(connection, method: str, version: str) -> dict:
     """(sequence, holes) -> sha256 over the inpainted PLY files of every done run of the row (seeds in order),
     read from the run folders: equal digests mean the two versions wrote the same bytes."""
-    query = ("select sequence, holes, seed, output_dir from runs where status = 'done' and method = ? and "
-             "method_version = ? order by sequence, holes, seed")
+    query = ("select sequence, holes, holes_params, seed, output_dir from runs where status = 'done' and method = ? "
+             "and method_version = ? order by sequence, holes, holes_params, seed")
     digests: dict = defaultdict(hashlib.sha256)
-    for sequence, holes, _seed, folder in connection.execute(query, (method, version)):
+    for sequence, holes, params, _seed, folder in connection.execute(query, (method, version)):
         for path in sorted(Path(folder, "inpainted").glob("*.ply")):
-            digests[(sequence, holes)].update(hashlib.sha256(path.read_bytes()).digest())
+            digests[(sequence, _holes(holes, params))].update(hashlib.sha256(path.read_bytes()).digest())
     return {row: digest.hexdigest() for row, digest in digests.items()}
 
 

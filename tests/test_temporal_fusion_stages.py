@@ -211,6 +211,60 @@ def test_the_spatial_surfaces_see_the_rim_within_the_surface_shell(monkeypatch):
         assert ring == width / 2
 
 
+def test_the_last_resort_fills_what_a_lone_membrane_left_open_and_keeps_the_membrane(monkeypatch):
+    """Where every surface refused and the membrane, the first fill, spanned only part of R, the last resort still
+    runs: the membrane's points stay and the best candidate fills the rest of R, keeping its gap from them. Where
+    anything was filled before the membrane, it does not run (as before), nor with ``best_surface`` off."""
+    import dpcbench.methods.temporal_fusion.spatial as spatial
+
+    plane = voxel_plane() + np.array([0.25, 0.25, 0.0])
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 5.0)
+    kept = plane[~region.contains(plane)]
+    membrane = np.array([[4.0, 0.0, 0.0], [4.0, 1.0, 0.0], [3.0, 0.0, 0.0]])  # a few points at R's edge
+
+    class LoneMembrane:  # the surfaces all refused; the membrane spans three points
+        trust = "test"
+
+        @staticmethod
+        def applies(cfg, hole, state):
+            return True
+
+        @staticmethod
+        def fill(cfg, hole, state):  # as `Membrane.fill` records it
+            alone = membrane if not len(state.spatial) else state.membrane_alone
+            return spatial.replace(state, spatial=np.vstack([state.spatial, membrane]), membrane_alone=alone)
+
+    class OnePoint:  # a fill before the membrane
+        trust = "test"
+
+        @staticmethod
+        def applies(cfg, hole, state):
+            return True
+
+        @staticmethod
+        def fill(cfg, hole, state):
+            return spatial.replace(state, spatial=np.array([[-4.0, 0.0, 0.0]]))
+
+    cfg = FusionConfig()
+    seq = sequence([kept], [[region]], cfg, False, 1.0)
+    crop = crop_region(cfg, seq, 0, region)
+    empty = np.zeros((0, 3))
+    monkeypatch.setattr(spatial, "CASCADE", (LoneMembrane, spatial.BestSurface))
+    fill, _ = spatial.spatial_fill(cfg, seq, 0, region, crop, empty, 0, empty, False)
+    np.testing.assert_array_equal(fill[:3], membrane)
+    added = fill[3:]
+    hidden = plane[region.contains(plane)]
+    assert len(added) and np.abs(added[:, 2]).max() < 0.05  # the plane, where the spline of the rim puts it
+    assert cKDTree(membrane).query(added)[0].min() >= cfg.fill_gap_spacings  # its gap from the membrane's points
+    assert cKDTree(np.vstack([kept, fill])).query(hidden)[0].max() < 1.5  # R closed
+    # a first fill that is not the membrane's alone: the last resort does not run
+    monkeypatch.setattr(spatial, "CASCADE", (OnePoint, LoneMembrane, spatial.BestSurface))
+    assert len(spatial.spatial_fill(cfg, seq, 0, region, crop, empty, 0, empty, False)[0]) == 4
+    monkeypatch.setattr(spatial, "CASCADE", (LoneMembrane, spatial.BestSurface))
+    assert len(spatial.spatial_fill(FusionConfig(best_surface=False), seq, 0, region, crop, empty, 0, empty,
+                                    False)[0]) == 3
+
+
 def test_fill_region_returns_the_next_frame_s_motion_only_where_the_region_stayed_open():
     """A hole every spatial strategy is off for, in a frame whose next frame has the same hole (no source): the
     region stays open and its record carries f+1's motion for the back-fill; filled, it carries none."""

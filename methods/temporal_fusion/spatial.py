@@ -26,7 +26,7 @@ A new strategy is one class with ``applies`` / ``fill`` / ``trust`` put in its p
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -69,7 +69,8 @@ class Opening:
 @dataclass(frozen=True)
 class Cascade:
     """The cascade's state: the spatial fill so far, the tree of what is covered, the sheet's and the closed
-    surface's fills, whether the walled cap ran, and the parts frame f+1 must not reuse."""
+    surface's fills, whether the walled cap ran, the parts frame f+1 must not reuse, and the membrane's fill where
+    it was the first fill (every surface before it refused)."""
 
     spatial: np.ndarray
     covered: cKDTree
@@ -77,6 +78,7 @@ class Cascade:
     poisson_fill: np.ndarray
     capped_first: bool = False
     not_reused: tuple[np.ndarray, ...] = ()
+    membrane_alone: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 def _surface(cfg: FusionConfig, hole: Opening, support: np.ndarray, covered: cKDTree) -> np.ndarray:
@@ -188,7 +190,9 @@ class Membrane:
         membrane = membrane_fill(hole.crop.local, hole.region, gaps, seq.spacing, step=seq.step, accepted=anchors,
                                  partial=hole.seen, gap_spacings=cfg.fill_gap_spacings,
                                  agree_spacings=cfg.accept_spacings, max_holdout_spacings=cfg.surface_holdout_spacings)
-        return replace(state, spatial=np.vstack([state.spatial, membrane]), not_reused=state.not_reused + (membrane,))
+        alone = membrane if not len(state.spatial) else state.membrane_alone
+        return replace(state, spatial=np.vstack([state.spatial, membrane]), not_reused=state.not_reused + (membrane,),
+                       membrane_alone=alone)
 
 
 class Front:
@@ -222,8 +226,11 @@ class BestSurface:
         # captured points (an occlusion box) cover part of it, a candidate's points that keep their gap from them are
         # as often a sheet off the surface as the rest of the hole (human small coherent, seed 1, frame 8: 164 such
         # points 3.4 s RMS off the truth, D1 22.19 -> 18.83)
-        return (cfg.best_surface and not len(state.spatial) and not len(state.sheet_fill) and not len(hole.accepted)
-                and not len(hole.seen) and not hole.in_box)
+        # the membrane's points where it ran alone count as data round what it left open: it spans a region's open
+        # parts from the data round them, and in a hole every surface refused it often spans a few voxels only
+        # (Longdress at 8 bits, small holes, seed 3: 22 points in three holes, which stayed open)
+        return (cfg.best_surface and len(state.spatial) == len(state.membrane_alone) and not len(state.sheet_fill)
+                and not len(hole.accepted) and not len(hole.seen) and not hole.in_box)
 
     @staticmethod
     def fill(cfg: FusionConfig, hole: Opening, state: Cascade) -> Cascade:
@@ -234,11 +241,12 @@ class BestSurface:
         # the open part's error is measured to everything the output holds round it (the frame's points, the copies,
         # the reused fill, the partial copies), not to the captured points alone: in a persistent hole the reused fill
         # covers most of it
-        _, spatial = best_surface_fill(state.covered, hole.region, state.covered, surfaces, hole.ring,
-                                       seq.spacing)
+        covered = (cKDTree(np.vstack([state.covered.data, state.membrane_alone])) if len(state.membrane_alone)
+                   else state.covered)
+        _, spatial = best_surface_fill(covered, hole.region, covered, surfaces, hole.ring, seq.spacing)
         # built afresh in each frame, as the caps and membranes: its error is larger than the trusted fills', and
         # carried on by the next frame's reuse it would be carried into every later frame of a persistent hole
-        return replace(state, spatial=spatial, not_reused=state.not_reused + (spatial,))
+        return replace(state, spatial=np.vstack([state.spatial, spatial]), not_reused=state.not_reused + (spatial,))
 
 
 #: the spatial strategies in the order they are tried
