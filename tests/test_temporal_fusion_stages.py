@@ -45,6 +45,12 @@ def sequence(frames, regions, cfg: FusionConfig, voxelized: bool, spacing: float
                         cfg.fit_neighbours(False))
 
 
+def strategy(fill):
+    """A cascade strategy (`methods.temporal_fusion.spatial.CASCADE`) that always applies and fills with ``fill``."""
+    return type("Strategy", (), {"trust": "a test's", "applies": staticmethod(lambda cfg, hole, state: True),
+                                 "fill": staticmethod(fill)})
+
+
 # -- config -------------------------------------------------------------------------------------------------------
 def test_the_config_declares_exactly_the_constructor_s_parameters_and_defaults():
     """`FusionConfig`'s fields are `TemporalFusion.__init__`'s keyword parameters, in order, with the same
@@ -184,19 +190,11 @@ def test_the_spatial_surfaces_see_the_rim_within_the_surface_shell(monkeypatch):
     kept = plane[~region.contains(plane)]
     seen = []
 
-    class Record:
-        trust = "records what it is given"
+    def record(cfg, hole, state):  # what the cascade's strategies are given
+        seen.append((hole.support, hole.ring))
+        return state
 
-        @staticmethod
-        def applies(cfg, hole, state):
-            return True
-
-        @staticmethod
-        def fill(cfg, hole, state):
-            seen.append((hole.support, hole.ring))
-            return state
-
-    monkeypatch.setattr(spatial, "CASCADE", (Record,))
+    monkeypatch.setattr(spatial, "CASCADE", (strategy(record),))
     empty = np.zeros((0, 3))
     for surface_spacings, width in ((4.0, 4.0), (2.0, 2.0), (1.0, 1.5), (9.0, 4.0)):
         cfg = FusionConfig(surface_shell_spacings=surface_spacings)
@@ -222,28 +220,12 @@ def test_the_last_resort_fills_what_a_lone_membrane_left_open_and_keeps_the_memb
     kept = plane[~region.contains(plane)]
     membrane = np.array([[4.0, 0.0, 0.0], [4.0, 1.0, 0.0], [3.0, 0.0, 0.0]])  # a few points at R's edge
 
-    class LoneMembrane:  # the surfaces all refused; the membrane spans three points
-        trust = "test"
+    def lone_membrane(cfg, hole, state):  # the surfaces all refused; the membrane spans three points, recorded as
+        alone = membrane if not len(state.spatial) else state.membrane_alone  # `Membrane.fill` records them
+        return spatial.replace(state, spatial=np.vstack([state.spatial, membrane]), membrane_alone=alone)
 
-        @staticmethod
-        def applies(cfg, hole, state):
-            return True
-
-        @staticmethod
-        def fill(cfg, hole, state):  # as `Membrane.fill` records it
-            alone = membrane if not len(state.spatial) else state.membrane_alone
-            return spatial.replace(state, spatial=np.vstack([state.spatial, membrane]), membrane_alone=alone)
-
-    class OnePoint:  # a fill before the membrane
-        trust = "test"
-
-        @staticmethod
-        def applies(cfg, hole, state):
-            return True
-
-        @staticmethod
-        def fill(cfg, hole, state):
-            return spatial.replace(state, spatial=np.array([[-4.0, 0.0, 0.0]]))
+    LoneMembrane = strategy(lone_membrane)
+    OnePoint = strategy(lambda cfg, hole, state: spatial.replace(state, spatial=np.array([[-4.0, 0.0, 0.0]])))
 
     cfg = FusionConfig()
     seq = sequence([kept], [[region]], cfg, False, 1.0)
