@@ -147,3 +147,25 @@ def test_only_voxelized_frames_take_a_coarser_grid(tmp_path):
     for bad in (0, 1.5, True, "2"):
         with pytest.raises(UserError, match="voxel_size must be an integer >= 1"):
             resolve_source(plys).load(voxel_size=bad)
+
+
+def test_a_damage_of_re_voxelized_frames_is_refused_on_the_frames_read_otherwise(tmp_path):
+    """holes.json records the voxel_size its frames were read with; used on the same files read at another size
+    (its regions are in the other grid's units) it is refused with a one-line message."""
+    import json
+
+    from dpcbench.bench.data.sequences import check_regions_frames, frames_record
+
+    plys = _ply_folder(tmp_path / "plys", frames=2)
+    coarse = load_dataset(plys, voxel_size=2)
+    holes = tmp_path / "holes.json"
+    holes.write_text(json.dumps({"frames": [{"regions": []}] * 2, **frames_record(coarse)}))
+    assert json.loads(holes.read_text())["input_voxel_size"] == 2
+    check_regions_frames(holes, load_dataset(plys, voxel_size=2), "--regions")  # read as the damage did
+    with pytest.raises(UserError, match="voxel_size=2, but they are read with voxel_size=1") as err:
+        check_regions_frames(holes, load_dataset(plys), "--regions")
+    assert "\n" not in str(err.value)
+    holes.write_text(json.dumps({"frames": [{"regions": []}] * 2, **frames_record(load_dataset(plys))}))
+    assert "input_voxel_size" not in json.loads(holes.read_text())  # the frames as they are: nothing recorded
+    with pytest.raises(UserError, match="voxel_size=1, but they are read with voxel_size=4"):
+        check_regions_frames(holes, load_dataset(plys, voxel_size=4), "--regions")

@@ -180,21 +180,25 @@ def sequence_file_names(stem: str, count: int) -> list[str]:
 
 def frames_record(seq: Sequence) -> dict:
     """The holes.json keys that say which frames of the input a damage was made for: ``input_frames``
-    (indices into the source, when known) and ``input_files`` (the PLY file names, when read from
-    files); `check_regions_frames` compares them with the sequence a holes.json is later used on."""
+    (indices into the source, when known), ``input_files`` (the PLY file names, when read from files) and
+    ``input_voxel_size`` (when they were re-voxelized coarser, `coarsened`); `check_regions_frames` compares them
+    with the sequence a holes.json is later used on."""
     record: dict = {}
     indices = seq.meta.get("frame_indices")
     if indices is not None:
         record["input_frames"] = [int(i) for i in indices]
     if seq.files:
         record["input_files"] = [Path(f).name for f in seq.files]
+    if seq.meta.get("voxel_size", 1) != 1:
+        record["input_voxel_size"] = int(seq.meta["voxel_size"])
     return record
 
 
 def check_regions_frames(holes_json: str | os.PathLike, seq: Sequence, label: str) -> None:
     """Refuse (UserError) a holes.json used on frames other than (or in another order than) those it was
     made for: the frame files of ``seq`` are matched with the record's per-frame ``file`` (the damaged
-    frames) and ``input_files`` (the frames damaged), the embedded frame indices with ``input_frames``.
+    frames) and ``input_files`` (the frames damaged), their ``voxel_size`` with ``input_voxel_size``, the embedded
+    frame indices with ``input_frames``.
     Records without these keys (older ones, or hand-written) are not checked."""
     import json
 
@@ -215,6 +219,11 @@ def check_regions_frames(holes_json: str | os.PathLike, seq: Sequence, label: st
         if (same_source or set(names) & set(made_for)) and names != made_for:
             raise UserError(f"{label}: made for the frames {_names(made_for)}, but the sequence has {_names(names)}; "
                             "use the holes.json made for these frames (the same --frames, in the same order)")
+    made_size, size = record.get("input_voxel_size", 1), seq.meta.get("voxel_size", 1)
+    if names and made_size != size and set(names) & set(record.get("input_files") or []):
+        raise UserError(f"{label}: made for these frames re-voxelized with voxel_size={made_size}, but they are read "
+                        f"with voxel_size={size}; read them as the damage did (--dataset-param voxel_size={made_size}, "
+                        f"or the frames `dpcbench generate FOLDER --param voxel_size={made_size}` writes)")
     indices = seq.meta.get("frame_indices")
     made = record.get("input_frames")
     if (not seq.files and indices is not None and isinstance(made, list) and seq.meta.get("generator")
