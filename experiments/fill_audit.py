@@ -18,6 +18,9 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--against M1,M2``, each region's AB1 of those methods' results too;
 - with ``--last-resort-where-covered``, the method with its last resort (`spatial.BestSurface`) run also in a region
   that copies, the reused fill or partial copies cover in part (the method's own test asks for an emptied region);
+- with ``--thin-gaps``, for each thin gap that a frame saw whole, its best copy's rim residual, the rim fill's
+  hold-out miss and which of them fills it (stage rim fill's decision, `rim_fill.copy_beats_growth`); with
+  ``--thin-gaps-by-scatter`` the method run with version 54's rule there instead (measured, not kept);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
   that knew every fill point's true error could reach, point by point, with the fills the method has. Where no
@@ -32,7 +35,8 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
-        [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered]
+        [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
+        [--thin-gaps-by-scatter]
 """
 
 from __future__ import annotations
@@ -115,6 +119,41 @@ def instrument(log: StageLog) -> None:
         setattr(m, name, wrapper)
     for strategy in spatial.CASCADE:
         strategy.fill = _traced(strategy, strategy.fill, log)
+
+
+def copy_within_scatter(seq, region, crop, alignments) -> bool:
+    """Version 54's thin-gap rule, measured and not kept (docs/temporal-fusion.md, "Version 55"): the copies fill a
+    thin gap where the best copy's rim residual is at most the rim's RMS scatter about the local quadric of its 20
+    nearest crop points."""
+    from dpcbench.methods._spatial_fill.common import own_scatter_sq
+
+    if not alignments.candidates:
+        return False
+    best = min(candidate.residual for candidate in alignments.candidates)
+    return best <= float(np.sqrt(own_scatter_sq(crop.rim, crop.local)))
+
+
+def trace_thin_gaps(log: StageLog, by_scatter: bool = False) -> list[tuple[int, str]]:
+    """Wrap stage rim fill's decision (`rim_fill.copy_beats_growth`, in the method's namespace; with ``by_scatter``
+    version 54's rule, `copy_within_scatter`, instead) so that each thin gap with a full copy records (frame, "centre:
+    copy residual, growth hold-out miss -> decision"), in spacings."""
+    from dpcbench.methods.temporal_fusion import rim_fill as rim_fill_stage
+
+    lines: list[tuple[int, str]] = []
+    original = copy_within_scatter if by_scatter else fusion_method.copy_beats_growth
+
+    def copy_beats_growth(seq, region, crop, alignments):
+        decision = original(seq, region, crop, alignments)
+        if alignments.candidates:
+            best = min(c.residual for c in alignments.candidates) / seq.spacing
+            miss = rim_fill_stage.growth_holdout_miss(seq, region, crop) / seq.spacing
+            centre = np.round(region.center, 1).tolist()
+            lines.append((log.frame, f"  thin gap {centre}: copy residual {best:.3f}, growth hold-out miss {miss:.3f} "
+                                     f"-> {'copies' if decision else 'growth'}"))
+        return decision
+
+    fusion_method.copy_beats_growth = copy_beats_growth
+    return lines
 
 
 def _traced(strategy, fill, log: StageLog):
@@ -303,6 +342,12 @@ def main(argv=None) -> int:
     parser.add_argument("--last-resort-where-covered", action="store_true",
                         help="run the cascade's last resort (BestSurface) also where copies, the reused fill or partial "
                              "copies cover part of the region (the method runs it only in an emptied region)")
+    parser.add_argument("--thin-gaps", action="store_true",
+                        help="print, per thin gap with a full copy, the copy's rim residual and the rim fill's hold-out "
+                             "miss (spacings) and which fills it (stage rim fill's decision)")
+    parser.add_argument("--thin-gaps-by-scatter", action="store_true",
+                        help="decide thin gaps by version 54's rule (measured, not kept): the copies where their rim "
+                             "residual is at most the rim's scatter about a local quadric (implies --thin-gaps)")
     args = parser.parse_args(argv)
     if args.last_resort_where_covered:
         last_resort_where_covered()
@@ -310,6 +355,8 @@ def main(argv=None) -> int:
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()
     instrument(log)
+    thin_gaps = trace_thin_gaps(log, args.thin_gaps_by_scatter) \
+        if args.thin_gaps or args.thin_gaps_by_scatter else []
     params = parse_params(args.param)
     outputs = fusion_method.TemporalFusion(**params).inpaint(frames, regions)
     others = {}
@@ -327,6 +374,8 @@ def main(argv=None) -> int:
         against = {name: result[f] for name, result in others.items()}
         print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
                                      args.left_open, args.refusal_oracle, against)))
+        for line in (text for frame, text in thin_gaps if frame == f):
+            print(line)
     return 0
 
 

@@ -132,6 +132,15 @@ class HoleRegion:
         half_extents, rotation = self._box()
         return (np.abs(rows_times(d, rotation)) <= half_extents + margin).all(axis=1)
 
+    def grown(self, margin: float) -> HoleRegion:
+        """The region grown by ``margin`` >= 0: the region whose `contains` is ``contains(points, margin)`` (a ball's
+        radius, a box's half extents each plus the margin; rotation and extra keys kept)."""
+        if self.shape == "ball":
+            return HoleRegion("ball", self.center, radius=self.radius + margin, extra=dict(self.extra))
+        half_extents, rotation = self._box()
+        return HoleRegion("box", self.center, half_extents=half_extents + margin, rotation=rotation,
+                          extra=dict(self.extra))
+
     def scaled(self, factor: float) -> HoleRegion:
         """The region with every length multiplied by ``factor`` > 0 (its centre, radius or half extents; its
         rotation and extra keys kept): this region in another unit of length."""

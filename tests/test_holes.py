@@ -246,6 +246,25 @@ def test_a_scaled_region_holds_the_scaled_points():
                 np.testing.assert_array_equal(scaled.rotation, region.rotation)
 
 
+def test_a_grown_region_holds_the_points_within_the_margin():
+    """``HoleRegion.grown(m)`` contains exactly what ``contains(points, margin=m)`` does (a ball and a rotated box;
+    points drawn up to the grown region's edge), keeping the shape, rotation and extra keys; grown by 0 it is the
+    region."""
+    rng = np.random.default_rng(4)
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    points = rng.uniform(-40, 40, size=(20000, 3))
+    for region in (HoleRegion.ball([3, -4, 5], 17.0, hole=2), HoleRegion.box([1, 2, -3], [9, 4, 14], rotation, hole=5)):
+        for margin in (0.0, 2.5, 7.0):
+            grown = region.grown(margin)
+            np.testing.assert_array_equal(grown.contains(points), region.contains(points, margin=margin))
+            assert grown.shape == region.shape and grown.extra == region.extra
+            assert grown.contains(points).sum() > region.contains(points).sum() or margin == 0.0
+        same = region.grown(0.0)
+        assert same.radius == region.radius and np.array_equal(same.center, region.center)
+        assert same.half_extents is None if region.half_extents is None else \
+            np.array_equal(same.half_extents, region.half_extents)
+
+
 def test_rows_times_is_the_product_on_one_blas_thread(monkeypatch):
     """`rows_times` gives ``rows @ matrix`` bit for bit, computes it with every OpenBLAS held to one thread (seen
     from inside the product) and leaves the thread counts as it found them. A box region's test goes through it."""

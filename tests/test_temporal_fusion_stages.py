@@ -16,7 +16,7 @@ from dpcbench.methods.temporal_fusion.align import align_sources
 from dpcbench.methods.temporal_fusion.crop import crop_region
 from dpcbench.methods.temporal_fusion.method import fill_region
 from dpcbench.methods.temporal_fusion.records import SequenceData
-from dpcbench.methods.temporal_fusion.rim_fill import rim_fill
+from dpcbench.methods.temporal_fusion.rim_fill import copy_beats_growth, growth_holdout_miss, rim_fill
 from dpcbench.methods.temporal_fusion.spatial import CASCADE, spatial_fill
 
 
@@ -117,6 +117,36 @@ def test_rim_fill_closes_a_thin_gap_in_a_voxelized_plane_with_exactly_the_missin
     np.testing.assert_array_equal(np.unique(fill, axis=0), np.unique(missing, axis=0))
     assert rim_fill(FusionConfig(rim_fill=False), seq, region, crop) is None
     assert rim_fill(cfg, sequence([kept], [[region]], cfg, False, 1.0), region, crop) is None  # float input
+
+
+def test_a_thin_gap_takes_the_copy_only_where_it_predicts_the_captured_surface_better_than_the_growth():
+    """Stage rim fill against the copies, on a thin hole (radius 2.5) closed by the growth. A rough voxelized plane
+    (a fifth of its voxels one up, as a noisy capture): the growth, held out on the ring within one fit radius of the
+    hole, misses those voxels; frame 1 is the same surface unmoved (rim residual 0), so the hole goes to the copies:
+    the fill is the method's fill without the rim fill. A flat plane: the growth's hold-out miss is 0 and frame 1
+    jittered by up to 0.3 voxels has a residual above it, so the growth is the fill."""
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 2.5)
+    cfg = FusionConfig()
+    rough = voxel_plane()
+    rough[np.random.default_rng(0).random(len(rough)) < 0.2, 2] = 1.0
+    unmoved = sequence([rough[~region.contains(rough)], rough], [[region], []], cfg, True, 1.0)
+    crop = crop_region(cfg, unmoved, 0, region)
+    grown = rim_fill(cfg, unmoved, region, crop)
+    assert grown is not None and growth_holdout_miss(unmoved, region, crop) > 0
+    assert copy_beats_growth(unmoved, region, crop, align_sources(cfg, unmoved, 0, region, crop))
+    fill = fill_region(cfg, unmoved, 0, region, np.zeros((0, 3))).points
+    without = fill_region(FusionConfig(rim_fill=False), unmoved, 0, region, np.zeros((0, 3))).points
+    np.testing.assert_array_equal(fill, without)
+    assert not np.array_equal(np.unique(fill, axis=0), np.unique(grown, axis=0))
+
+    flat = voxel_plane()
+    jittered = flat + np.random.default_rng(0).uniform(-0.3, 0.3, flat.shape)
+    moved = sequence([flat[~region.contains(flat)], jittered], [[region], []], cfg, True, 1.0)
+    crop = crop_region(cfg, moved, 0, region)
+    assert growth_holdout_miss(moved, region, crop) == 0.0  # the flat ring grown back exactly
+    assert not copy_beats_growth(moved, region, crop, align_sources(cfg, moved, 0, region, crop))
+    np.testing.assert_array_equal(fill_region(cfg, moved, 0, region, np.zeros((0, 3))).points,
+                                  rim_fill(cfg, moved, region, crop))
 
 
 # -- align --------------------------------------------------------------------------------------------------------

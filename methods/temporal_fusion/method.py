@@ -23,7 +23,7 @@ from dpcbench.methods.temporal_fusion.crop import crop_region
 from dpcbench.methods.temporal_fusion.fuse import fuse
 from dpcbench.methods.temporal_fusion.records import FrameFill, Motion, RegionFill, SequenceData
 from dpcbench.methods.temporal_fusion.reuse import partial_copies, reuse_previous
-from dpcbench.methods.temporal_fusion.rim_fill import rim_fill
+from dpcbench.methods.temporal_fusion.rim_fill import copy_beats_growth, rim_fill
 from dpcbench.methods.temporal_fusion.settle import (
     keeps_captured,
     near_regions,
@@ -47,9 +47,9 @@ def fill_region(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegion
     if len(crop.rim) < 6:  # nothing around the hole to align to or to continue
         return RegionFill(np.zeros((0, 3)), colours=no_colour(0) if tracking else None)
     thin = rim_fill(cfg, seq, region, crop)
-    if thin is not None:
-        return RegionFill(thin, colours=no_colour(len(thin)) if tracking else None)
     alignments = align_sources(cfg, seq, f, region, crop)
+    if thin is not None and not copy_beats_growth(seq, region, crop, alignments):
+        return RegionFill(thin, colours=no_colour(len(thin)) if tracking else None)
     fused = fuse(cfg, seq, region, crop, alignments.candidates)
     copied = len(fused.points)  # points copied from captured data; the rest is reused or spatial fill
     moved, rows = reuse_previous(cfg, seq, f, region, crop, fused.points, previous_fill, alignments)
@@ -149,7 +149,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "53"  # the history of each version: docs/temporal-fusion.md
+    version = "55"  # the history of each version: docs/temporal-fusion.md
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
