@@ -43,7 +43,8 @@ def copy_beats_growth(seq: SequenceData, region: HoleRegion, crop: Crop, alignme
     """Whether a full copy (a frame that saw all of R, `Alignments.candidates`) predicts the captured surface round R
     better than the rim fill's growth: its rim residual (`Candidate.residual`, the trimmed mean distance from the
     rim's points to the moved frame) below the growth's hold-out miss (`growth_holdout_miss`), the same statistic.
-    Ties go to the growth."""
+    Ties go to the growth; where too few captured points lie round R to hold out (the miss is inf), a full copy,
+    accepted by stage align's own rim test, goes first."""
     if not alignments.candidates:
         return False
     best = min(candidate.residual for candidate in alignments.candidates)
