@@ -15,7 +15,9 @@ left open (back-fill takes frame f+1's). For frame f and each hole region R (giv
 `holes.detection.detect_holes` when regions=None) the stages run in this order, one module each:
 
 1. `crop`: frame f's points within r + 2 shell of R and the rim within shell = max(0.5 r, 4 s) of it.
-2. `rim_fill` (voxelized input): a thin gap the rim's own quadric closes within one fit radius is R's fill.
+2. `rim_fill` (voxelized input): a thin gap the rim's own quadric closes within one fit radius is R's fill,
+   unless a frame that saw all of R (stage align, run first) lies on the rim closer than that growth misses
+   its own hold-out (`rim_fill.copy_beats_growth`): then the copies fill it, as any other hole.
 3. `align`: frames within +-window, nearest first, aligned by ICP of their shell (point-to-point, refined
    point-to-plane, coarse to fine when it fails) and accepted when the rim residual is at most 1 s; a frame with
    its own hole near R gives a partial copy.

@@ -38,8 +38,9 @@ from dpcbench.metrics.neighbours import is_voxelization, point_spacing
 
 def fill_region(cfg: FusionConfig, seq: SequenceData, f: int, region: HoleRegion, previous_fill: np.ndarray,
                 previous_colours: np.ndarray | None = None) -> RegionFill:
-    """The stages for one hole region R of frame f, in run order: crop, rim fill, align, fuse, reuse (previous
-    fill, partial copies), spatial cascade, settle. ``previous_fill`` (M, 3): frame f-1's reusable fill, and its
+    """The stages for one hole region R of frame f, in run order: crop, rim fill (kept for a thin gap unless a copy
+    beats it, which the alignments decide), align, fuse, reuse (previous fill, partial copies), spatial cascade,
+    settle. ``previous_fill`` (M, 3): frame f-1's reusable fill, and its
     colours in frame f-1's output (M, 3) when the run tracks colour (`colours`: the copies carry their source
     points' colours, the reused points their previous-frame colours, the rim fill and the spatial fills none)."""
     tracking = seq.colours is not None
@@ -143,7 +144,8 @@ class TemporalFusion(InpaintingMethod):
     modules."""
 
     name = "temporal-fusion"
-    summary = ("fills thin voxel gaps from the frame's own rim by the voxelization rule; elsewhere "
+    summary = ("fills thin voxel gaps from the frame's own rim by the voxelization rule where that predicts the "
+               "captured surface better than another frame's copy; elsewhere "
                "fuses the hole's patch from every frame within +-W (rigid + rim-driven non-rigid motion "
                "compensation), MLS surface projection, steady reuse of the previous fill (of the next one where a "
                "hole stayed open), spline fill of the "
