@@ -12,7 +12,8 @@ interval excludes 0, or with ``--decision-noise DB`` when it lies wholly beyond 
 against 0 still): the frames' spread does not hold the method's decision noise, and a paired interval over frames
 can exclude 0 for a change that moved only which thresholds a few points fell on
 (`experiments/perturbation_noise.py` measures that noise on one damage); "inpainted frames identical" when both versions wrote the same PLY bytes in every run of the
-row (the run folders must still be there).
+row (the run folders must still be there). With ``--by-damage``, then every damage (a row's seed, its frames' mean)
+whose D1 or D2 moved, and per row how many moved which way.
 """
 
 from __future__ import annotations
@@ -75,6 +76,8 @@ def main(argv=None) -> int:
     parser.add_argument("--new", required=True, help="the new method_version")
     parser.add_argument("--decision-noise", type=float, default=0.0, metavar="DB",
                         help="a D1 / D2 difference is beyond noise only when its interval clears +-DB (default 0)")
+    parser.add_argument("--by-damage", action="store_true",
+                        help="also list every damage (seed) whose D1 or D2 moved, and count them per row")
     args = parser.parse_args(argv)
     connection = sqlite3.connect(f"file:{args.store}?mode=ro", uri=True)
     old = _values(connection, args.method, args.old)
@@ -106,7 +109,32 @@ def main(argv=None) -> int:
         same = frames[0].get(row) is not None and frames[0].get(row) == frames[1].get(row)
         print(f"| {row[0]}, {row[1]} | {n} | " + " | ".join(cells) + f" | {'identical' if same else 'differ'} |")
     print("NSHD in 1e-9; n = (frame, seed) pairs; lower NSHD is better")
+    if args.by_damage:
+        print("\n".join(_damage_lines(old, new)))
     return 0
+
+
+def _damage_lines(old: dict, new: dict) -> list[str]:
+    """``--by-damage``: per row, each seed whose mean D1 or D2 over its frames differs between the versions, then the
+    count of damages compared, moved, and up or down in D1 and D2."""
+    lines = []
+    for row in sorted(set(old) & set(new)):
+        by_seed = {}
+        for metric in ("gpsnr_d1", "gpsnr_d2"):
+            shared = set(old[row][metric]) & set(new[row][metric])
+            for seed in sorted({seed for seed, _ in shared}):
+                keys = [key for key in shared if key[0] == seed]
+                by_seed.setdefault(seed, []).append(
+                    tuple(sum(values[key] for key in keys) / len(keys) for values in (old[row][metric], new[row][metric])))
+        moved = {seed: pairs for seed, pairs in by_seed.items() if any(a != b for a, b in pairs)}
+        for seed, ((d1_old, d1_new), (d2_old, d2_new)) in moved.items():
+            lines.append(f"{row[0]}, {row[1]}, seed {seed}: D1 {d1_old:.2f} -> {d1_new:.2f} ({d1_new - d1_old:+.2f}), "
+                         f"D2 {d2_old:.2f} -> {d2_new:.2f} ({d2_new - d2_old:+.2f})")
+        counts = [sum(1 for pairs in moved.values() if sign * (pairs[i][1] - pairs[i][0]) > 0)
+                  for i in (0, 1) for sign in (1, -1)]
+        lines.append(f"{row[0]}, {row[1]}: {len(moved)} of {len(by_seed)} damages moved; D1 up on {counts[0]}, down on "
+                     f"{counts[1]}; D2 up on {counts[2]}, down on {counts[3]}")
+    return lines
 
 
 if __name__ == "__main__":

@@ -21,6 +21,9 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--thin-gaps``, for each thin gap that a frame saw whole, its best copy's rim residual, the rim fill's
   hold-out miss and which of them fills it (stage rim fill's decision, `rim_fill.copy_beats_growth`); with
   ``--thin-gaps-by-scatter`` the method run with version 54's rule there instead (measured, not kept);
+- with ``--last-resort``, for each hole the cascade's last resort judged (`spatial.BestSurface`), each candidate
+  surface's points, hold-out miss and predicted open error (its rule, `methods._spatial_fill.best`), its points' true
+  RMS point-to-plane distance to the truth and share > 2 spacings, and which candidate filled;
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
   that knew every fill point's true error could reach, point by point, with the fills the method has. Where no
@@ -36,7 +39,7 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
         [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
-        [--thin-gaps-by-scatter]
+        [--thin-gaps-by-scatter] [--last-resort]
 """
 
 from __future__ import annotations
@@ -153,6 +156,50 @@ def trace_thin_gaps(log: StageLog, by_scatter: bool = False) -> list[tuple[int, 
         return decision
 
     fusion_method.copy_beats_growth = copy_beats_growth
+    return lines
+
+
+def trace_last_resort(log: StageLog) -> list[tuple[int, str, list[tuple[str, np.ndarray, float, float]], list[str]]]:
+    """Wrap the last resort's choice (`best_surface_fill`, in `spatial`'s namespace) so that each call records (frame,
+    region centre, [(candidate, its points, hold-out miss, predicted open error)], the candidates that filled); the
+    miss and the open error are the rule's own (`best.holdout_miss`; the RMS distance of the candidate's points to
+    what the output holds round the hole), recomputed here to print them."""
+    from dpcbench.methods._spatial_fill import best
+
+    calls: list[tuple[int, str, list[tuple[str, np.ndarray, float, float]], list[str]]] = []
+    original = spatial.best_surface_fill
+
+    def best_surface_fill(captured, region, covered, surfaces, ring):
+        judged = []
+        for name, (support, fill) in surfaces.items():
+            points = fill(support, region, covered)
+            if len(points):
+                judged.append((name, points, best.holdout_miss(surfaces[name], region, ring),
+                               float(np.sqrt(np.mean(captured.query(points)[0] ** 2)))))
+        names, filled = original(captured, region, covered, surfaces, ring)
+        calls.append((log.frame, str(np.round(region.center, 1).tolist()), judged, names))
+        return names, filled
+
+    spatial.best_surface_fill = best_surface_fill
+    return calls
+
+
+def last_resort_lines(calls, frame: int, truth: np.ndarray, normals, spacing: float) -> list[str]:
+    """The ``--last-resort`` report of ``frame``: per call of `trace_last_resort`, each candidate's miss and predicted
+    open error and its points' true point-to-plane RMS (pc_error's, against ``truth``) and share > 2, in spacings."""
+    lines = []
+    reference = None
+    for at, centre, judged, names in calls:
+        if at != frame:
+            continue
+        if reference is None:  # the truth's normals once a frame, as the audit's pairs take them
+            reference = CloudPair(truth, truth[:1], normals)
+            truth_normals = reference.reference_normals
+        lines.append(f"  last resort {centre}: filled by {', '.join(names) or 'none (left open)'}")
+        for name, points, miss, open_error in judged:
+            off = np.sqrt(CloudPair(reference.reference, points, truth_normals).plane_res_to_ref) / spacing
+            lines.append(f"    {name:7s} points {len(points):6d} miss {miss / spacing:6.2f} open {open_error / spacing:6.2f}"
+                         f"  off the truth RMS {np.sqrt(np.mean(off ** 2)):5.2f} (> 2 s: {np.mean(off > 2):4.0%})")
     return lines
 
 
@@ -345,6 +392,9 @@ def main(argv=None) -> int:
     parser.add_argument("--thin-gaps", action="store_true",
                         help="print, per thin gap with a full copy, the copy's rim residual and the rim fill's hold-out "
                              "miss (spacings) and which fills it (stage rim fill's decision)")
+    parser.add_argument("--last-resort", action="store_true",
+                        help="print, per hole the last resort judged, each candidate's hold-out miss, predicted open "
+                             "error and true distance to the truth, and which filled")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
                         help="decide thin gaps by version 54's rule (measured, not kept): the copies where their rim "
                              "residual is at most the rim's scatter about a local quadric (implies --thin-gaps)")
@@ -357,6 +407,7 @@ def main(argv=None) -> int:
     instrument(log)
     thin_gaps = trace_thin_gaps(log, args.thin_gaps_by_scatter) \
         if args.thin_gaps or args.thin_gaps_by_scatter else []
+    last_resort = trace_last_resort(log) if args.last_resort else []
     params = parse_params(args.param)
     outputs = fusion_method.TemporalFusion(**params).inpaint(frames, regions)
     others = {}
@@ -375,6 +426,8 @@ def main(argv=None) -> int:
         print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
                                      args.left_open, args.refusal_oracle, against)))
         for line in (text for frame, text in thin_gaps if frame == f):
+            print(line)
+        for line in last_resort_lines(last_resort, f, truth, normals, spacing):
             print(line)
     return 0
 

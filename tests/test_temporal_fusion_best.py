@@ -1,6 +1,6 @@
 """temporal-fusion's last resort (`methods/_spatial_fill/best.py`, strategy `BestSurface`): the hold-out miss on
 closed-form surfaces, the rule that ranks candidates and leaves a hole open only where that is predicted cheaper,
-the ranked union of partial fills, and its place in the method (a hole every other strategy refuses)."""
+only the best passing candidate fills, and its place in the method (a hole every other strategy refuses)."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ def test_the_last_resort_fills_a_curved_hole_on_its_surface():
     truth = plane(height=lambda u, v: np.round((u ** 2 + v ** 2) / 40.0))
     rim, crop = rim_and_crop(holed(truth, HOLE))
     surfaces = candidates(rim, crop, HOLE, 1.0, voxelized=True, step=1.0, gap_spacings=1.0, ring=RING)
-    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), surfaces, RING, 1.0)
+    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), surfaces, RING)
     hidden = truth[HOLE.contains(truth)]
     assert names and len(fill)
     # every candidate is judged, the closed surface's hold-out (built on the grown region) included
@@ -89,14 +89,14 @@ def test_a_surface_that_misses_its_ring_by_more_than_the_open_hole_s_error_leave
         return fill
 
     for miss, expected in ((50.0, []), (0.2, ["wrong"])):
-        names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"wrong": (rim, surface(miss))}, RING, 1.0)
+        names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"wrong": (rim, surface(miss))}, RING)
         assert names == expected and len(fill) == 2 * len(expected)
 
 
-def test_a_second_surface_fills_only_what_the_best_one_left_open_and_continues_it():
-    """Ranked union: the better candidate (hold-out miss 0) fills the half x < 0 of a flat hole; the worse one
-    (miss 0.5) would fill all of it but adds only the half left open, and none of its points that lie off the
-    filled surface (a sheet 8 units above)."""
+def test_only_the_best_surface_that_passes_fills_and_a_worse_one_does_not_fill_what_it_left_open():
+    """The better candidate (hold-out miss 0) fills the half x < 0 of a flat hole; the worse one (miss 0.5) would
+    fill all of it and is not used, so the other half stays open. When the better one does not pass (its points hug
+    the data: open error below its miss), the worse one fills."""
     rim, crop = rim_and_crop(holed(plane(), HOLE))
     hidden = plane()[HOLE.contains(plane())]
 
@@ -106,18 +106,21 @@ def test_a_second_surface_fills_only_what_the_best_one_left_open_and_continues_i
 
     def whole(support, region, covered):
         points = plane(12)[region.contains(plane(12))]
-        if isinstance(region, GrownRegion):
-            return points + [0.0, 0.0, 0.5]
-        stray = points[:10] + [0.0, 0.0, 8.0]
-        keep = np.ones(len(points), dtype=bool) if covered is None else ~np.isfinite(
-            covered.query(points, distance_upper_bound=1.0)[0])
-        return np.vstack([points[keep], stray])
+        return points + [0.0, 0.0, 0.5] if isinstance(region, GrownRegion) else points
 
     names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole), "half": (rim, half)},
-                                    RING, 1.0)
-    assert names == ["half", "whole"]
-    assert (cKDTree(fill).query(hidden)[0] == 0).all()  # every hidden voxel filled
-    assert np.abs(fill[:, 2]).max() == 0.0 and len(np.unique(fill, axis=0)) == len(fill)  # no stray, no double
+                                    RING)
+    assert names == ["half"]
+    assert np.array_equal(fill, half(rim, HOLE, None))
+    assert (hidden[:, 0] >= 0).any() and cKDTree(fill).query(hidden[hidden[:, 0] > 1])[0].min() > 1.0  # left open
+
+    def hugging(support, region, covered):  # miss 0.3, but its one point is 0.1 from the data: open error 0.1
+        return plane(12)[region.contains(plane(12))] + [0.0, 0.0, 0.3] if isinstance(region, GrownRegion) else \
+            np.array([[6.9, 0.0, 0.0]])
+
+    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole),
+                                                                        "hugging": (rim, hugging)}, RING)
+    assert names == ["whole"] and np.array_equal(fill, whole(rim, HOLE, None))
 
 
 def test_temporal_fusion_fills_a_hole_its_strategies_refuse_only_with_the_last_resort():

@@ -16,9 +16,8 @@ predicted costs, each measured on the data round the hole, not by a fixed bound:
   where it had to bridge a gap, measured on points it did not see;
 - the open hole's predicted error o: the RMS distance of the candidate's own fill points (a sample of the hidden
   surface as far as the candidate knows it) to the nearest captured point;
-- the candidate with the least m fills what it reaches when m < o; the next ones, in order of m and built on what
-  the ones before filled, fill only what is still open, each under the same rule; a hole no candidate passes stays
-  open.
+- the candidates are tried in order of m, least first, and the first with m < o fills what it reaches; the others
+  fill nothing, not even what it left open; a hole no candidate passes stays open.
 
 This rule fills where D1 gains. Where the surface is flat round the hole, an open hole's point-to-plane error (D2)
 is small, so a fill more than about a spacing off the surface can score less D2 than the open hole
@@ -33,7 +32,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
-from dpcbench.methods._spatial_fill.common import grown_agreeing
 from dpcbench.methods._spatial_fill.poisson import poisson_surface_fill
 from dpcbench.methods._spatial_fill.spline import rim_sheet, rim_surface_fill
 
@@ -97,42 +95,25 @@ def holdout_miss(candidate: Candidate, region: HoleRegion, ring: float) -> float
 
 
 def best_surface_fill(captured: cKDTree, region: HoleRegion, covered: cKDTree, surfaces: dict[str, Candidate],
-                      ring: float, spacing: float) -> tuple[list[str], np.ndarray]:
-    """(names of the candidates that filled, in order; their fill (P, 3)) for ``region``. ``captured``: what the
-    output holds round the hole already (the frame's points and the fill so far), from which the open part's error
-    is measured; ``covered``: what a new point must keep its gap from.
+                      ring: float) -> tuple[list[str], np.ndarray]:
+    """(the name of the candidate that filled, in a list, empty when none did; its fill (P, 3)) for ``region``.
+    ``captured``: what the output holds round the hole already (the frame's points and the fill so far), from which
+    the open part's error is measured; ``covered``: what a new point must keep its gap from.
 
     The candidates of ``surfaces`` are ranked by `holdout_miss`, least first (those that make nothing in the region
-    are dropped). Each in turn, built on its support plus what the ones before it filled, fills what is still open
-    (farther than its gap from ``covered`` and from those fills) when its miss is below the open part's predicted
-    error, the RMS distance of its new points to ``captured`` and those fills: the best surface fills what it reaches, and the next
-    ones only the parts it left open (a Poisson surface that closes one side of a fold, a spline across the rest),
-    and only where they continue it (`grown_agreeing` from the fills so far, reach 3 spacings as step 4, tolerance
-    the surface's own miss, at least a spacing). Nothing when no candidate passes."""
+    are dropped); the first whose miss is below the open part's predicted error, the RMS distance of its new points
+    to ``captured``, fills what it reaches (farther than its gap from ``covered``), and the rest of the hole stays
+    open. A worse-ranked candidate does not fill what the better one left open: measured on one-frame Longdress
+    damages, such a continuation lay off the surface by more than the open hole's own error (docs/temporal-fusion.md,
+    "Version 56")."""
     ranked = []
-    alone = {}  # each candidate's fill on its own support: the first to fill reuses it (a Poisson solve is costly)
+    alone = {}  # each candidate's fill on its own support
     for name, (support, fill) in surfaces.items():
         alone[name] = fill(support, region, covered)
         if len(alone[name]):
             ranked.append((holdout_miss(surfaces[name], region, ring), name))
-    names: list[str] = []
-    filled = np.zeros((0, 3))
     for miss, name in sorted(ranked):
-        support, fill = surfaces[name]
-        if not len(filled):
-            points = alone[name]
-        else:
-            points = fill(np.vstack([support, filled]), region, cKDTree(np.vstack([covered.data, filled])))
-        if len(filled) and len(points):
-            # a later surface only continues what the better ones filled: grown from their fill, each point within the
-            # surface's own predicted error of its local plane (grown from the data too, a closed surface's rounding
-            # of a corner between the hole's floor and a wall beside it passed as a continuation of the wall)
-            points = points[grown_agreeing(points, filled, 3 * spacing, max(miss, spacing))]
-        if not len(points):
-            continue
-        held = captured if not len(filled) else cKDTree(np.vstack([captured.data, filled]))
-        if not miss < float(np.sqrt(np.mean(held.query(points)[0] ** 2))):
-            continue
-        names.append(name)
-        filled = np.vstack([filled, points])
-    return names, filled
+        points = alone[name]
+        if miss < float(np.sqrt(np.mean(captured.query(points)[0] ** 2))):
+            return [name], points
+    return [], np.zeros((0, 3))

@@ -19,8 +19,8 @@ In run order:
 7. `Front` (``front``, off): an advancing front grown chart by chart from the rim and the copies.
 8. `BestSurface` (``best_surface``): where every strategy before refused and nothing else covers any of R (no copy,
    reused fill, partial copy or captured point inside it), the candidate surfaces (spline, sheet spline, closed surface, without their refusal
-   tests) ranked by their hold-out miss, unless the open hole is predicted to cost less D1
-   (`methods._spatial_fill.best`).
+   tests) ranked by their hold-out miss: the first that is predicted to cost less D1 than the open hole fills, the
+   others nothing (`methods._spatial_fill.best`).
 
 A new strategy is one class with ``applies`` / ``fill`` / ``trust`` put in its place in `CASCADE`."""
 
@@ -216,9 +216,9 @@ class Front:
 
 
 class BestSurface:
-    trust = ("the candidate's hold-out miss (its RMS distance to the inner ring it was built without) is the least "
-             "of the candidates' and below the open part's predicted error (its fill's RMS distance to the frame's "
-             "points and the fill so far)")
+    trust = ("the candidate's hold-out miss (its RMS distance to the inner ring it was built without) is below the open "
+             "part's predicted error (its fill's RMS distance to the frame's points and the fill so far), and no "
+             "candidate with a smaller miss passed; only that one candidate fills")
 
     @staticmethod
     def applies(cfg: FusionConfig, hole: Opening, state: Cascade) -> bool:
@@ -243,7 +243,7 @@ class BestSurface:
         # covers most of it
         covered = (cKDTree(np.vstack([state.covered.data, state.membrane_alone])) if len(state.membrane_alone)
                    else state.covered)
-        _, spatial = best_surface_fill(covered, hole.region, covered, surfaces, hole.ring, seq.spacing)
+        _, spatial = best_surface_fill(covered, hole.region, covered, surfaces, hole.ring)
         # built afresh in each frame, as the caps and membranes: its error is larger than the trusted fills', and
         # carried on by the next frame's reuse it would be carried into every later frame of a persistent hole
         return replace(state, spatial=np.vstack([state.spatial, spatial]), not_reused=state.not_reused + (spatial,))
