@@ -106,14 +106,11 @@ def best_surface_fill(captured: cKDTree, region: HoleRegion, covered: cKDTree, s
     open. A worse-ranked candidate does not fill what the better one left open: measured on one-frame Longdress
     damages, such a continuation lay off the surface by more than the open hole's own error (docs/temporal-fusion.md,
     "Version 56")."""
-    ranked = []
-    alone = {}  # each candidate's fill on its own support
-    for name, (support, fill) in surfaces.items():
-        alone[name] = fill(support, region, covered)
-        if len(alone[name]):
-            ranked.append((holdout_miss(surfaces[name], region, ring), name))
-    for miss, name in sorted(ranked):
-        points = alone[name]
-        if miss < float(np.sqrt(np.mean(captured.query(points)[0] ** 2))):
+    # each candidate's own fill is made only when its turn comes: once one fills, the rest are not needed (a closed
+    # surface's fill is a Poisson solve)
+    for miss, name in sorted((holdout_miss(candidate, region, ring), name) for name, candidate in surfaces.items()):
+        support, fill = surfaces[name]
+        points = fill(support, region, covered)
+        if len(points) and miss < float(np.sqrt(np.mean(captured.query(points)[0] ** 2))):
             return [name], points
     return [], np.zeros((0, 3))
