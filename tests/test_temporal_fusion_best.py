@@ -8,7 +8,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dpcbench.holes.regions import HoleRegion
-from dpcbench.methods._spatial_fill.best import GrownRegion, best_surface_fill, candidates, holdout_miss
+from dpcbench.methods._spatial_fill.best import best_surface_fill, candidates, holdout_miss
 from dpcbench.methods.temporal_fusion import TemporalFusion
 
 
@@ -26,21 +26,14 @@ HOLE = HoleRegion(shape="ball", center=np.zeros(3), radius=6.0)
 RING = 2.0
 
 
+def holding_out(region):
+    """Whether a stub surface is called for the hold-out (`holdout_miss` builds it on the region grown by the ring)."""
+    return region.radius == HOLE.radius + RING
+
+
 def rim_and_crop(points):
     crop = points[np.linalg.norm(points - HOLE.center, axis=1) <= HOLE.radius + 2 * 4.0]
     return crop[HOLE.contains(crop, margin=4.0)], crop
-
-
-def test_a_grown_region_holds_what_the_region_holds_with_the_margin():
-    grown = GrownRegion(HOLE, 2.5)
-    points = np.array([[0.0, 0, 7.0], [0, 0, 8.4], [0, 0, 8.6]])
-    assert grown.contains(points).tolist() == HOLE.contains(points, margin=2.5).tolist() == [True, True, False]
-    assert grown.contains(points, margin=0.3).tolist() == [True, True, True]
-    assert grown.bounding_radius == HOLE.bounding_radius + 2.5 and np.array_equal(grown.center, HOLE.center)
-    assert grown.shape == "ball" and grown.radius == HOLE.radius + 2.5
-    box = GrownRegion(HoleRegion.box([0.0, 0.0, 0.0], [2.0, 3.0, 4.0]), 1.0)
-    assert box.shape == "box" and np.allclose(box.half_extents, [3.0, 4.0, 5.0])
-    assert box.contains(np.array([[2.9, 0.0, 0.0]]))[0] and not box.contains(np.array([[3.1, 0.0, 0.0]]))[0]
 
 
 def test_the_spline_predicts_a_plane_s_inner_ring_exactly_and_a_wrong_surface_misses_it_by_its_offset():
@@ -56,6 +49,17 @@ def test_the_spline_predicts_a_plane_s_inner_ring_exactly_and_a_wrong_surface_mi
     assert abs(holdout_miss((rim, lifted), HOLE, RING) - 5.0) < 1e-9
     # too little support to judge: inf
     assert holdout_miss((rim[:5], lifted), HOLE, RING) == float("inf")
+
+
+def test_the_hold_out_of_a_flat_box_reaches_the_grown_box_s_corners():
+    """A flat box hole (half extents 6, 6, 1) in a plane: the spline built without the inner ring covers the whole
+    grown box, its corners included (they lie 11.3 from the centre, beyond |h| + ring = 10.5), so it passes through
+    every ring point (miss ~ 0)."""
+    box = HoleRegion.box([0.0, 0.0, 0.0], [6.0, 6.0, 1.0])
+    crop = holed(plane(), box)
+    rim = crop[box.contains(crop, margin=4.0)]
+    surfaces = candidates(rim, crop, box, 1.0, voxelized=True, step=1.0, gap_spacings=1.0, ring=RING)
+    assert holdout_miss(surfaces["spline"], box, RING) < 0.1
 
 
 def test_the_last_resort_fills_a_curved_hole_on_its_surface():
@@ -82,7 +86,7 @@ def test_a_surface_that_misses_its_ring_by_more_than_the_open_hole_s_error_leave
 
     def surface(miss):
         def fill(support, region, covered):
-            if isinstance(region, GrownRegion):  # the hold-out: a surface `miss` above the inner ring
+            if holding_out(region):  # the hold-out: a surface `miss` above the inner ring
                 return support[:0] if not len(support) else np.vstack([crop[HOLE.contains(crop, margin=RING)]
                                                                        + [0.0, 0.0, miss]])
             return near_data
@@ -102,11 +106,11 @@ def test_only_the_best_surface_that_passes_fills_and_a_worse_one_does_not_fill_w
 
     def half(support, region, covered):
         points = plane(12)[region.contains(plane(12))]
-        return points if isinstance(region, GrownRegion) else points[points[:, 0] < 0]
+        return points if holding_out(region) else points[points[:, 0] < 0]
 
     def whole(support, region, covered):
         points = plane(12)[region.contains(plane(12))]
-        return points + [0.0, 0.0, 0.5] if isinstance(region, GrownRegion) else points
+        return points + [0.0, 0.0, 0.5] if holding_out(region) else points
 
     names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole), "half": (rim, half)},
                                     RING)
@@ -115,7 +119,7 @@ def test_only_the_best_surface_that_passes_fills_and_a_worse_one_does_not_fill_w
     assert (hidden[:, 0] >= 0).any() and cKDTree(fill).query(hidden[hidden[:, 0] > 1])[0].min() > 1.0  # left open
 
     def hugging(support, region, covered):  # miss 0.3, but its one point is 0.1 from the data: open error 0.1
-        return plane(12)[region.contains(plane(12))] + [0.0, 0.0, 0.3] if isinstance(region, GrownRegion) else \
+        return plane(12)[region.contains(plane(12))] + [0.0, 0.0, 0.3] if holding_out(region) else \
             np.array([[6.9, 0.0, 0.0]])
 
     names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole),

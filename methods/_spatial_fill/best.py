@@ -39,22 +39,6 @@ from dpcbench.methods._spatial_fill.spline import rim_sheet, rim_surface_fill
 Candidate = tuple[np.ndarray, Callable[[np.ndarray, object, "cKDTree | None"], np.ndarray]]
 
 
-class GrownRegion:
-    """``region`` grown by ``margin``: what `HoleRegion.contains` with that margin holds, with the centre, a bounding
-    radius and the shape's size grown as much (what the fills read of a region: the ball's radius or the box's half
-    extents, for a superset test such as `poisson._triangles_near`; the exact test is ``contains``)."""
-
-    def __init__(self, region: HoleRegion, margin: float) -> None:
-        self.region, self.margin = region, float(margin)
-        self.shape, self.center, self.rotation = region.shape, region.center, region.rotation
-        self.bounding_radius = region.bounding_radius + self.margin
-        self.radius = region.radius + self.margin
-        self.half_extents = None if region.half_extents is None else region.half_extents + self.margin
-
-    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        return self.region.contains(points, margin=self.margin + margin)
-
-
 def candidates(rim: np.ndarray, crop: np.ndarray, region: HoleRegion, spacing: float, *, voxelized: bool, step: float,
                gap_spacings: float, ring: float, sheet: bool = True, closed: bool = True) -> dict[str, Candidate]:
     """The candidate surfaces by name, without their refusal tests (no hold-out, no height-field bound): the spline
@@ -87,7 +71,7 @@ def holdout_miss(candidate: Candidate, region: HoleRegion, ring: float) -> float
     inner = region.contains(support, margin=ring)
     if inner.sum() < 6 or (~inner).sum() < 12:
         return float("inf")
-    surface = fill(support[~inner], GrownRegion(region, ring), None)
+    surface = fill(support[~inner], region.grown(ring), None)
     if not len(surface):
         return float("inf")
     distance, _ = cKDTree(surface).query(support[inner])
