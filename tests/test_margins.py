@@ -317,6 +317,11 @@ def test_margins_command_on_a_tiny_store(tmp_path, monkeypatch, capsys):
     assert "| target | tuning data | held-out data |" in text
     assert "## held-out data: tiny-held (holds out from tiny-tune)" in text
     assert "held-out check: tiny-held shares 0 of 2 damaged inputs" in text and "held out" in text
+    from dpcbench.bench.core.isa import describe
+
+    # every run was made by a worker of this process's environment: one instruction set, read from the runs' env
+    assert f"instruction sets of the runs read: {describe()} on ".replace("_", "\\_") in text
+    assert "MIXED" not in text
     # "exact" returns the damaged frames: every pair equals no fill's, so D1 is 0 dB above the best other
     # (none, tied with it) and misses +1 dB on all 6 pairs (3 frames x 2 seeds) beyond noise; D2 = no fill's: met
     import csv
@@ -578,6 +583,27 @@ def test_versions_note_names_each_method_s_code_version_and_flags_a_mix():
     assert versions_note(table, "fusion").endswith("fusion 45; lozes 2; none 1")
     mixed = versions_note(table.assign(method_version=["1", "46", "45", "2"]), "fusion")
     assert "fusion MIXED (46 on 1 runs, 45 on 1 runs" in mixed and mixed.index("fusion") < mixed.index("lozes")
+
+
+def test_computed_with_note_counts_instruction_sets_and_dirty_runs_and_flags_a_mix_for_greedy_fills():
+    """The runs' instruction sets with their counts; runs from a modified checkout counted per method; a warning
+    only where temporal-graph or fu-nonlocal (whose fills move with the last bits) ran with more than one set."""
+    import pandas as pd
+
+    from dpcbench.bench.reporting.margins import _env_isa, computed_with_note
+
+    assert _env_isa('{"isa": "x86_64; numpy dispatch up to AVX2; unpinned"}') == "x86_64; numpy dispatch up to AVX2; unpinned"
+    assert _env_isa(None) == _env_isa("{not json") == _env_isa('{"git_commit": "abc"}') == "not recorded"
+    a, b = "x86_64; numpy dispatch up to AVX512_ICL; unpinned", "x86_64; numpy dispatch up to AVX2; unpinned"
+    table = pd.DataFrame({"method_name": ["temporal-fusion", "fu-nonlocal", "fu-nonlocal", "none"],
+                          "isa": [a, a, a, b], "code_version": ["c1", "c1", "c2+dirty", "c1"]})
+    notes = computed_with_note(table)
+    assert notes[0] == f"instruction sets of the runs read: {a} on 3 runs; {b} on 1 runs"
+    assert notes[1].startswith("code: 1 of 4 runs read were made from a checkout with modified files (+dirty: "
+                               "fu-nonlocal 1)")
+    assert len(notes) == 2  # "none" on another set moves nothing: no warning
+    mixed = computed_with_note(table.assign(isa=[a, a, b, b], code_version="c1"))
+    assert len(mixed) == 2 and mixed[1].startswith("instruction sets MIXED for fu-nonlocal (2 sets)")
 
 
 def test_runs_on_superseded_data_are_left_out_with_a_note():

@@ -447,8 +447,9 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
     from dpcbench.bench.experiment.config import RunSpec
 
     records = []
-    for run_id, experiment, spec_text, finished, output_dir in zip(runs["run_id"], runs["experiment"], runs["spec"],
-                                                                  runs["finished_at"], runs["output_dir"]):
+    for run_id, experiment, spec_text, finished, output_dir, code, env_text in zip(
+            runs["run_id"], runs["experiment"], runs["spec"], runs["finished_at"], runs["output_dir"],
+            runs["code_version"], runs["env"]):
         spec = json.loads(spec_text) if spec_text else {}
         if not spec.get("sequence"):
             continue
@@ -468,12 +469,25 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
                         "spec_experiment": spec.get("experiment"), "finished_at": finished or "",
                         "output_dir": output_dir if isinstance(output_dir, str) else None,
                         "sequence_spec": _canonical(spec["sequence"]),
-                        "method_version": str((spec.get("versions") or {}).get("method") or "?")})
+                        "method_version": str((spec.get("versions") or {}).get("method") or "?"),
+                        "code_version": code if isinstance(code, str) and code else "?",
+                        "isa": _env_isa(env_text)})
     return pd.DataFrame(records, columns=["run_id", "experiment", "row", "row_base", "row_label", "method_name",
                                           "method_params",
                                           "method_label", "seed", "declared_role", "declared_holds_out",
                                           "spec_experiment", "finished_at", "output_dir", "sequence_spec",
-                                          "method_version"])
+                                          "method_version", "code_version", "isa"])
+
+
+def _env_isa(env_text) -> str:
+    """The run's instruction set as `bench.core.isa.describe` recorded it in ``env["isa"]``; "not recorded" for
+    runs stored before it was (or whose env is not JSON)."""
+    try:
+        env = json.loads(env_text) if isinstance(env_text, str) and env_text else {}
+    except json.JSONDecodeError:
+        env = {}
+    isa = env.get("isa") if isinstance(env, dict) else None
+    return isa if isinstance(isa, str) and isa else "not recorded"
 
 
 def preset_roles(folder: Path = PRESETS) -> dict[str, tuple[str, str | None]]:
@@ -523,6 +537,36 @@ def versions_note(table: pd.DataFrame, method: str) -> str:
             mix = ", ".join(f"{v} on {n} runs" for v, n in sorted(counts.items(), key=lambda x: -x[1]))
             parts.append(f"{name} MIXED ({mix}: rows run at different code versions; rerun the older ones)")
     return "method versions read (the newest run of each cell): " + "; ".join(parts)
+
+
+#: methods whose greedy fills turn a last-bit change of numpy's or OpenBLAS's kernels into another fill
+#: (`bench.core.isa`)
+ISA_SENSITIVE = ("temporal-graph", "fu-nonlocal")
+
+
+def computed_with_note(table: pd.DataFrame) -> list[str]:
+    """Where the runs read were computed (the run table after the newest run of each cell is kept): each
+    instruction set (`bench.core.isa.describe`, from the run's env) with its run count, and the number of runs
+    made from a checkout with modified tracked files (code version ``+dirty``: what they ran may not be the
+    committed code of their method version). A warning when unpinned runs of temporal-graph or fu-nonlocal were
+    made with more than one instruction set, or mixed with pinned ones: those methods' scores can differ by
+    0.1-0.5 dB from the instruction set alone, so a row's margin may partly be the machines'."""
+    counts = table["isa"].value_counts()
+    sets = "; ".join(f"{isa} on {n} runs" for isa, n in sorted(counts.items(), key=lambda x: (-x[1], x[0])))
+    notes = [f"instruction sets of the runs read: {sets}"]
+    dirty = table[table["code_version"].str.endswith("+dirty")]
+    if len(dirty):
+        methods = ", ".join(f"{m} {n}" for m, n in sorted(dirty["method_name"].value_counts().items()))
+        notes.append(f"code: {len(dirty)} of {len(table)} runs read were made from a checkout with modified files "
+                     f"(+dirty: {methods}); their method version may not name the code they ran; rerun them from a "
+                     "clean checkout (dpcbench run CONFIG --force)")
+    sensitive = table[table["method_name"].isin(ISA_SENSITIVE)]
+    if sensitive["isa"].nunique() > 1:
+        notes.append("instruction sets MIXED for " + ", ".join(sorted(set(sensitive["method_name"])))
+                     + f" ({sensitive['isa'].nunique()} sets): their scores can move 0.1-0.5 dB from the instruction "
+                     "set alone, so compare rows made on one machine, or rerun with pin_isa = true in [experiment] "
+                     "(bench/core/isa.py)")
+    return notes
 
 
 def heldout_check(table: pd.DataFrame, roles: dict) -> list[str]:
@@ -649,7 +693,7 @@ def margins_from_store(store, method: str, experiments: list[str] | None = None,
                         "give one of these labels as --method")
     label = method if method in set(table["method"]) or not labels else labels[0]
     roles, notes = resolve_roles(table)
-    notes += data_notes + [versions_note(table, label)] + heldout_check(table, roles)
+    notes += data_notes + [versions_note(table, label)] + computed_with_note(table) + heldout_check(table, roles)
     if oracle:
         extra, oracle_notes = oracle_observations(table, label)
         obs = pd.concat([obs, extra], ignore_index=True)
