@@ -169,16 +169,17 @@ def trace_last_resort(log: StageLog) -> list[tuple[int, str, list[tuple[str, np.
     calls: list[tuple[int, str, list[tuple[str, np.ndarray, float, float]], list[str]]] = []
     original = spatial.best_surface_fill
 
-    def best_surface_fill(captured, region, covered, surfaces, ring):
+    def best_surface_fill(covered, region, surfaces, ring):
         judged = []
         for name, (support, fill) in surfaces.items():
             points = fill(support, region, covered)
             if len(points):
                 judged.append((name, points, best.holdout_miss(surfaces[name], region, ring),
-                               float(np.sqrt(np.mean(captured.query(points)[0] ** 2)))))
-        names, filled = original(captured, region, covered, surfaces, ring)
-        calls.append((log.frame, str(np.round(region.center, 1).tolist()), judged, names))
-        return names, filled
+                               float(np.sqrt(np.mean(covered.query(points)[0] ** 2)))))
+        filled_by, filled = original(covered, region, surfaces, ring)
+        calls.append((log.frame, str(np.round(region.center, 1).tolist()), judged,
+                      [] if filled_by is None else [filled_by]))
+        return filled_by, filled
 
     spatial.best_surface_fill = best_surface_fill
     return calls

@@ -68,9 +68,9 @@ def test_the_last_resort_fills_a_curved_hole_on_its_surface():
     truth = plane(height=lambda u, v: np.round((u ** 2 + v ** 2) / 40.0))
     rim, crop = rim_and_crop(holed(truth, HOLE))
     surfaces = candidates(rim, crop, HOLE, 1.0, voxelized=True, step=1.0, gap_spacings=1.0, ring=RING)
-    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), surfaces, RING)
+    name, fill = best_surface_fill(cKDTree(crop), HOLE, surfaces, RING)
     hidden = truth[HOLE.contains(truth)]
-    assert names and len(fill)
+    assert name is not None and len(fill)
     # every candidate is judged, the closed surface's hold-out (built on the grown region) included
     assert all(holdout_miss(surfaces[name], HOLE, RING) <= 1.0 for name in ("spline", "closed"))
     assert (cKDTree(fill).query(hidden)[0] <= 1.5).all()
@@ -92,9 +92,9 @@ def test_a_surface_that_misses_its_ring_by_more_than_the_open_hole_s_error_leave
             return near_data
         return fill
 
-    for miss, expected in ((50.0, []), (0.2, ["wrong"])):
-        names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"wrong": (rim, surface(miss))}, RING)
-        assert names == expected and len(fill) == 2 * len(expected)
+    for miss, expected in ((50.0, None), (0.2, "wrong")):
+        name, fill = best_surface_fill(cKDTree(crop), HOLE, {"wrong": (rim, surface(miss))}, RING)
+        assert name == expected and len(fill) == (0 if expected is None else 2)
 
 
 def test_only_the_best_surface_that_passes_fills_and_a_worse_one_does_not_fill_what_it_left_open():
@@ -112,9 +112,8 @@ def test_only_the_best_surface_that_passes_fills_and_a_worse_one_does_not_fill_w
         points = plane(12)[region.contains(plane(12))]
         return points + [0.0, 0.0, 0.5] if holding_out(region) else points
 
-    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole), "half": (rim, half)},
-                                    RING)
-    assert names == ["half"]
+    name, fill = best_surface_fill(cKDTree(crop), HOLE, {"whole": (rim, whole), "half": (rim, half)}, RING)
+    assert name == "half"
     assert np.array_equal(fill, half(rim, HOLE, None))
     assert (hidden[:, 0] >= 0).any() and cKDTree(fill).query(hidden[hidden[:, 0] > 1])[0].min() > 1.0  # left open
 
@@ -122,9 +121,8 @@ def test_only_the_best_surface_that_passes_fills_and_a_worse_one_does_not_fill_w
         return plane(12)[region.contains(plane(12))] + [0.0, 0.0, 0.3] if holding_out(region) else \
             np.array([[6.9, 0.0, 0.0]])
 
-    names, fill = best_surface_fill(cKDTree(crop), HOLE, cKDTree(crop), {"whole": (rim, whole),
-                                                                        "hugging": (rim, hugging)}, RING)
-    assert names == ["whole"] and np.array_equal(fill, whole(rim, HOLE, None))
+    name, fill = best_surface_fill(cKDTree(crop), HOLE, {"whole": (rim, whole), "hugging": (rim, hugging)}, RING)
+    assert name == "whole" and np.array_equal(fill, whole(rim, HOLE, None))
 
 
 def test_temporal_fusion_fills_a_hole_its_strategies_refuse_only_with_the_last_resort():

@@ -78,15 +78,15 @@ def holdout_miss(candidate: Candidate, region: HoleRegion, ring: float) -> float
     return float(np.sqrt(np.mean(distance ** 2)))
 
 
-def best_surface_fill(captured: cKDTree, region: HoleRegion, covered: cKDTree, surfaces: dict[str, Candidate],
-                      ring: float) -> tuple[list[str], np.ndarray]:
-    """(the name of the candidate that filled, in a list, empty when none did; its fill (P, 3)) for ``region``.
-    ``captured``: what the output holds round the hole already (the frame's points and the fill so far), from which
-    the open part's error is measured; ``covered``: what a new point must keep its gap from.
+def best_surface_fill(covered: cKDTree, region: HoleRegion, surfaces: dict[str, Candidate], ring: float
+                      ) -> tuple[str | None, np.ndarray]:
+    """(the name of the candidate that filled, None when none did; its fill (P, 3)) for ``region``. ``covered``: what
+    the output holds round the hole already (the frame's points and the fill so far): the open part's error is
+    measured from it, and a new point keeps its gap from it.
 
     The candidates of ``surfaces`` are ranked by `holdout_miss`, least first (those that make nothing in the region
     are dropped); the first whose miss is below the open part's predicted error, the RMS distance of its new points
-    to ``captured``, fills what it reaches (farther than its gap from ``covered``), and the rest of the hole stays
+    to ``covered``, fills what it reaches (farther than its gap from ``covered``), and the rest of the hole stays
     open. A worse-ranked candidate does not fill what the better one left open: measured on one-frame Longdress
     damages, such a continuation lay off the surface by more than the open hole's own error (docs/temporal-fusion.md,
     "Version 56")."""
@@ -95,6 +95,6 @@ def best_surface_fill(captured: cKDTree, region: HoleRegion, covered: cKDTree, s
     for miss, name in sorted((holdout_miss(candidate, region, ring), name) for name, candidate in surfaces.items()):
         support, fill = surfaces[name]
         points = fill(support, region, covered)
-        if len(points) and miss < float(np.sqrt(np.mean(captured.query(points)[0] ** 2))):
-            return [name], points
-    return [], np.zeros((0, 3))
+        if len(points) and miss < float(np.sqrt(np.mean(covered.query(points)[0] ** 2))):
+            return name, points
+    return None, np.zeros((0, 3))

@@ -243,7 +243,7 @@ class BestSurface:
         # covers most of it
         covered = (cKDTree(np.vstack([state.covered.data, state.membrane_alone])) if len(state.membrane_alone)
                    else state.covered)
-        _, spatial = best_surface_fill(covered, hole.region, covered, surfaces, hole.ring)
+        _, spatial = best_surface_fill(covered, hole.region, surfaces, hole.ring)
         # built afresh in each frame, as the caps and membranes: its error is larger than the trusted fills', and
         # carried on by the next frame's reuse it would be carried into every later frame of a persistent hole
         return replace(state, spatial=np.vstack([state.spatial, spatial]), not_reused=state.not_reused + (spatial,))
