@@ -542,6 +542,9 @@ def versions_note(table: pd.DataFrame, method: str) -> str:
 #: methods whose greedy fills turn a last-bit change of numpy's or OpenBLAS's kernels into another fill
 #: (`bench.core.isa`)
 ISA_SENSITIVE = ("temporal-graph", "fu-nonlocal")
+#: how far that moved them, as measured: the 546 runs of the temporal-fusion margins presets unpinned (AVX-512) and
+#: pinned on one machine, `experiments/run_diff.py` (results/README.md, `temporal-fusion-57-pinned/`)
+ISA_MOVE = "a run's mean D1 by up to 3.0 dB, a frame's by up to 3.6 dB"
 
 
 def computed_with_note(table: pd.DataFrame) -> list[str]:
@@ -561,11 +564,16 @@ def computed_with_note(table: pd.DataFrame) -> list[str]:
                      f"(+dirty: {methods}); their method version may not name the code they ran; rerun them from a "
                      "clean checkout (dpcbench run CONFIG --force)")
     sensitive = table[table["method_name"].isin(ISA_SENSITIVE)]
+    names = ", ".join(sorted(set(sensitive["method_name"])))
     if sensitive["isa"].nunique() > 1:
-        notes.append("instruction sets MIXED for " + ", ".join(sorted(set(sensitive["method_name"])))
-                     + f" ({sensitive['isa'].nunique()} sets): their scores can move 0.1-0.5 dB from the instruction "
-                     "set alone, so compare rows made on one machine, or rerun with pin_isa = true in [experiment] "
-                     "(bench/core/isa.py)")
+        notes.append(f"instruction sets MIXED for {names} ({sensitive['isa'].nunique()} sets): their scores move with "
+                     f"the instruction set alone ({ISA_MOVE}), so compare rows made on one machine, or rerun with "
+                     "pin_isa = true in [experiment] (bench/core/isa.py)")
+    loose = ~sensitive["isa"].str.contains("; pinned (", regex=False)
+    if loose.any():
+        notes.append(f"{int(loose.sum())} of the {len(sensitive)} runs of {names} were not computed pinned: their "
+                     f"scores are this machine's ({ISA_MOVE} on another instruction set); rerun with pin_isa = true "
+                     "in [experiment] for scores any x86-64 machine with AVX2 reproduces")
     return notes
 
 
