@@ -587,7 +587,8 @@ def test_versions_note_names_each_method_s_code_version_and_flags_a_mix():
 
 def test_computed_with_note_counts_instruction_sets_and_dirty_runs_and_flags_unpinned_or_mixed_greedy_fills():
     """The runs' instruction sets with their counts; runs from a modified checkout counted per method; warnings only
-    where temporal-graph or fu-nonlocal (whose fills move with the last bits) ran unpinned or with more than one set."""
+    where temporal-fusion, temporal-graph or fu-nonlocal (whose fills move with the last bits) ran unpinned or with
+    more than one set."""
     import pandas as pd
 
     from dpcbench.bench.reporting.margins import _env_isa, computed_with_note
@@ -596,7 +597,7 @@ def test_computed_with_note_counts_instruction_sets_and_dirty_runs_and_flags_unp
     assert _env_isa(None) == _env_isa("{not json") == _env_isa('{"git_commit": "abc"}') == "not recorded"
     a, b = "x86_64; numpy dispatch up to AVX512_ICL; unpinned", "x86_64; numpy dispatch up to AVX2; unpinned"
     pinned = "x86_64; numpy dispatch up to X86_V3; pinned (OPENBLAS_CORETYPE=Haswell)"
-    table = pd.DataFrame({"method_name": ["temporal-fusion", "fu-nonlocal", "fu-nonlocal", "none"],
+    table = pd.DataFrame({"method_name": ["lozes-pde", "fu-nonlocal", "fu-nonlocal", "none"],
                           "isa": [a, pinned, pinned, b], "code_version": ["c1", "c1", "c2+dirty", "c1"]})
     notes = computed_with_note(table)
     assert notes[0] == f"instruction sets of the runs read: {pinned} on 2 runs; {b} on 1 runs; {a} on 1 runs"

@@ -539,21 +539,22 @@ def versions_note(table: pd.DataFrame, method: str) -> str:
     return "method versions read (the newest run of each cell): " + "; ".join(parts)
 
 
-#: methods whose greedy fills turn a last-bit change of numpy's or OpenBLAS's kernels into another fill
-#: (`bench.core.isa`)
-ISA_SENSITIVE = ("temporal-graph", "fu-nonlocal")
+#: methods whose fills turn a last-bit change of numpy's or OpenBLAS's kernels into another fill (`bench.core.isa`): those
+#: whose runs' mean D1 moved by more than 0.1 dB between unpinned and pinned (below: up to 3 dB; lozes-pde and
+#: temporal-copy by at most 0.02, none and meshlab not at all)
+ISA_SENSITIVE = ("temporal-fusion", "temporal-graph", "fu-nonlocal")
 #: how far that moved them, as measured: the 546 runs of the temporal-fusion margins presets unpinned (AVX-512) and
 #: pinned on one machine, `experiments/run_diff.py` (results/README.md, `temporal-fusion-57-pinned/`)
-ISA_MOVE = "a run's mean D1 by up to 3.0 dB, a frame's by up to 3.6 dB"
+ISA_MOVE = "a run's mean D1 by up to 3.2 dB, a frame's by up to 6.4 dB"
 
 
 def computed_with_note(table: pd.DataFrame) -> list[str]:
     """Where the runs read were computed (the run table after the newest run of each cell is kept): each
     instruction set (`bench.core.isa.describe`, from the run's env) with its run count, and the number of runs
     made from a checkout with modified tracked files (code version ``+dirty``: what they ran may not be the
-    committed code of their method version). A warning when unpinned runs of temporal-graph or fu-nonlocal were
-    made with more than one instruction set, or mixed with pinned ones: those methods' scores can differ by
-    0.1-0.5 dB from the instruction set alone, so a row's margin may partly be the machines'."""
+    committed code of their method version). A warning when runs of an `ISA_SENSITIVE` method were made with more
+    than one instruction set, and one when any were not pinned: those methods' scores move with the instruction set
+    alone (`ISA_MOVE`), so a row's margin may partly be the machine's."""
     counts = table["isa"].value_counts()
     sets = "; ".join(f"{isa} on {n} runs" for isa, n in sorted(counts.items(), key=lambda x: (-x[1], x[0])))
     notes = [f"instruction sets of the runs read: {sets}"]
