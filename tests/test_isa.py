@@ -58,6 +58,7 @@ def test_a_pinned_experiment_runs_its_workers_pinned(tmp_path, monkeypatch, caps
     store = tmp_path / "s.sqlite"
     assert cli_main(["run", str(config), "--store", str(store), "--quiet", "--executor", "serial"]) == 0
     assert "pin_isa = true" in capsys.readouterr().err
+    assert not any(var in os.environ for var in isa.PIN_VARIABLES)  # the caller's environment is given back
     env = json.loads(ResultsStore(store, readonly=True).runs_frame()["env"].iloc[0])
     expected = isa.pin_environment()
     if "NPY_DISABLE_CPU_FEATURES" in expected:
