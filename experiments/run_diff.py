@@ -12,7 +12,7 @@ others the largest change of a frame's D1 and of a run's mean D1 (over its frame
 from __future__ import annotations
 
 import argparse
-import sqlite3
+import math
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -20,18 +20,20 @@ from pathlib import Path
 METRICS = ("gpsnr_d1", "gpsnr_d2", "nshd")
 
 
-def scores(path: Path) -> dict[str, tuple[str, dict[tuple[str, int], float]]]:
-    """run id -> (method, {(metric, frame): value}) of the finished runs of the store at ``path`` (read-only)."""
+def scores(path: Path) -> dict[str, tuple[str, dict[tuple[str, int], float | None]]]:
+    """run id -> (method, {(metric, frame): value, None where not finite}) of the finished runs of the store at
+    ``path``, opened read-only (`ResultsStore.results_frame`; a run in several experiments counted once)."""
+    from dpcbench.bench.results.store import ResultsStore
+
     if not path.is_file():
         sys.exit(f"{path}: no such results store; give two SQLite stores written by dpcbench run")
-    db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
-    rows = db.execute(
-        "SELECT r.run_id, r.method, x.metric, x.frame, x.value FROM runs r JOIN results x ON x.run_id = r.run_id "
-        "WHERE r.status = 'done' AND x.scope = 'frame' AND x.frame >= 0 AND x.peak IN ('', 'intrinsic') "
-        f"AND x.metric IN ({', '.join('?' * len(METRICS))})", METRICS).fetchall()
-    out: dict[str, tuple[str, dict[tuple[str, int], float]]] = {}
-    for run_id, method, metric, frame, value in rows:
-        out.setdefault(run_id, (method, {}))[1][(metric, int(frame))] = value
+    table = ResultsStore(path, readonly=True).results_frame()
+    table = table[(table["scope"] == "frame") & (table["frame"] >= 0) & table["metric"].isin(METRICS)
+                  & table["peak"].fillna("").isin(["", "intrinsic"])]
+    out: dict[str, tuple[str, dict[tuple[str, int], float | None]]] = {}
+    for run_id, method, metric, frame, value in table[["run_id", "method", "metric", "frame", "value"]].itertuples(
+            index=False):
+        out.setdefault(run_id, (method, {}))[1][(metric, int(frame))] = value if math.isfinite(value) else None
     return out
 
 

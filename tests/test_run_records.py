@@ -175,3 +175,11 @@ if __name__ == "__main__":  # writes the golden file: python -m tests.test_run_r
     helpers.register_global()
     with tempfile.TemporaryDirectory() as tmp:
         GOLDEN.write_text(json.dumps(stored_rows(Path(tmp)), indent=1, sort_keys=True) + "\n")
+
+
+def test_run_env_reads_a_stored_env_and_gives_an_empty_dict_for_anything_else():
+    from dpcbench.bench.experiment.records import run_env
+
+    assert run_env('{"isa": "x86_64; unpinned", "machine": {"cpus": 2}}') == {"isa": "x86_64; unpinned",
+                                                                              "machine": {"cpus": 2}}
+    assert run_env(None) == run_env("") == run_env("{not json") == run_env("[1, 2]") == run_env(float("nan")) == {}

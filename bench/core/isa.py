@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import platform
+from contextlib import contextmanager
 
 #: the variables `pin_environment` sets
 PIN_VARIABLES = ("NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
@@ -48,6 +49,21 @@ def pin() -> dict[str, str]:
     env = pin_environment()
     os.environ.update(env)
     return env
+
+
+@contextmanager
+def pinned():
+    """`pin` for the block (yields what it set), then ``os.environ`` as it was: the pin is for the workers started
+    inside, not for what the calling process runs next (a script or test that calls `dpcbench run`'s ``main``)."""
+    before = {key: os.environ.get(key) for key in PIN_VARIABLES}
+    try:
+        yield pin()
+    finally:
+        for key, value in before.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 def describe() -> str:

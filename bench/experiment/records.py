@@ -20,6 +20,18 @@ from dpcbench.bench.core.canonical import sorted_json
 STATUSES = ("done", "failed")
 
 
+def run_env(text) -> dict:
+    """A run's ``env`` column (JSON text, `bench.execution.provenance.environment`) as a dict: {} where it is missing,
+    empty, not JSON or not an object (runs stored before a key existed, a damaged row), so readers take ``.get``."""
+    if not isinstance(text, str) or not text:
+        return {}
+    try:
+        env = json.loads(text)
+    except ValueError:
+        return {}
+    return env if isinstance(env, dict) else {}
+
+
 def now_iso() -> str:
     """The current UTC time to the second, ISO 8601 (``2026-12-03T08:30:00+00:00``)."""
     return datetime.now(timezone.utc).isoformat(timespec="seconds")

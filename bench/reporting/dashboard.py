@@ -299,17 +299,13 @@ def machine_name(env: dict) -> str:
 def run_machines(runs: pd.DataFrame | None) -> dict[str, str]:
     """Code version -> the machine most of its runs ran on (the runs table's env JSON); versions
     whose runs recorded none are left out."""
-    import json
+    from dpcbench.bench.experiment.records import run_env
 
     if runs is None or runs.empty or "env" not in runs.columns:
         return {}
     names: dict[str, list[str]] = {}
     for version, env_text in zip(runs["code_version"].fillna("unknown").astype(str), runs["env"]):
-        try:
-            env = json.loads(env_text) if isinstance(env_text, str) and env_text else {}
-        except json.JSONDecodeError:
-            continue
-        name = machine_name(env) if isinstance(env, dict) else ""
+        name = machine_name(run_env(env_text))
         if name:
             names.setdefault(version, []).append(name)
     return {v: max(set(found), key=found.count) for v, found in names.items()}

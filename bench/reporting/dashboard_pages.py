@@ -21,13 +21,13 @@ from __future__ import annotations
 import base64
 import html
 import io
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from dpcbench.bench.experiment.records import run_env
 from dpcbench.bench.reporting import dashboard as dash
 from dpcbench.bench.reporting.dashboard import _runs_of, method_file, pages_section, run_file, runs_table  # noqa: F401
 from dpcbench.bench.results import compare
@@ -172,11 +172,7 @@ def thumbnail_png(folder: Path, frame: int = 0, height: int = 180, max_points: i
 
 
 def _env_machine(run) -> str:
-    try:
-        env = json.loads(run.env) if isinstance(run.env, str) and run.env else {}
-    except json.JSONDecodeError:
-        return ""
-    return dash.machine_name(env) if isinstance(env, dict) else ""
+    return dash.machine_name(run_env(run.env))
 
 
 def per_frame_table(rows: pd.DataFrame, metrics: list[str]) -> str:

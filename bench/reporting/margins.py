@@ -482,11 +482,9 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
 def _env_isa(env_text) -> str:
     """The run's instruction set as `bench.core.isa.describe` recorded it in ``env["isa"]``; "not recorded" for
     runs stored before it was (or whose env is not JSON)."""
-    try:
-        env = json.loads(env_text) if isinstance(env_text, str) and env_text else {}
-    except json.JSONDecodeError:
-        env = {}
-    isa = env.get("isa") if isinstance(env, dict) else None
+    from dpcbench.bench.experiment.records import run_env
+
+    isa = run_env(env_text).get("isa")
     return isa if isinstance(isa, str) and isa else "not recorded"
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from dpcbench.bench.experiment.records import run_env
 from dpcbench.bench.reporting.latex_tables import latex_escape  # noqa: F401  (re-exported)
 from dpcbench.bench.results import stats
 from dpcbench.bench.results.compare import FLOOR_MARK, FLOOR_METHOD, TIED_MARK  # noqa: F401  (re-exported; their one source)
@@ -319,10 +320,7 @@ def d2_normals_note(runs: pd.DataFrame, run_ids=None) -> str:
         runs = runs[runs["run_id"].isin(set(run_ids))]
     by_sequence: dict[str, set] = {}
     for sequence, env in zip(runs["sequence"], runs["env"]):
-        try:
-            source = json.loads(env).get("d2_normals") if isinstance(env, str) else None
-        except ValueError:
-            source = None
+        source = run_env(env).get("d2_normals")
         by_sequence.setdefault(str(sequence), set()).add(source or "unknown")
     sources = set().union(*by_sequence.values()) if by_sequence else set()
     if not sources:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 
@@ -63,26 +64,17 @@ def main(args) -> int:
         _check_runs_dir(args.runs_dir)
     store = ResultsStore(args.store, verify=True)
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
-    unpinned: dict[str, str | None] | None = None
-    if cfg.pin_isa:  # the workers start after this, with the pin in their environment before numpy loads
-        from dpcbench.bench.core import isa
+    from dpcbench.bench.core import isa
 
-        unpinned = {k: os.environ.get(k) for k in isa.PIN_VARIABLES}
-        pinned = isa.pin()
-        print(f"experiment {cfg.name!r}: pin_isa = true, workers run with "
-              + " ".join(f"{k}={v!r}" for k, v in sorted(pinned.items())) + " (bench/core/isa.py)", file=sys.stderr)
-    try:
+    # the workers start inside, with the pin in their environment before numpy loads; the caller's comes back after
+    with isa.pinned() if cfg.pin_isa else contextlib.nullcontext() as pinned:
+        if pinned:
+            print(f"experiment {cfg.name!r}: pin_isa = true, workers run with "
+                  + " ".join(f"{k}={v!r}" for k, v in sorted(pinned.items())) + " (bench/core/isa.py)",
+                  file=sys.stderr)
         summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
                                  scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
                                  quiet=quiet, timeout_s=args.timeout)
-    finally:
-        # the pin is this sweep's: a caller that runs `main` in its own process (a test, a script) gets its environment
-        # back, so the workers of its next, unpinned sweep are not pinned
-        for key, value in (unpinned or {}).items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
     print(f"experiment {cfg.name!r}: {len(summary.done)} run(s) done, {len(summary.cached)} cached, "
           f"{len(summary.failed)} failed; store {store.path}")
     for run_id in summary.failed:
