@@ -57,7 +57,7 @@ def test_a_pinned_experiment_runs_its_workers_pinned(tmp_path, monkeypatch, caps
     config.write_text(PINNED)
     store = tmp_path / "s.sqlite"
     assert cli_main(["run", str(config), "--store", str(store), "--quiet", "--executor", "serial"]) == 0
-    assert "pin_isa = true" in capsys.readouterr().err
+    assert "pinned (pin_isa), workers run with" in capsys.readouterr().err
     assert not any(var in os.environ for var in isa.PIN_VARIABLES)  # the caller's environment is given back
     env = json.loads(ResultsStore(store, readonly=True).runs_frame()["env"].iloc[0])
     expected = isa.pin_environment()
@@ -67,6 +67,35 @@ def test_a_pinned_experiment_runs_its_workers_pinned(tmp_path, monkeypatch, caps
                      "--save-current", str(tmp_path / "cur.csv")]) in (0, 1)
     out = capsys.readouterr().out
     assert out.count("instruction set:") == 2 and env["isa"] in out
+
+
+@pytest.mark.parametrize("command", [["run", "CONFIG"], ["reproduce-paper", "--quick"]])
+def test_pin_isa_pins_the_workers_of_an_unpinned_experiment_and_gives_the_environment_back(command, tmp_path,
+                                                                                            monkeypatch, capsys):
+    """`--pin-isa` on `run` (an experiment without pin_isa) and on `reproduce-paper`: the runner is called with the
+    pin in os.environ (its workers inherit it), and without the flag it is not; the caller's environment comes back."""
+    from dpcbench.bench.execution import runner
+
+    for var in isa.PIN_VARIABLES:
+        monkeypatch.delenv(var, raising=False)
+    seen = []
+
+    def runner_seeing_the_environment(specs, store, **kwargs):
+        seen.append({var: os.environ.get(var) for var in isa.PIN_VARIABLES})
+        return runner.RunSummary()  # nothing run: each command then stops with its own message
+
+    monkeypatch.setattr(runner, "run_experiment", runner_seeing_the_environment)
+    config = tmp_path / "unpinned.toml"
+    config.write_text(PINNED.replace("pin_isa = true\n", ""))
+    args = [str(config) if a == "CONFIG" else a for a in command] + ["--store", str(tmp_path / "s.sqlite"), "--quiet"]
+    if command[0] == "reproduce-paper":
+        args += ["--out", str(tmp_path / "out")]
+    cli_main(args)
+    cli_main(args + ["--pin-isa"])
+    assert "pinned (pin_isa), workers run with" in capsys.readouterr().err
+    assert seen[0] == dict.fromkeys(isa.PIN_VARIABLES)
+    assert seen[1] == {var: isa.pin_environment().get(var) for var in isa.PIN_VARIABLES}
+    assert not any(var in os.environ for var in isa.PIN_VARIABLES)
 
 
 def test_a_config_with_a_bad_pin_is_refused(tmp_path, capsys):

@@ -585,32 +585,6 @@ def test_versions_note_names_each_method_s_code_version_and_flags_a_mix():
     assert "fusion MIXED (46 on 1 runs, 45 on 1 runs" in mixed and mixed.index("fusion") < mixed.index("lozes")
 
 
-def test_computed_with_note_counts_instruction_sets_and_dirty_runs_and_flags_unpinned_or_mixed_greedy_fills():
-    """The runs' instruction sets with their counts; runs from a modified checkout counted per method; warnings only
-    where temporal-fusion, temporal-graph or fu-nonlocal (whose fills move with the last bits) ran unpinned or with
-    more than one set."""
-    import pandas as pd
-
-    from dpcbench.bench.reporting.margins import _env_isa, computed_with_note
-
-    assert _env_isa('{"isa": "x86_64; numpy dispatch up to AVX2; unpinned"}') == "x86_64; numpy dispatch up to AVX2; unpinned"
-    assert _env_isa(None) == _env_isa("{not json") == _env_isa('{"git_commit": "abc"}') == "not recorded"
-    a, b = "x86_64; numpy dispatch up to AVX512_ICL; unpinned", "x86_64; numpy dispatch up to AVX2; unpinned"
-    pinned = "x86_64; numpy dispatch up to X86_V3; pinned (OPENBLAS_CORETYPE=Haswell)"
-    table = pd.DataFrame({"method_name": ["lozes-pde", "fu-nonlocal", "fu-nonlocal", "none"],
-                          "isa": [a, pinned, pinned, b], "code_version": ["c1", "c1", "c2+dirty", "c1"]})
-    notes = computed_with_note(table)
-    assert notes[0] == f"instruction sets of the runs read: {pinned} on 2 runs; {b} on 1 runs; {a} on 1 runs"
-    assert notes[1].startswith("code: 1 of 4 runs read were made from a checkout with modified files (+dirty: "
-                               "fu-nonlocal 1)")
-    assert len(notes) == 2  # fu-nonlocal pinned on one set; the others unpinned on two move nothing: no warning
-    unpinned = computed_with_note(table.assign(isa=[pinned, a, a, pinned], code_version="c1"))
-    assert len(unpinned) == 2 and unpinned[1].startswith("2 of the 2 runs of fu-nonlocal were not computed pinned")
-    mixed = computed_with_note(table.assign(isa=[a, pinned, a, a], code_version="c1"))
-    assert len(mixed) == 3 and mixed[1].startswith("instruction sets MIXED for fu-nonlocal (2 sets)")
-    assert mixed[2].startswith("1 of the 2 runs of fu-nonlocal were not computed pinned")
-
-
 def test_runs_on_superseded_data_are_left_out_with_a_note():
     """A sequence whose files changed between two runs of an experiment (its data version, a stat hash, moved) gives
     two rows that differ only in their data version; one label must not list both. The row of the newest run is kept,

@@ -509,3 +509,26 @@ def test_paper_report_has_the_claims_and_its_provenance(tmp_path):
     n = df["run_id"].nunique()
     assert (f"Provenance: {n} runs in this report: 5 computed now (code abc (5)); {n - 5} read from the store, "
             f"computed before (code abc ({n - 5})); results store `{store.path}`") in text
+
+
+def test_provenance_says_where_the_runs_were_computed_and_warns_of_unpinned_greedy_fills(tmp_path):
+    """Every report's provenance lists the instruction sets its runs recorded, and warns where a method whose scores
+    move with the instruction set (Hu and Proposed here) ran unpinned; pinned, they get no warning."""
+    from dpcbench.bench.reporting.computed_with import ISA_SENSITIVE
+    from dpcbench.bench.reporting.reports import provenance_markdown
+
+    store = _store_with_results(tmp_path / "s.sqlite")
+    runs = store.runs_frame("exp").drop_duplicates("run_id")
+    pinned = "x86_64; numpy dispatch up to X86_V3; pinned (OPENBLAS_CORETYPE=Haswell)"
+    loose = "x86_64; numpy dispatch up to AVX512_ICL; unpinned"
+    hu = runs["method"].isin(ISA_SENSITIVE)
+    assert hu.any() and (~hu).any()
+    runs = runs.assign(env=[json.dumps({"isa": pinned if h else loose}) for h in hu])
+    text = provenance_markdown(runs, set(runs["run_id"]))
+    assert f"- Instruction sets of the runs read: {loose} on {(~hu).sum()} runs; {pinned} on {hu.sum()} runs." in text \
+        or f"- Instruction sets of the runs read: {pinned} on {hu.sum()} runs; {loose} on {(~hu).sum()} runs." in text
+    assert "not computed pinned" not in text
+    flipped = runs.assign(env=[json.dumps({"isa": loose if h else pinned}) for h in hu])
+    warned = provenance_markdown(flipped, set(runs["run_id"]))
+    assert f"- {hu.sum()} of the {hu.sum()} runs of fu-nonlocal, temporal-graph were not computed pinned" in warned
+    assert "`--pin-isa` on `dpcbench run` and `dpcbench reproduce-paper`" in warned

@@ -5,6 +5,8 @@ One module, so that no command imports another (as `dpcbench.bench.cli.commands`
 
 from __future__ import annotations
 
+import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from dpcbench.bench.core.errors import UserError
@@ -37,6 +39,32 @@ def add_input_options(parser) -> None:
                         help="parameter of the input (repeatable): an embedded dataset's (--dataset-param size=tiny), "
                              "a mesh sequence's sampling, or voxel_size for PLY frames (re-voxelize coarser: 2 makes "
                              "10-bit frames 9-bit)")
+
+
+def add_pin_option(parser) -> None:
+    """--pin-isa: of `run` and `reproduce-paper`, the commands that start runs."""
+    parser.add_argument("--pin-isa", action="store_true",
+                        help="run the workers pinned to one instruction set (numpy's AVX2 kernels, OpenBLAS's "
+                             "Haswell ones, one BLAS thread: bench/core/isa.py), as an experiment with pin_isa = true "
+                             "is: temporal-fusion, temporal-graph and fu-nonlocal then score as on any x86-64 machine "
+                             "with AVX2, not only this one. Stored runs are reused whether or not they were pinned "
+                             "(the reports say which were): add --force to recompute them")
+
+
+@contextmanager
+def pinned_workers(pin: bool, what: str):
+    """The block with `bench.core.isa.pinned` when ``pin`` (saying so on stderr, for ``what``: the experiment), else
+    as it is: the runner's workers start inside it, so they inherit the pin before numpy loads; the caller's
+    environment comes back after. Yields the variables set ({} unpinned)."""
+    if not pin:
+        yield {}
+        return
+    from dpcbench.bench.core import isa
+
+    with isa.pinned() as env:
+        print(f"{what}: pinned (pin_isa), workers run with " + " ".join(f"{k}={v!r}" for k, v in sorted(env.items()))
+              + " (bench/core/isa.py)", file=sys.stderr)
+        yield env
 
 
 def resolve_store(text: str) -> Path:

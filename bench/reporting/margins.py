@@ -62,6 +62,7 @@ import pandas as pd
 
 from dpcbench.bench.core.canonical import sorted_json
 from dpcbench.bench.core.errors import UserError
+from dpcbench.bench.reporting.computed_with import computed_with_notes, env_isa
 from dpcbench.bench.reporting.tables import csv_safe, md_escape
 from dpcbench.bench.results import stats
 
@@ -471,21 +472,12 @@ def run_table(runs: pd.DataFrame) -> pd.DataFrame:
                         "sequence_spec": _canonical(spec["sequence"]),
                         "method_version": str((spec.get("versions") or {}).get("method") or "?"),
                         "code_version": code if isinstance(code, str) and code else "?",
-                        "isa": _env_isa(env_text)})
+                        "isa": env_isa(env_text)})
     return pd.DataFrame(records, columns=["run_id", "experiment", "row", "row_base", "row_label", "method_name",
                                           "method_params",
                                           "method_label", "seed", "declared_role", "declared_holds_out",
                                           "spec_experiment", "finished_at", "output_dir", "sequence_spec",
                                           "method_version", "code_version", "isa"])
-
-
-def _env_isa(env_text) -> str:
-    """The run's instruction set as `bench.core.isa.describe` recorded it in ``env["isa"]``; "not recorded" for
-    runs stored before it was (or whose env is not JSON)."""
-    from dpcbench.bench.experiment.records import run_env
-
-    isa = run_env(env_text).get("isa")
-    return isa if isinstance(isa, str) and isa else "not recorded"
 
 
 def preset_roles(folder: Path = PRESETS) -> dict[str, tuple[str, str | None]]:
@@ -535,45 +527,6 @@ def versions_note(table: pd.DataFrame, method: str) -> str:
             mix = ", ".join(f"{v} on {n} runs" for v, n in sorted(counts.items(), key=lambda x: -x[1]))
             parts.append(f"{name} MIXED ({mix}: rows run at different code versions; rerun the older ones)")
     return "method versions read (the newest run of each cell): " + "; ".join(parts)
-
-
-#: methods whose fills turn a last-bit change of numpy's or OpenBLAS's kernels into another fill (`bench.core.isa`): those
-#: whose runs' mean D1 moved by more than 0.1 dB between unpinned and pinned (below: up to 3 dB; lozes-pde and
-#: temporal-copy by at most 0.02, none and meshlab not at all)
-ISA_SENSITIVE = ("temporal-fusion", "temporal-graph", "fu-nonlocal")
-#: how far that moved them, as measured: the 546 runs of the temporal-fusion margins presets unpinned (AVX-512) and
-#: pinned on one machine, `experiments/run_diff.py` (results/README.md, `temporal-fusion-57-pinned/`)
-ISA_MOVE = "a run's mean D1 by up to 3.2 dB, a frame's by up to 6.4 dB"
-
-
-def computed_with_note(table: pd.DataFrame) -> list[str]:
-    """Where the runs read were computed (the run table after the newest run of each cell is kept): each
-    instruction set (`bench.core.isa.describe`, from the run's env) with its run count, and the number of runs
-    made from a checkout with modified tracked files (code version ``+dirty``: what they ran may not be the
-    committed code of their method version). A warning when runs of an `ISA_SENSITIVE` method were made with more
-    than one instruction set, and one when any were not pinned: those methods' scores move with the instruction set
-    alone (`ISA_MOVE`), so a row's margin may partly be the machine's."""
-    counts = table["isa"].value_counts()
-    sets = "; ".join(f"{isa} on {n} runs" for isa, n in sorted(counts.items(), key=lambda x: (-x[1], x[0])))
-    notes = [f"instruction sets of the runs read: {sets}"]
-    dirty = table[table["code_version"].str.endswith("+dirty")]
-    if len(dirty):
-        methods = ", ".join(f"{m} {n}" for m, n in sorted(dirty["method_name"].value_counts().items()))
-        notes.append(f"code: {len(dirty)} of {len(table)} runs read were made from a checkout with modified files "
-                     f"(+dirty: {methods}); their method version may not name the code they ran; rerun them from a "
-                     "clean checkout (dpcbench run CONFIG --force)")
-    sensitive = table[table["method_name"].isin(ISA_SENSITIVE)]
-    names = ", ".join(sorted(set(sensitive["method_name"])))
-    if sensitive["isa"].nunique() > 1:
-        notes.append(f"instruction sets MIXED for {names} ({sensitive['isa'].nunique()} sets): their scores move with "
-                     f"the instruction set alone ({ISA_MOVE}), so compare rows made on one machine, or rerun with "
-                     "pin_isa = true in [experiment] (bench/core/isa.py)")
-    loose = ~sensitive["isa"].str.contains("; pinned (", regex=False)
-    if loose.any():
-        notes.append(f"{int(loose.sum())} of the {len(sensitive)} runs of {names} were not computed pinned: their "
-                     f"scores are this machine's ({ISA_MOVE} on another instruction set); rerun with pin_isa = true "
-                     "in [experiment] for scores any x86-64 machine with AVX2 reproduces")
-    return notes
 
 
 def heldout_check(table: pd.DataFrame, roles: dict) -> list[str]:
@@ -700,7 +653,7 @@ def margins_from_store(store, method: str, experiments: list[str] | None = None,
                         "give one of these labels as --method")
     label = method if method in set(table["method"]) or not labels else labels[0]
     roles, notes = resolve_roles(table)
-    notes += data_notes + [versions_note(table, label)] + computed_with_note(table) + heldout_check(table, roles)
+    notes += data_notes + [versions_note(table, label)] + computed_with_notes(table) + heldout_check(table, roles)
     if oracle:
         extra, oracle_notes = oracle_observations(table, label)
         obs = pd.concat([obs, extra], ignore_index=True)

@@ -491,7 +491,11 @@ def provenance_markdown(runs: pd.DataFrame, run_ids, *, store_path=None, compute
     """One line: of the report's runs, how many were computed by this command (``computed``: their
     ids; None when the command computed nothing, as `dpcbench report`) and how many were read from
     the store, with the code versions (git commit) that made each group, and where the store is;
-    ``missing``: runs of the protocol not in the store (a report of a partial sweep), said when > 0."""
+    ``missing``: runs of the protocol not in the store (a report of a partial sweep), said when > 0. Then, one bullet
+    each, where the runs were computed (`computed_with.computed_with_notes`: instruction sets, runs from a modified
+    checkout, and a warning where a method whose scores move with the instruction set ran unpinned or on several)."""
+    from dpcbench.bench.reporting.computed_with import computed_with_notes, computed_with_table
+
     chosen = runs[runs["run_id"].isin(set(run_ids))].drop_duplicates("run_id")
     computed = set(computed or ())
 
@@ -509,8 +513,10 @@ def provenance_markdown(runs: pd.DataFrame, run_ids, *, store_path=None, compute
     where = f"results store `{store_path}`" if store_path else "the results store"
     gap = (f" **{missing} runs of the protocol are not in the store** (not run: the report of a partial sweep; "
            "their cells are missing or hold fewer frames and seeds)." if missing else "")
-    return (f"Provenance: {len(chosen)} runs in this report: {'; '.join(parts) or 'none'}; {where}. "
+    line = (f"Provenance: {len(chosen)} runs in this report: {'; '.join(parts) or 'none'}; {where}. "
             "Runs read from the store were not timed by this command." + gap)
+    notes = computed_with_notes(computed_with_table(chosen))
+    return line + ("\n\n" + "\n".join(f"- {note[0].upper()}{note[1:]}." for note in notes) if notes else "")
 
 
 # -- REPORT.md of reproduce-paper: one function per section -------------------------------------------

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+from dpcbench.bench.cli.options import add_pin_option, pinned_workers
 from dpcbench.bench.core.errors import UserError
 
 
@@ -50,6 +51,7 @@ def register(subparsers) -> None:
     p.add_argument("--no-run", action="store_true",
                    help="run nothing: tabulate the protocol's runs the store already holds (e.g. a sweep stopped "
                         "part-way); missing cells print as '-' and REPORT.md counts the missing runs")
+    add_pin_option(p)
     p.set_defaults(func=main)
 
 
@@ -94,8 +96,10 @@ def main(args) -> int:
 
         summary = RunSummary()
     else:
-        summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
-                                 force=args.force, retry_failed=args.retry_failed, quiet=quiet)
+        pin = args.pin_isa or bool(protocol.config["experiment"].get("pin_isa", False))
+        with pinned_workers(pin, f"reproduce-paper ({protocol.preset})"):
+            summary = run_experiment(specs, store, executor=args.executor, jobs=args.jobs, scheduler=args.scheduler,
+                                     force=args.force, retry_failed=args.retry_failed, quiet=quiet)
     results = store.results_frame()
     runs = store.runs_frame()
     synthetic_ids = {s.run_id for s in protocol.synthetic}
@@ -127,7 +131,7 @@ def _write_outputs(args, protocol, store, out: Path, df, run_rows, real_df, t0, 
         f" {flag}" + ("" if value is True else f" {shlex.quote(str(value))}")
         for flag, value in [("--quick", args.quick), ("--data-dir", args.data_dir), ("--size", args.size),
                             ("--frames", args.frames), ("--seeds", args.seeds), ("--out", args.out),
-                            ("--no-run", args.no_run)] if value)
+                            ("--no-run", args.no_run), ("--pin-isa", args.pin_isa)] if value)
     from dpcbench.bench.reporting.paper_ablation import ablation_frame, ablation_markdown
 
     # the ablation of the paper configuration (`dpcbench run paper-ablation`), where this store holds it

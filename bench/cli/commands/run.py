@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
-import sys
 
-from dpcbench.bench.cli.options import resolve_config_path
+from dpcbench.bench.cli.options import add_pin_option, pinned_workers, resolve_config_path
 from dpcbench.bench.core.errors import UserError
 
 
@@ -33,6 +31,7 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="redo every run, frames included")
     p.add_argument("--retry-failed", action="store_true", help="redo runs that failed before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_pin_option(p)
     p.set_defaults(func=main)
 
 
@@ -64,14 +63,8 @@ def main(args) -> int:
         _check_runs_dir(args.runs_dir)
     store = ResultsStore(args.store, verify=True)
     quiet = args.quiet or os.environ.get("DPCBENCH_QUIET", "") not in ("", "0")
-    from dpcbench.bench.core import isa
-
     # the workers start inside, with the pin in their environment before numpy loads; the caller's comes back after
-    with isa.pinned() if cfg.pin_isa else contextlib.nullcontext() as pinned:
-        if pinned:
-            print(f"experiment {cfg.name!r}: pin_isa = true, workers run with "
-                  + " ".join(f"{k}={v!r}" for k, v in sorted(pinned.items())) + " (bench/core/isa.py)",
-                  file=sys.stderr)
+    with pinned_workers(cfg.pin_isa or args.pin_isa, f"experiment {cfg.name!r}"):
         summary = run_experiment(specs, store, runs_dir=args.runs_dir, executor=args.executor, jobs=args.jobs,
                                  scheduler=args.scheduler, force=args.force, retry_failed=args.retry_failed,
                                  quiet=quiet, timeout_s=args.timeout)
