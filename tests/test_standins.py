@@ -1,5 +1,5 @@
 """The embedded stand-in sequences: distance primitives, the narrow-band voxelizer against brute force,
-determinism, 8i-like voxelization, articulated (human) and non-rigid (bunny) motion, the frame cache."""
+determinism, 8i-like voxelization, articulated (human, cow) and non-rigid (bunny) motion, the frame cache."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import open3d as o3d
 import pytest
 from scipy.spatial import cKDTree
 
-from dpcbench.bench.data.standins import bunny, cache, human
+from dpcbench.bench.data.standins import bunny, cache, cow, human
 from dpcbench.bench.data.standins.sdf import Ellipsoid, RoundCone, smooth_min, surface_voxels
 
 
@@ -194,6 +194,63 @@ def test_bunny_float_samples():
     assert not np.array_equal(p, np.round(p))
     q, _, _ = bunny.generate_frame(2, bit_depth=None, points=5000, seed=5)
     assert not np.array_equal(p, q)
+
+
+def test_cow_walks_its_legs_and_keeps_its_body():
+    """The cow: deterministic, voxelized like 8i data at the preset sizes; its walk moves the legs (the points
+    below the belly) far more than the body does between frames, and the diagonal legs swing together."""
+    p0, c0, n0 = cow.generate_frame(0, size="tiny")
+    again, c_again, _ = cow.generate_frame(0, size="tiny")
+    np.testing.assert_array_equal(p0, again)
+    np.testing.assert_array_equal(c0, c_again)
+    assert 20_000 <= len(p0) <= 30_000 and len(np.unique(p0, axis=0)) == len(p0)
+    assert np.array_equal(p0, np.round(p0)) and p0.min() >= 0 and p0.max() <= 1023
+    np.testing.assert_allclose(np.linalg.norm(n0, axis=1), 1.0, atol=1e-12)
+    v, _, _ = cow.rest_mesh()
+    assert np.ptp(v, axis=0).max() == pytest.approx(1.0) and v[:, 1].min() == 0.0
+    # the rest pose against a quarter stride later (t = 0.275 s), without the turn: legs swing, the back does not
+    later = cow.deform(v, 0.275, 1.0, 0.0)
+    rest = cow.deform(v, 0.0, 1.0, 0.0)
+    legs, back = v[:, 1] < 0.12, (v[:, 1] > 0.35) & (np.abs(v[:, 2]) < 0.15)
+    shift = later - rest
+    move = np.linalg.norm(shift - shift[back].mean(axis=0), axis=1)  # less the body's own sway and bob
+    assert np.median(move[legs]) > 0.05 > 10 * np.median(move[back])
+    # at a quarter stride the hooves of the phase-0 pair (one front, the diagonal hind) swing back (-z, the head
+    # is at +z), those of the other pair forward
+    for (leg_x, leg_z), phase in cow.LEGS:
+        hoof = legs & (np.hypot(v[:, 0] - leg_x, v[:, 2] - leg_z) < 0.05) & (v[:, 1] < 0.03)
+        forward = np.mean(shift[hoof, 2])
+        assert (forward < -0.05) if phase == 0.0 else (forward > 0.05)
+
+
+def test_cow_float_samples_lie_on_the_moved_mesh_with_its_normals():
+    p, _, n = cow.generate_frame(3, bit_depth=None, points=4000, seed=2)
+    assert p.shape == (4000, 3)
+    v, tri, _ = cow.rest_mesh()
+    moved = cow.deform(v, 3 / 30.0, 1.0, 12.0) * 1000.0
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(moved.astype(np.float32), tri.astype(np.uint32))
+    closest = scene.compute_closest_points(p.astype(np.float32))
+    assert np.abs(closest["points"].numpy() - p).max() < 1e-2
+    face = closest["primitive_ids"].numpy().astype(np.int64)
+    a, b, c = (moved[tri[face, k]] for k in range(3))
+    face_normal = np.cross(b - a, c - a)
+    face_normal /= np.linalg.norm(face_normal, axis=1, keepdims=True)
+    assert np.median((face_normal * n).sum(axis=1)) > 0.95
+
+
+def test_the_cow_is_an_embedded_dataset_whose_runs_carry_its_own_version():
+    """`load_dataset("cow")` generates it; its runs' data fingerprint names its own generator's version, and the
+    human's and the bunny's keep the version their stored runs have."""
+    from dpcbench.bench.data import datasets
+    from dpcbench.bench.experiment.config import data_fingerprint
+
+    seq = datasets.load_dataset("cow", frames=2, size="tiny", progress=False)
+    assert len(seq.points) == 2 and len(seq.points[0]) > 20_000
+    assert data_fingerprint({"name": "cow", "params": {"size": "tiny"}}, "s")["version"] == f"cow{cow.GENERATOR_VERSION}"
+    for name in ("human", "bunny"):
+        assert data_fingerprint({"name": name}, "s")["version"] == datasets.DATASETS_VERSION == (
+            f"human{human.GENERATOR_VERSION}-bunny{bunny.GENERATOR_VERSION}")
 
 
 # -- exact normals ----------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ one resolver from a name or path to a sequence source (`bench.data.sources`).
 ``resolve_source(name_or_path, data_dir=None)`` -> a `bench.data.sources.SequenceSource`;
 ``load_dataset(name_or_path, frames=None, data_dir=None, **params) -> Sequence`` resolves and loads:
 
-- an embedded name (``EMBEDDED``: "human", "bunny") generates the frames (deterministic for the
+- an embedded name (``EMBEDDED``: "human", "bunny", "cow") generates the frames (deterministic for the
   same parameters; cached on disk, see `bench.data.standins.cache`);
 - a paper sequence name (``PAPER``: longdress, loot, redandblack, soldier, ulliwegner) reads the
   user's local copy from ``data_dir`` or ``$DPCBENCH_DATA_DIR``, after checking that the expected
@@ -62,6 +62,13 @@ EMBEDDED: dict[str, EmbeddedDataset] = {
         "size=tiny ~19k, small ~97k, default ~630k points per frame",
         "dpcbench.bench.data.standins.bunny",
     ),
+    "cow": EmbeddedDataset(
+        "cow",
+        "a walking cow (pymeshlab sample mesh): legs swinging in a trot, head nodding, tail swishing while it "
+        "turns; resampled every frame and voxelized at bit_depth (or float samples with bit_depth=None); held-out "
+        "data (no default was judged on it); size=tiny ~24k, small ~100k, default ~600k points per frame",
+        "dpcbench.bench.data.standins.cow",
+    ),
 }
 
 _8I_SUMMARY = "8i Voxelized Full Bodies (JPEG Pleno / MPEG), 10-bit, 300 frames; non-commercial research use"
@@ -112,8 +119,17 @@ def _datasets_version() -> str:
     return f"human{human.GENERATOR_VERSION}-bunny{bunny.GENERATOR_VERSION}"
 
 
-#: changes whenever a generator's output changes (run fingerprints use it)
+#: changes whenever the human's or the bunny's output changes (their runs' fingerprints use it)
 DATASETS_VERSION = _datasets_version()
+
+
+def embedded_version(name: str) -> str:
+    """The data version in the fingerprint of a run on embedded sequence ``name``: `DATASETS_VERSION` for the human
+    and the bunny (one string for both, as their stored runs' ids have it), ``<name><GENERATOR_VERSION>`` for a
+    stand-in added after them, so that a change to its generator re-runs only its own runs."""
+    if name in ("human", "bunny") or name not in EMBEDDED:
+        return DATASETS_VERSION
+    return f"{name}{EMBEDDED[name].generator().GENERATOR_VERSION}"
 
 
 def parse_frames(text: str | None):

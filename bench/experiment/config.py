@@ -377,7 +377,7 @@ def data_fingerprint(sequence: dict, where: str) -> dict:
         return _folder_fingerprint(folder)
     import dpcbench.bench.data.datasets as datasets
 
-    version = datasets.DATASETS_VERSION
+    version = datasets.embedded_version(name.lower())
     return {"dataset": name, "params": sequence.get("params", {}), "version": str(version)}
 
 

@@ -31,7 +31,7 @@ def register(subparsers) -> None:
         help="punch holes into a sequence (ground truth kept): damaged PLYs, masks.npz, holes.json",
         description=__doc__.split("\n", 2)[2],
     )
-    parser.add_argument("input", help="embedded name (human, bunny), paper sequence, or PLY folder/glob/file")
+    parser.add_argument("input", help="embedded name (human, bunny, cow), paper sequence, or PLY folder/glob/file")
     parser.add_argument("--holes", required=True, metavar="GENERATOR",
                         help=f"hole generator: {', '.join(sorted(GENERATORS))}")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE",

@@ -1,4 +1,4 @@
-"""`dpcbench generate NAME --frames N --out DIR`: write an embedded sequence (human, bunny) as binary
+"""`dpcbench generate NAME --frames N --out DIR`: write an embedded sequence (human, bunny, cow) as binary
 PLY frames ``<NAME>_0000.ply ...`` (float x y z, uchar red green blue, float nx ny nz: the stand-in's
 exact surface normals, which `dpcbench score` and pc_error use for D2), or a mesh sequence (samba, or a
 folder of OBJ/OFF/PLY meshes) sampled into point clouds (float x y z, float nx ny nz from the faces), or

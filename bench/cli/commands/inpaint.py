@@ -38,7 +38,7 @@ def register(subparsers) -> None:
         help="fill the holes of a sequence with a method; writes the inpainted PLY frames",
         description=__doc__.split("\n", 2)[2],
     )
-    parser.add_argument("input", help="embedded name (human, bunny), paper sequence, or PLY folder/glob/file")
+    parser.add_argument("input", help="embedded name (human, bunny, cow), paper sequence, or PLY folder/glob/file")
     parser.add_argument("--method", required=True, help=f"method: {', '.join(sorted(METHODS))}")
     parser.add_argument("--param", action="append", metavar="KEY=VALUE",
                         help="method parameter (repeatable), e.g. --param beta=0.5 --param known_points=free; values: "

@@ -11,7 +11,7 @@ parameters (a generator's size and motion, a mesh sampling's points and bit dept
 
 The kinds, one file each:
 
-- `bench.data.sources.embedded`: generated stand-ins ("human", "bunny"), cached on disk;
+- `bench.data.sources.embedded`: generated stand-ins ("human", "bunny", "cow"), cached on disk;
 - `bench.data.sources.paper`:    the paper's sequences, read from the user's licensed local copy;
 - `bench.data.sources.meshes`:   mesh sequences (a registered one such as "samba", or any folder of
                             OBJ/OFF/PLY meshes), sampled into point clouds by `bench.data.meshseq`;
