@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -285,14 +286,19 @@ def test_detection_parameters(seq_dir):
         parse_config(base)
 
 
-@pytest.mark.parametrize("preset", ["paper-quick", "paper", "regression", "methods", "temporal-fusion-targets",
-                                    "temporal-fusion-heldout", "temporal-fusion-heldout-frames",
-                                    "temporal-fusion-heldout-framerate", "temporal-fusion-heldout-data"])
+_PRESETS = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "bench" / "presets").glob("*.toml"))
+
+
+@pytest.mark.parametrize("preset", _PRESETS)
 def test_shipped_presets_expand(preset):
-    """Every preset under bench/presets parses and expands into runs with distinct ids."""
+    """Every preset under bench/presets parses and expands into runs with distinct ids; a held-out one names the
+    tuning preset it holds out from."""
     from dpcbench.bench.reporting.paper import PRESETS_DIR
 
     config = load_config(PRESETS_DIR / f"{preset}.toml")
+    if config.data_role == "heldout":
+        tuning = {load_config(PRESETS_DIR / f"{p}.toml").name for p in _PRESETS if p.endswith("-targets")}
+        assert config.holds_out in tuning
     specs = config.expand()  # optional sequences whose data is not here are skipped
     if not specs and config.skipped:
         pytest.skip(f"{preset}: every sequence is optional and none of their data is here ({config.skipped[0]})")
