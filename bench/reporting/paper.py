@@ -275,7 +275,7 @@ def paper_protocol(quick: bool, data_dir=None, *, size: str | None = None, frame
         if not found and not singles:
             raise UserError(f"--data-dir {data_dir}: none of the paper's sequences ({', '.join(PAPER_SEQUENCES)}) "
                              "found there; expected e.g. longdress/Ply/longdress_vox10_1051.ply ... (see "
-                             "`dpcbench datasets`), or leave --data-dir out to run on the embedded stand-ins")
+                             "`dpcbench list --data-dir DIR`), or leave --data-dir out to run on the embedded stand-ins")
         standins = False
         synthetic_cfg["experiment"]["name"] = f"{preset}-data"
         synthetic_cfg["experiment"]["data_dir"] = str(data_dir)
