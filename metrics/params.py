@@ -71,6 +71,27 @@ def signature_params(func: Callable[..., Any]) -> dict[str, inspect.Parameter]:
     return {n: p for n, p in sig.parameters.items() if n != "self" and p.kind in kinds}
 
 
+#: the texts a config writes for None (TOML has no null)
+NONE_TEXTS = ("none", "null")
+
+
+def none_from_text(func: Callable[..., Any], params: dict[str, Any]) -> dict[str, Any]:
+    """``params`` with each text "none" or "null" (any case; in a grid list too) replaced by None where ``func``'s
+    parameter admits None and no text (annotated ``int | None``, not ``str | None``): TOML, the configs' format, has
+    no null, so ``bit_depth = "none"`` is how a config asks for ``bit_depth=None``. Other values, and parameters
+    this signature does not name, are left as they are."""
+    known = signature_params(func)
+
+    def converted(key: str, value: Any) -> Any:
+        kinds = _annotation_kinds(known[key].annotation) if key in known else None
+        if kinds and "none" in kinds and "str" not in kinds and isinstance(value, str) and value.lower() in NONE_TEXTS:
+            return None
+        return value
+
+    return {key: [converted(key, v) for v in value] if isinstance(value, list) else converted(key, value)
+            for key, value in params.items()}
+
+
 def check_param_types(func: Callable[..., Any], params: dict[str, Any], who: str) -> None:
     """UserError for an unknown parameter name, or a value whose type the signature rules out.
 

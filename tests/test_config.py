@@ -304,3 +304,27 @@ def test_shipped_presets_expand(preset):
         pytest.skip(f"{preset}: every sequence is optional and none of their data is here ({config.skipped[0]})")
     assert specs and len({s.run_id for s in specs}) == len(specs)
     assert {s.method["name"] for s in specs} >= {"fu-nonlocal", "temporal-graph"}
+
+
+def test_a_none_text_is_none_where_the_parameter_admits_none_and_no_text():
+    """TOML has no null: "none" (or "null", any case, in a grid list too) is None for a parameter annotated
+    ``int | None`` / ``float | None`` (a stand-in's bit_depth, a region's count, a method's off_surface) and stays
+    text where the parameter takes text (temporal-graph's ``spacing: float | str | None``, whose own check then refuses
+    it); the run id is that of None."""
+    def config(sequence_params, hole_params, method_params):
+        return {"experiment": {"name": "none-text"},
+                "sequences": [{"name": "cow", "params": sequence_params, "frames": 2}],
+                "holes": [{"generator": "region", "params": hole_params, "seed": 0}],
+                "methods": [{"name": "temporal-graph", "params": method_params}],
+                "metrics": {"names": ["gpsnr_d1"]}}
+
+    texts = parse_config(config({"size": "tiny", "bit_depth": ["None", 10]}, {"count": "null"},
+                                {"off_surface": "none"})).expand()
+    assert [r.sequence["params"]["bit_depth"] for r in texts] == [None, 10]
+    assert {r.holes["params"]["count"] for r in texts} == {None}
+    assert {r.method["params"]["off_surface"] for r in texts} == {None}
+    nones = parse_config(config({"size": "tiny", "bit_depth": None}, {"count": None},
+                                {"off_surface": None})).expand()
+    assert texts[0].run_id == nones[0].run_id
+    with pytest.raises(ConfigError, match="spacing must be a positive number, got 'none'"):  # kept as text
+        parse_config(config({"size": "tiny"}, {}, {"spacing": "none"}))

@@ -53,7 +53,9 @@ grids), and the metrics with their options::
     "temporal-graph (beta=0.25)" = "TG, beta 1/4"
 
 Every list in ``params`` (of sequences, holes and methods) is an axis of a grid; the runs are the
-cartesian product sequences x holes (params x seeds) x methods (params).
+cartesian product sequences x holes (params x seeds) x methods (params). TOML has no null: write "none" for
+None where a parameter admits it and takes no text (``params = { bit_depth = "none" }``: a stand-in's float
+samples; `metrics.params.none_from_text`).
 
 Run ids. ``inpaint_key = H(sequence spec, data fingerprint, holes spec + seed + generator version,
 method spec + method version, protocol [+ detector version])`` names the inpainted frames on disk;
@@ -183,7 +185,8 @@ def compute_ids(spec: RunSpec) -> RunSpec:
 
 # -- validation helpers ----------------------------------------------------------------------
 def _is_scalar(v) -> bool:
-    return isinstance(v, (str, int, float, bool))
+    """A value a parameter may take: a TOML scalar, or None (a "none" text `_none_from_text` turned into None)."""
+    return v is None or isinstance(v, (str, int, float, bool))
 
 
 def _is_number(v) -> bool:
@@ -226,7 +229,9 @@ def _check_param_types(cls, params: dict, where: str) -> None:
                 continue
             raise ConfigError(f"{where}.{key}: unknown parameter; valid parameters: {', '.join(sorted(known)) or 'none'}")
         default = known[key].default
-        values = value if isinstance(value, list) else [value]
+        # None only comes from a "none" text where the annotation admits it (`_none_from_text`), or from a dict
+        # config; either way the class's own check (`_validate_instance`) judges it
+        values = [v for v in (value if isinstance(value, list) else [value]) if v is not None]
         if _is_number(default) and not all(_is_number(v) for v in values):
             raise ConfigError(f"{where}.{key}: expected a number or a list of numbers, got {value!r}")
         if isinstance(default, bool) and not all(isinstance(v, bool) for v in values):
@@ -259,6 +264,23 @@ def _check_dataset_name(name, where: str) -> None:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise ConfigError(f"{where}.name: unknown sequence {name!r}{hint}; known: embedded {', '.join(EMBEDDED)}, "
                           f"paper {', '.join(PAPER)}; for a folder of PLY frames use `path`")
+
+
+def _none_from_text(func, params, where: str) -> dict:
+    """`metrics.params.none_from_text` of a [[...]] table's ``params`` (checked to be a table first)."""
+    from dpcbench.metrics.params import none_from_text
+
+    if not isinstance(params, dict):
+        raise ConfigError(f"{where}: expected a table of parameters, got {type(params).__name__}")
+    return none_from_text(func, params)
+
+
+def _none_from_text_of_dataset(name: str, params, where: str) -> dict:
+    """`_none_from_text` for an embedded dataset's generator; other datasets' parameters as they are."""
+    from dpcbench.bench.data.datasets import EMBEDDED
+
+    info = EMBEDDED.get(name.lower())
+    return _none_from_text(info.generator().generate_frame, params, where) if info else params
 
 
 def _check_dataset_params(name: str, params: dict, where: str) -> None:
@@ -597,6 +619,7 @@ def _parse_sequences(tables: list[dict], base_dir) -> list[dict]:
                  "params": seq.get("params", {}), "frames": frames, "label": seq.get("label")}
         if not path:
             _check_dataset_name(entry["name"], where)
+            entry["params"] = _none_from_text_of_dataset(entry["name"], entry["params"], f"{where}.params")
         for params in _expand_params(entry["params"], f"{where}.params"):
             if not path:
                 _check_dataset_params(entry["name"], params, f"{where}.params")
@@ -628,8 +651,9 @@ def _parse_holes(tables: list[dict]) -> list[dict]:
             raise ConfigError(f"{where}.generator: hole generator {gen!r} cannot be loaded here ({err})") from None
         if not cls.removes_points:  # the data's own (real) holes: no seed plays a part, one run
             seeds = [0]
-        _check_param_types(cls, hole.get("params", {}), f"{where}.params")
-        for params in _expand_params(hole.get("params", {}), f"{where}.params"):
+        hole_params = _none_from_text(cls, hole.get("params", {}), f"{where}.params")
+        _check_param_types(cls, hole_params, f"{where}.params")
+        for params in _expand_params(hole_params, f"{where}.params"):
             _validate_instance(cls, params, f"{where}.params")
             for seed in seeds:
                 out.append({"generator": gen, "params": params, "seed": seed, "label": hole.get("label"),
@@ -652,8 +676,9 @@ def _parse_methods(tables: list[dict]) -> list[dict]:
             cls = method_class(name)
         except ImportError as err:  # an optional dependency of this method is missing here
             raise ConfigError(f"{where}.name: method {name!r} cannot be loaded here ({err})") from None
-        _check_param_types(cls, meth.get("params", {}), f"{where}.params")
-        for params in _expand_params(meth.get("params", {}), f"{where}.params"):
+        method_params = _none_from_text(cls, meth.get("params", {}), f"{where}.params")
+        _check_param_types(cls, method_params, f"{where}.params")
+        for params in _expand_params(method_params, f"{where}.params"):
             _validate_instance(cls, params, f"{where}.params")
             out.append({"name": name, "params": params, "label": meth.get("label"),
                         "entry": METHODS[name], "version": METHODS.version_of(name, cls)})
