@@ -21,13 +21,12 @@ import json
 import math
 
 from dpcbench.bench.core.errors import UserError
-from dpcbench.metrics.params import check_param_types, signature_params
+from dpcbench.metrics.params import NONE_TEXTS, check_param_types, signature_params
 
 __all__ = ["check_param_types", "parse_param_value", "parse_params", "signature_params"]
 
 _TRUE = ("true", "yes")
 _FALSE = ("false", "no")
-_NONE = ("none", "null")
 
 
 def parse_param_value(text: str, option: str = "--param", key: str = ""):
@@ -38,7 +37,7 @@ def parse_param_value(text: str, option: str = "--param", key: str = ""):
         return True
     if low in _FALSE:
         return False
-    if low in _NONE:
+    if low in NONE_TEXTS:
         return None
     if value[:1] in ("[", "{", '"'):
         try:
