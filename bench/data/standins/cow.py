@@ -39,7 +39,8 @@ GENERATOR_VERSION = 1
 #: the cow's length in voxels: about 24k, 100k and 600k points a frame at 10 bits (measured, `generate_frame`)
 SIZE_EXTENTS = {"tiny": 140, "small": 286, "default": 700}
 SIZE_POINTS = {"tiny": 20_000, "small": 100_000, "default": 600_000}  # samples when not voxelized
-#: the moving cow stays within 0.65 lengths of the vertical axis: a length of 0.7 of the grid leaves it room
+#: the moving cow stays within 0.65 lengths of the vertical axis (0.62 over 300 frames at the defaults): a length of
+#: 0.7 of the grid leaves it room (a larger deform_amount that leaves the grid is refused, `sample_frame`)
 ROOM = 0.7
 #: (x, z) of each leg's axis (the centre of its points below y = 0.08), with its phase in the walk
 LEGS = (((-0.095, 0.119), 0.0), ((0.095, -0.362), 0.0), ((0.095, 0.119), np.pi), ((-0.095, -0.362), np.pi))
