@@ -2,9 +2,10 @@
 
 Runs `TemporalFusion.inpaint` on the damaged frame(s) of a `dpcbench damage` folder and prints, per hole region,
 every strategy of `methods.temporal_fusion.spatial.CASCADE` that ran and how many points it added (0 = it refused or
-found nothing open). With ``--holdouts``, before each strategy's line, every hold-out it judged by the shared rule
-(`methods._spatial_fill.common.holdout_passes`: step 6e's membrane, step 6c's tube): the held-out points, their RMS
-miss m, their own scatter e, sqrt(m^2 - e^2) and the bound, in coordinate units, and the decision. Usage (after
+found nothing open). With ``--holdouts``, before each strategy's line, every hold-out it judged, the fill named on each
+line (step 6c's closed surface, `poisson._holds_out`; step 6c's tube and step 6e's membrane, the shared rule
+`methods._spatial_fill.common.holdout_passes`): the held-out points, their RMS miss m, their own scatter e,
+sqrt(m^2 - e^2) and the bound, in coordinate units, and the decision. Usage (after
 experiments/one_frame.sh has written OUTDIR/damaged, or after `dpcbench damage`):
 
     .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged [--holdouts] [--param best_surface=false ...]
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 from _damaged import load_damage_or_exit  # the sibling module; these scripts run as `python experiments/X.py`
+from scipy.spatial import cKDTree
 
 from dpcbench.bench.core.params import parse_params
 from dpcbench.methods.temporal_fusion import spatial
@@ -40,21 +42,47 @@ def _traced(strategy, log):
 
 
 def _traced_holdouts(log):
-    """Wrap the shared hold-out rule where the fills call it, each call logged with its figures."""
+    """Wrap every hold-out where the fills call it, each call logged with its fill's name and its figures: the shared
+    rule (`methods._spatial_fill.common.holdout_passes`) where step 6e's membrane and step 6c's tube call it, and
+    step 6c's closed-surface test (`poisson._holds_out`, its own capped distances and a coarser first look)."""
     from dpcbench.methods._spatial_fill import membrane, poisson
     from dpcbench.methods._spatial_fill.common import holdout_passes, own_scatter_sq
 
-    def traced(offsets, held, support, bound):
-        passed = holdout_passes(offsets, held, support, bound)
-        if len(offsets):
-            miss = float(np.sqrt(np.mean(np.square(offsets))))
-            scatter = float(np.sqrt(own_scatter_sq(held, support)))
-            net = float(np.sqrt(max(miss ** 2 - scatter ** 2, 0.0)))
-            log.append(f"  hold-out: {len(offsets)} held-out points, miss {miss:.3f}, scatter {scatter:.3f}, "
-                       f"net {net:.3f}, bound {bound:.3f}: {'passed' if passed else 'refused'}")
+    def line(fill, count, miss, scatter, bound, passed, note=""):
+        net = float(np.sqrt(max(miss ** 2 - scatter ** 2, 0.0)))
+        return (f"  hold-out ({fill}): {count} held-out points, miss {miss:.3f}, scatter {scatter:.3f}, net {net:.3f}, "
+                f"bound {bound:.3f}{note}: {'passed' if passed else 'refused'}")
+
+    def shared(fill):
+        def traced(offsets, held, support, bound):
+            passed = holdout_passes(offsets, held, support, bound)
+            if len(offsets):
+                miss = float(np.sqrt(np.mean(np.square(offsets))))
+                log.append(line(fill, len(offsets), miss, float(np.sqrt(own_scatter_sq(held, support))), bound, passed))
+            return passed
+        return traced
+
+    holds_out = poisson._holds_out
+
+    def closed_surface(support, region, ring, spacing, grid, max_holdout_spacings):
+        passed = holds_out(support, region, ring, spacing, grid, max_holdout_spacings)
+        inner = region.contains(support, margin=ring)
+        if inner.sum() >= 6 and (~inner).sum() >= 32:
+            # the miss in full, on the held-out surface at its own depth (the test itself may have decided on a
+            # coarser look first, or on distances capped far beyond the bound)
+            cloud, depth = poisson.poisson_input(support[~inner], grid, poisson.POISSON_HOLDOUT_CELL_STEPS)
+            samples = poisson._mesh_samples(poisson.poisson_mesh(cloud, depth), grid, (region, ring))
+            samples = samples[region.contains(samples, margin=ring)]
+            distance = (cKDTree(samples).query(support[inner])[0] if len(samples)
+                        else np.full(int(inner.sum()), np.inf))
+            log.append(line("closed surface", int(inner.sum()), float(np.sqrt(np.mean(distance ** 2))),
+                            float(np.sqrt(own_scatter_sq(support[inner], support))), max_holdout_spacings * spacing,
+                            passed, f", ring {ring:.3f} wide"))
         return passed
 
-    membrane.holdout_passes = poisson.holdout_passes = traced
+    membrane.holdout_passes = shared("membrane")
+    poisson.holdout_passes = shared("tube")
+    poisson._holds_out = closed_surface
 
 
 def main(argv=None) -> int:
@@ -63,7 +91,7 @@ def main(argv=None) -> int:
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a temporal-fusion parameter (repeatable), e.g. best_surface=false")
     parser.add_argument("--holdouts", action="store_true",
-                        help="also each hold-out judged by the shared rule (membrane, tube), with its figures")
+                        help="also each hold-out (closed surface, tube, membrane), with its figures")
     args = parser.parse_args(argv)
     loaded = load_damage_or_exit(args.damaged)
     _, frames, regions = loaded

@@ -10,6 +10,8 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - points: new output points attributed to it;
 - off RMS: RMS point-to-plane distance of those points to the truth (in spacings), and the share > 2 spacings;
 - BA2: their summed point-to-plane errors against the truth (the result-to-reference term of D2);
+- with ``--by-depth``, each stage's off RMS by depth: its points' distance to the damaged frame's nearest point, in
+  spacings (`DEPTH_EDGES`), so a fill that is right at the rim and drifts off the surface farther in shows;
 - for each hole region, AB1 / AB2 (the reference-to-result terms of D1 / D2 over the region's truth points) of the
   result against the open hole's, so a region whose fill costs more D2 than leaving it open shows;
 - with ``--left-open``, for each hole region the whole-frame D1 / D2 of the result with that region's new points
@@ -239,7 +241,7 @@ def frame_psnr(pair: CloudPair, peak: float) -> tuple[float, float]:
 
 def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, result: np.ndarray, regions,
                 records, spacing: float, left_open: bool = False, refusal_oracle: bool = False,
-                against: dict[str, np.ndarray] | None = None) -> list[str]:
+                against: dict[str, np.ndarray] | None = None, by_depth: bool = False) -> list[str]:
     """The report lines of one frame (see the module docstring)."""
     filled, empty = CloudPair(truth, result, normals), CloudPair(truth, damaged, normals)
     peak = resolve_peak("intrinsic", filled)
@@ -260,10 +262,13 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
         ba2 = filled.plane_res_to_ref
     new_ba2 = ba2[len(damaged):]
     off = np.sqrt(new_ba2) / spacing
+    depth = cKDTree(damaged).query(new)[0] / spacing if by_depth and len(damaged) else np.zeros(len(new))
     for stage in sorted(set(labels)):
         at = labels == stage
         lines.append(f"  stage {stage:14s} points {at.sum():6d} off RMS {np.sqrt(np.mean(off[at] ** 2)):5.2f} s "
                      f"(> 2 s: {np.mean(off[at] > 2):4.0%})  BA2 {new_ba2[at].sum():9.0f}")
+        if by_depth:
+            lines += depth_lines(off[at], depth[at])
     reference = filled.reference
     others = {name: CloudPair(truth, other, normals) for name, other in (against or {}).items()}
     for k, region in enumerate(regions):
@@ -283,6 +288,22 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
     if refusal_oracle:
         lines += refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty, against,
                                       disagreement(damaged, new, regions, spacing))
+    return lines
+
+
+DEPTH_EDGES = (0.0, 2.0, 4.0, 8.0, 16.0, 32.0, np.inf)  # spacings from the damaged frame's nearest point
+
+
+def depth_lines(off: np.ndarray, depth: np.ndarray) -> list[str]:
+    """``--by-depth``'s lines for one stage: its points' off RMS (``off`` (P,), spacings) by their depth (``depth``
+    (P,), spacings to the damaged frame's nearest point: how far the fill reaches from what was captured), in the bins
+    of `DEPTH_EDGES`; empty bins left out."""
+    lines = []
+    for low, high in zip(DEPTH_EDGES[:-1], DEPTH_EDGES[1:]):
+        at = (depth >= low) & (depth < high)
+        if at.any():
+            lines.append(f"    depth {low:4.0f}-{high:<4.0f} s: points {at.sum():6d} off RMS "
+                         f"{np.sqrt(np.mean(off[at] ** 2)):5.2f} s (> 2 s: {np.mean(off[at] > 2):4.0%})")
     return lines
 
 
@@ -396,6 +417,8 @@ def main(argv=None) -> int:
     parser.add_argument("--last-resort", action="store_true",
                         help="print, per hole the last resort judged, each candidate's hold-out miss, predicted open "
                              "error and true distance to the truth, and which filled")
+    parser.add_argument("--by-depth", action="store_true",
+                        help="each stage's off RMS by depth: spacings from the damaged frame's nearest point")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
                         help="decide thin gaps by version 54's rule (measured, not kept): the copies where their rim "
                              "residual is at most the rim's scatter about a local quadric (implies --thin-gaps)")
@@ -425,7 +448,7 @@ def main(argv=None) -> int:
         print(f"frame {f}: {len(outputs[f]) - len(frames[f])} new points")
         against = {name: result[f] for name, result in others.items()}
         print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
-                                     args.left_open, args.refusal_oracle, against)))
+                                     args.left_open, args.refusal_oracle, against, args.by_depth)))
         for line in (text for frame, text in thin_gaps if frame == f):
             print(line)
         for line in last_resort_lines(last_resort, f, truth, normals, spacing):

@@ -1,0 +1,67 @@
+"""The trace scripts under experiments/ that the docs' diagnoses rest on: what they log is what the method decided."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dpcbench.holes.regions import HoleRegion
+from dpcbench.methods._spatial_fill import membrane, poisson
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+
+@pytest.fixture
+def cascade_trace(monkeypatch):
+    """experiments/cascade_trace.py as a module; the fills' hold-outs it wraps are put back after the test."""
+    monkeypatch.syspath_prepend(str(EXPERIMENTS))
+    for module, name in ((poisson, "_holds_out"), (poisson, "holdout_passes"), (membrane, "holdout_passes")):
+        monkeypatch.setattr(module, name, getattr(module, name))
+    sys.modules.pop("cascade_trace", None)
+    return importlib.import_module("cascade_trace")
+
+
+def _sphere(n: int = 4000, radius: float = 20.0) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    polar, azimuth = np.arccos(1.0 - 2.0 * i / n), np.pi * (1.0 + 5.0 ** 0.5) * i
+    return radius * np.column_stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
+
+
+@pytest.mark.parametrize("bound_spacings, decision", [(1.0, "passed"), (1e-3, "refused")])
+def test_the_closed_surface_s_hold_out_is_traced_under_its_own_name_with_its_decision(cascade_trace, bound_spacings,
+                                                                                        decision):
+    """--holdouts logs step 6c's closed-surface test (`poisson._holds_out`), named as such, with the decision the
+    test returned: the eighteenth stop's trace logged only the shared rule's calls, so the membrane's passed hold-out
+    read as the closed surface's. On a sphere with a cap cut out, the surface without the ring predicts it within one
+    spacing (passed) and not within a thousandth of one (refused)."""
+    points = _sphere()
+    region = HoleRegion("ball", np.array([0.0, 0.0, 20.0]), radius=6.0)
+    support = points[~region.contains(points)]
+    log: list = []
+    cascade_trace._traced_holdouts(log)
+    passed = poisson._holds_out(support, region, 2.0, 1.1, 1.1, bound_spacings)
+    assert passed == (decision == "passed")
+    assert len(log) == 1 and log[0].startswith("  hold-out (closed surface): ") and log[0].endswith(f": {decision}")
+    miss = float(log[0].split("miss ")[1].split(",")[0])
+    assert 0.0 < miss < 1.1  # the held-out surface lies near the sphere: a smooth cap well within a spacing
+
+
+def test_fill_audit_by_depth_bins_each_point_by_its_depth_and_gives_the_bin_s_rms(monkeypatch):
+    """`fill_audit.depth_lines` (--by-depth): each bin of `DEPTH_EDGES` holds the points whose depth lies in
+    [low, high), its off RMS and share over 2 spacings those points' own; empty bins are left out."""
+    monkeypatch.syspath_prepend(str(EXPERIMENTS))
+    fill_audit = importlib.import_module("fill_audit")
+    off = np.array([0.3, 0.4, 1.0, 3.0, 1.0])
+    depth = np.array([0.5, 1.99, 2.0, 9.0, 40.0])
+    lines = fill_audit.depth_lines(off, depth)
+    assert [line.split(":")[0].split()[:2] for line in lines] == [["depth", "0-2"], ["depth", "2-4"], ["depth", "8-16"],
+                                                              ["depth", "32-inf"]]
+    counts = [int(line.split("points")[1].split()[0]) for line in lines]
+    rms = [float(line.split("off RMS")[1].split()[0]) for line in lines]
+    assert counts == [2, 1, 1, 1]
+    assert rms == pytest.approx([np.sqrt((0.09 + 0.16) / 2), 1.0, 3.0, 1.0], abs=0.005)
+    assert lines[2].endswith("(> 2 s: 100%)") and lines[0].endswith("(> 2 s:   0%)")
