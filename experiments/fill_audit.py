@@ -57,6 +57,7 @@ from scipy.spatial import cKDTree
 
 from dpcbench.bench.core.params import parse_params
 from dpcbench.bench.data.plyio import read_ply
+from dpcbench.bench.results.oracle import DEPTH_EDGES
 from dpcbench.methods.temporal_fusion import method as fusion_method
 from dpcbench.methods.temporal_fusion import spatial
 from dpcbench.metrics import psnr, resolve_peak
@@ -291,13 +292,11 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
     return lines
 
 
-DEPTH_EDGES = (0.0, 2.0, 4.0, 8.0, 16.0, 32.0, np.inf)  # spacings from the damaged frame's nearest point
-
-
 def depth_lines(off: np.ndarray, depth: np.ndarray) -> list[str]:
     """``--by-depth``'s lines for one stage: its points' off RMS (``off`` (P,), spacings) by their depth (``depth``
     (P,), spacings to the damaged frame's nearest point: how far the fill reaches from what was captured), in the bins
-    of `DEPTH_EDGES`; empty bins left out."""
+    of `bench.results.oracle.DEPTH_EDGES` (`dpcbench oracle --by-depth` measures any method's result so); empty bins
+    left out."""
     lines = []
     for low, high in zip(DEPTH_EDGES[:-1], DEPTH_EDGES[1:]):
         at = (depth >= low) & (depth < high)

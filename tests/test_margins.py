@@ -424,6 +424,42 @@ def test_refusal_oracle_keeps_exactly_the_fill_points_within_the_limit():
         score_refusals([truth], [damaged], [result, result], [1])
 
 
+def test_off_surface_by_depth_is_the_naive_binning_of_each_fill_point_s_offset_by_its_depth():
+    """`off_surface_by_depth` against the sum written out point by point. On the unit grid (one spacing is 1) the
+    first frame's missing points are lifted by 0.1 times their depth in the plane (their distance to the nearest
+    damaged point), so each bin's RMS grows with its depth; the second frame's half of them lie on the plane, some on
+    the bins' edges. The reference takes each fill point's offset as its height (the plane's normal is z) and its
+    depth by brute force over the damaged points, and bins them by hand. The two frames pool."""
+    import numpy as np
+
+    from dpcbench.bench.core.errors import UserError
+    from dpcbench.bench.results.oracle import DEPTH_EDGES, off_surface_by_depth
+
+    truth, damaged, mask = _plane_with_hole(radius=12.0)
+    hole = truth[mask]
+    flat_depth = np.min(np.linalg.norm(hole[:, None, :] - damaged[None, :, :], axis=2), axis=1)
+    fill = hole + np.column_stack([np.zeros((len(hole), 2)), 0.1 * flat_depth])
+    result = np.vstack([damaged, fill])
+    flat = hole[::2]  # the second frame's fill on the plane: off 0, depths on the bins' edges (2 and 4) included
+    rows = off_surface_by_depth([truth, truth], [damaged, damaged], [result, np.vstack([damaged, flat])])
+    off = np.concatenate([fill[:, 2], flat[:, 2]])
+    depth = np.min(np.linalg.norm(np.vstack([fill, flat])[:, None, :] - damaged[None, :, :], axis=2), axis=1)
+    assert np.isin([2.0, 4.0], depth).all()
+    expected = []
+    for low, high in zip(DEPTH_EDGES[:-1], DEPTH_EDGES[1:]):
+        at = (depth >= low) & (depth < high)
+        if at.any():
+            expected.append((low, high, int(at.sum()), np.sqrt(np.mean(off[at] ** 2)), np.quantile(off[at], 0.9)))
+    assert [(r["low"], r["high"], r["points"]) for r in rows] == [e[:3] for e in expected]
+    assert [r["off_rms"] for r in rows] == pytest.approx([e[3] for e in expected], rel=1e-6)
+    assert [r["off_p90"] for r in rows] == pytest.approx([e[4] for e in expected], rel=1e-6)
+    assert len(rows) >= 3 and rows[0]["off_rms"] < rows[1]["off_rms"] < rows[-1]["off_rms"]  # deeper, farther off
+    assert sum(r["points"] for r in rows) == len(fill) + len(flat)
+    assert off_surface_by_depth([truth], [damaged], [damaged]) == []  # no fill point: no bin
+    with pytest.raises(UserError, match="of the same sequence"):
+        off_surface_by_depth([truth], [damaged], [result, result])
+
+
 def test_oracle_command(tmp_path, capsys):
     import json
 
@@ -469,6 +505,19 @@ def test_oracle_command(tmp_path, capsys):
     assert main(argv + ["--variant", "none", "--colour"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "has frames without colour" in err
+    # by depth: the lifted fill is 0.25 off at every depth, and one point 40 above the hole's centre lies in the last
+    # bin, whose open end is null in JSON
+    far = np.vstack([lifted, [[20.0, 20.0, 40.0]]])
+    save_sequence([far, far], tmp_path / "far", prefix="r")
+    assert main(argv + ["--variant", "none", "--method-result", str(tmp_path / "far"), "--by-depth"]) == 0
+    rows = json.loads(capsys.readouterr().out)["by_depth"]
+    assert sum(r["points"] for r in rows) == 2 * mask.sum() + 2 and rows[0]["low"] == 0.0
+    assert all(r["off_rms"] == pytest.approx(0.25, rel=1e-6) for r in rows[:-1])
+    assert rows[-1] == {"low": 32.0, "high": None, "points": 2, "off_rms": pytest.approx(40.0), "off_p90": pytest.approx(40.0)}
+    assert main(argv[:-1] + ["--variant", "none", "--method-result", str(tmp_path / "result"), "--by-depth"]) == 0
+    assert "off RMS (s)" in capsys.readouterr().out
+    assert main(argv + ["--variant", "none", "--by-depth"]) == 2
+    assert "give its result with --method-result" in capsys.readouterr().err
 
 
 def test_colour_oracle_reproduces_a_linear_colour_harmonically():

@@ -39,6 +39,8 @@ colour estimate, not better geometry.
 `off_surface_rms` measures a method's off-surface error: the RMS over its fill points (result
 points farther than 1% of the spacing from every damaged point) of ``|(p - q) . n_q|``, q the
 nearest truth point and n_q the truth's PCA normal there (D2's point-to-plane distance).
+`off_surface_by_depth` splits it by depth, each fill point's distance to the damaged frame: a fill that sits on the
+surface at the rim may drift off it farther in.
 
 `refused_fill` and `score_refusals` are the refusal oracle: a method's result without its fill points whose
 ``|(p - q) . n_q|`` is at least a limit (in spacings of the damaged frame, `metrics.neighbours.point_spacing`, the
@@ -64,6 +66,9 @@ COLOUR_FILLS = ("harmonic", "nearest")
 #: a truth point closer than this share of the damaged frame's spacing to a damaged point is kept
 MATCH_SHARE = 0.01
 DEFAULT_NEIGHBOURS = 12
+#: the depth bins of `off_surface_by_depth`, spacings from the damaged frame's nearest point: doubling, since a fill's
+#: error grows with how far it reaches from what it was fitted to
+DEPTH_EDGES = (0.0, 2.0, 4.0, 8.0, 16.0, 32.0, np.inf)
 
 
 def spacing(points: np.ndarray) -> float:
@@ -135,6 +140,12 @@ def fill_offsets(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
     """(mask (R,) of the ``result``'s fill points: those farther than MATCH_SHARE x spacing(damaged) from every
     damaged point; their point-to-plane distances (F,) to the truth, ``|(p - q) . n_q|``, q the nearest truth point
     and n_q the truth's PCA normal of its ``k`` nearest points there)."""
+    is_fill, distance, _ = _fill_offsets_and_depths(truth, damaged, result, k)
+    return is_fill, distance
+
+
+def _fill_offsets_and_depths(truth, damaged, result, k):
+    """`fill_offsets`, and each fill point's depth (F,): its distance to the nearest damaged point."""
     from dpcbench.metrics.neighbours import estimate_normals
 
     truth, result = np.asarray(truth, dtype=float), np.asarray(result, dtype=float)
@@ -142,11 +153,43 @@ def fill_offsets(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,
     is_fill = d > MATCH_SHARE * spacing(damaged)
     fill = result[is_fill]
     if not len(fill):
-        return is_fill, np.zeros(0)
+        return is_fill, np.zeros(0), np.zeros(0)
     tree = cKDTree(truth)
     _, nearest = tree.query(fill, k=1)
     normals = estimate_normals(truth, k, queries=truth[nearest], tree=tree)
-    return is_fill, np.abs(np.einsum("ij,ij->i", fill - truth[nearest], normals))
+    return is_fill, np.abs(np.einsum("ij,ij->i", fill - truth[nearest], normals)), d[is_fill]
+
+
+def off_surface_by_depth(truth: list[np.ndarray], damaged: list[np.ndarray], results: list[np.ndarray],
+                         edges=DEPTH_EDGES, k: int = DEFAULT_NEIGHBOURS) -> list[dict]:
+    """How far a method's fill lies off the truth, by how deep into the hole it lies. Over all frames, each of the
+    ``results``' fill points (`fill_offsets`) with its off-surface distance o = ``|(p - q) . n_q|`` and its depth
+    d = the distance to the nearest point of its damaged frame, both in spacings of that frame
+    (`metrics.neighbours.point_spacing`), pooled into the bins [edges[i], edges[i + 1]) of d. Returns one dict per
+    bin that holds a point: ``low``, ``high`` (spacings), ``points``, ``off_rms`` = sqrt(mean o^2) and ``off_p90``
+    (the 90th percentile of o), in spacings.
+
+    A fill is judged by its hold-out at the rim, a few spacings deep; this shows what it does deeper in, where
+    nothing it was tested on lies."""
+    from dpcbench.metrics.neighbours import point_spacing
+
+    if not len(truth) == len(damaged) == len(results):
+        raise UserError(f"{len(truth)} truth frame(s), {len(damaged)} damaged and {len(results)} result frame(s); "
+                        "give the truth, the damage and a method's result of the same sequence")
+    offs, depths = [], []
+    for t, d, r in zip(truth, damaged, results):
+        unit = point_spacing(np.asarray(d, dtype=float))
+        _, off, depth = _fill_offsets_and_depths(t, d, r, k)
+        offs.append(off / unit)
+        depths.append(depth / unit)
+    off, depth = np.concatenate(offs), np.concatenate(depths)
+    rows = []
+    for low, high in zip(edges[:-1], edges[1:]):
+        at = (depth >= low) & (depth < high)
+        if at.any():
+            rows.append({"low": float(low), "high": float(high), "points": int(at.sum()),
+                         "off_rms": float(np.sqrt(np.mean(off[at] ** 2))), "off_p90": float(np.quantile(off[at], 0.9))})
+    return rows
 
 
 def off_surface_rms(truth: np.ndarray, damaged: np.ndarray, result: np.ndarray,

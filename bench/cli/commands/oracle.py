@@ -44,6 +44,11 @@ def register(subparsers) -> None:
                    help="with --method-result: also score its result as it is and without the fill points at least "
                         "each of these comma-separated limits (spacings) off the truth along its normal: what a "
                         "refusal that knew each fill point's true error would score (e.g. 0.5,1)")
+    p.add_argument("--by-depth", action="store_true",
+                   help="with --method-result: also its fill points' off-surface error (RMS and 90th percentile "
+                        "distance to the truth along its normal, spacings) by depth, their distance to the damaged "
+                        "frame in bins of 0-2, 2-4, 4-8, ... spacings: whether the fill stays on the surface deep in "
+                        "the holes, where no hold-out at the rim tested it")
     p.add_argument("--peak", default="intrinsic", help="PSNR peak (as `dpcbench score`)")
     p.add_argument("--seed", type=int, default=0, help="seed of the surface and jitter samples")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -79,6 +84,7 @@ def main(args) -> int:
     from dpcbench.bench.results.oracle import (
         VARIANTS,
         d2_break_even,
+        off_surface_by_depth,
         off_surface_rms,
         score_oracles,
         score_refusals,
@@ -96,6 +102,8 @@ def main(args) -> int:
         raise UserError(f"--jitter {args.jitter:g}: must be a distance >= 0")
     if args.refusal is not None and not args.method_result:
         raise UserError("--refusal scores a method's result: give it with --method-result RESULT")
+    if args.by_depth and not args.method_result:
+        raise UserError("--by-depth measures a method's fill: give its result with --method-result RESULT")
     limits = _limits(args.refusal) if args.refusal is not None else None
     sigma, measured = args.jitter, None
     if args.method_result:
@@ -128,10 +136,13 @@ def main(args) -> int:
                           reference_normals=given_normals) if args.break_even else None)
     refusals = (score_refusals(truth.points, damaged.points, result.points, limits, regions=regions, peak=args.peak,
                                reference_normals=given_normals) if limits else None)
+    by_depth = off_surface_by_depth(truth.points, damaged.points, result.points) if args.by_depth else None
     if args.json:
         payload = {"variants": {v: {scope: s["mean"] for scope, s in by.items()} for v, by in scores.items()},
                    "frames": {v: {scope: s["frames"] for scope, s in by.items()} for v, by in scores.items()},
                    "sigma": sigma, "measured": measured, "d2_break_even": even,
+                   "by_depth": None if by_depth is None else [  # the last bin's open end as null (JSON has no inf)
+                       {**row, "high": row["high"] if math.isfinite(row["high"]) else None} for row in by_depth],
                    "refusal": None if refusals is None else {label: {scope: s["mean"] for scope, s in by.items()}
                                                              for label, by in refusals.items()},
                    "colour": None if colour is None else {f: {scope: s["mean"] for scope, s in by.items()}
@@ -147,6 +158,10 @@ def main(args) -> int:
               f"spacings) RMS of the truth along its normal scores no fill's D2 ({even['none_d2']:.2f} dB, mean over "
               "the frames; jitter oracle, seed "
               f"{args.seed}); farther off, even a complete fill scores less")
+    if by_depth is not None:
+        print(f"\n{args.method_result}: its fill points' distance to the truth along its normal by their depth (the "
+              "distance to the damaged frame), in spacings of each damaged frame, over every frame")
+        _print_depth_table(by_depth)
     if refusals is not None:
         print(f"\nrefusal oracle: {args.method_result} as it is, and without its fill points at least the limit off "
               "the truth along its normal (spacings of each damaged frame): what a refusal that knew each fill "
@@ -182,6 +197,13 @@ def _colour_scores(args, truth, damaged, masks, regions) -> dict:
             raise UserError(f"--colour: {label} has frames without colour; give coloured frames or drop --colour")
     return score_colour_oracles(truth.points, truth.colors, damaged.points, damaged.colors, masks=masks,
                                 regions=regions)
+
+
+def _print_depth_table(rows: list[dict]) -> None:
+    """`off_surface_by_depth`'s bins, one line each."""
+    print("depth (s)   points   off RMS (s)   off p90 (s)")
+    for row in rows:
+        print(f"{row['low']:>4g}-{row['high']:<5g} {row['points']:>8d}  {row['off_rms']:>12.3f}  {row['off_p90']:>12.3f}")
 
 
 def _print_table(first: str, scores: dict) -> None:
