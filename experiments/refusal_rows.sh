@@ -25,23 +25,15 @@ mkdir -p "$out"
 
 one() {  # NAME FRAMES SEED
     local dir=$out/$1-$3
-    mkdir -p "$dir/truth"
+    mkdir -p "$dir"
     # what a run before made is kept: a damage with its holes.json, a result with a frame per damaged frame
     [ -f "$dir/damaged/holes.json" ] ||
         "$bin" damage "$data" --holes region --param preset=medium --param coherent=true --seed "$3" --frames "$2" \
             --out "$dir/damaged" --overwrite > /dev/null 2>&1
     local count
     count=$(ls "$dir/damaged"/*.ply | wc -l)
-    # the truth frames the damage was made from, in its order (holes.json input_files)
-    "$python" - "$dir" "$data" <<'EOF'
-import json, os, sys
-from pathlib import Path
-d, data = Path(sys.argv[1]), Path(sys.argv[2])
-for i, name in enumerate(json.loads((d / "damaged" / "holes.json").read_text())["input_files"]):
-    link = d / "truth" / f"t_{i:04d}.ply"
-    if not link.exists():
-        os.symlink(data / name, link)
-EOF
+    # the truth frames the damage was made from, in its order
+    "$python" "$root/experiments/_truth_links.py" "$dir" "$data"
     for m in temporal-fusion fu-nonlocal temporal-graph; do
         [ "$(ls "$dir/$m"/*.ply 2> /dev/null | wc -l)" = "$count" ] ||
             "$bin" inpaint "$dir/damaged" --method "$m" --regions "$dir/damaged/holes.json" --out "$dir/$m" \
@@ -71,7 +63,7 @@ EOF
 }
 
 export -f one
-export out bin python data
+export out bin python data root
 printf "%s\n" "frames-0-9 0-9 0" "frames-0-9 0-9 1" "frames-0-9 0-9 2" "frames-0-9 0-9 3" "frames-0-9 0-9 4" \
     "frames-10-16 10-16 5" "frames-10-16 10-16 6" "every-2nd 0,2,4,6,8,10,12,14,16 7" \
     "every-2nd 0,2,4,6,8,10,12,14,16 8" | xargs -P "$jobs" -L 1 bash -c 'one "$0" "$1" "$2"'
