@@ -20,6 +20,8 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--against M1,M2``, each region's AB1 of those methods' results too;
 - with ``--last-resort-where-covered``, the method with its last resort (`spatial.BestSurface`) run also in a region
   that copies, the reused fill or partial copies cover in part (the method's own test asks for an emptied region);
+- with ``--last-resort-in-boxes``, the method with its last resort run in every occlusion box too, filling what the
+  strategies before it left open there (`last_resort_in_boxes`; measured, not kept);
 - with ``--thin-gaps``, for each thin gap that a frame saw whole, its best copy's rim residual, the rim fill's
   hold-out miss and which of them fills it (stage rim fill's decision, `rim_fill.copy_beats_growth`); with
   ``--thin-gaps-by-scatter`` the method run with version 54's rule there instead (measured, not kept);
@@ -368,6 +370,26 @@ def last_resort_where_covered() -> None:
     spatial.BestSurface.applies = staticmethod(applies)
 
 
+def last_resort_in_boxes() -> None:
+    """Let `spatial.BestSurface` run in every occlusion box too, whatever the strategies before it put there (the
+    method's own test leaves boxes out, `spatial.BestSurface.applies`), with what they put counted as covered (as it
+    counts a lone membrane's points): its candidates then fill only what they left open, where the open part's
+    predicted error exceeds the candidate's hold-out miss."""
+    from dataclasses import replace
+
+    fill = spatial.BestSurface.fill
+
+    def applies(cfg, hole, state):
+        return bool(cfg.best_surface and hole.in_box)
+
+    def fill_in_box(cfg, hole, state):
+        out = fill(cfg, hole, replace(state, membrane_alone=state.spatial) if len(state.spatial) else state)
+        return replace(out, membrane_alone=state.membrane_alone)
+
+    spatial.BestSurface.applies = staticmethod(applies)
+    spatial.BestSurface.fill = staticmethod(fill_in_box)
+
+
 def truth_frames(truth: Path, damaged: Path) -> list[Path]:
     """The truth's PLY files for the damaged frames: ``truth`` itself when a file; else the files of the folder that
     the damage record (holes.json ``input_files``) names, or all of its PLY files in natural order."""
@@ -416,6 +438,8 @@ def main(argv=None) -> int:
     parser.add_argument("--last-resort", action="store_true",
                         help="print, per hole the last resort judged, each candidate's hold-out miss, predicted open "
                              "error and true distance to the truth, and which filled")
+    parser.add_argument("--last-resort-in-boxes", action="store_true",
+                        help="run the last resort (spatial.BestSurface) in occlusion boxes too (measured, not kept)")
     parser.add_argument("--by-depth", action="store_true",
                         help="each stage's off RMS by depth: spacings from the damaged frame's nearest point")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
@@ -424,6 +448,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.last_resort_where_covered:
         last_resort_where_covered()
+    if args.last_resort_in_boxes:
+        last_resort_in_boxes()
     _, frames, regions = load_damage_or_exit(args.damaged)
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()
