@@ -12,17 +12,7 @@
 # in spacings, with each method's mean whole-frame D1 / D2 and no fill's D2. Writes each row's files under
 # OUTDIR/<row>/ and keeps what a run before made.
 set -euo pipefail
-if [ $# -lt 1 ]; then
-    echo "usage: $0 OUTDIR [JOBS]" >&2
-    exit 2
-fi
-out=$1 jobs=${2:-1}
-root=$(cd "$(dirname "$0")/.." && pwd)
-bin=$root/.venv/bin/dpcbench
-python=$root/.venv/bin/python
-dfaust=$root/../shared/data/dfaust_50004_punching
-[ -d "$dfaust" ] || { echo "error: $dfaust not found; run from a checkout with ../shared beside it" >&2; exit 2; }
-mkdir -p "$out"
+source "$(dirname "$0")/_rows.sh"
 
 one() {  # ROW SOURCE FRAMES HOLES SEED [GENERATE PARAMS...]
     local row=$1 dir=$out/$1 source=$2 frames=$3 holes=$4 seed=$5

@@ -11,17 +11,8 @@
 #
 # Prints one line a damage, and writes each damage's files under OUTDIR/<rows>-<seed>/.
 set -euo pipefail
-if [ $# -lt 1 ]; then
-    echo "usage: $0 OUTDIR [JOBS]" >&2
-    exit 2
-fi
-out=$1 jobs=${2:-1}
-root=$(cd "$(dirname "$0")/.." && pwd)
-bin=$root/.venv/bin/dpcbench
-python=$root/.venv/bin/python
-data=$root/../shared/data/dfaust_50004_punching
-[ -d "$data" ] || { echo "error: $data not found; run from a checkout with ../shared beside it" >&2; exit 2; }
-mkdir -p "$out"
+source "$(dirname "$0")/_rows.sh"
+data=$dfaust
 
 one() {  # NAME FRAMES SEED
     local dir=$out/$1-$3
