@@ -5,10 +5,13 @@ every strategy of `methods.temporal_fusion.spatial.CASCADE` that ran and how man
 found nothing open). With ``--holdouts``, before each strategy's line, every hold-out it judged, the fill named on each
 line (step 6c's closed surface, `poisson._holds_out`; step 6c's tube and step 6e's membrane, the shared rule
 `methods._spatial_fill.common.holdout_passes`): the held-out points, their RMS miss m, their own scatter e,
-sqrt(m^2 - e^2) and the bound, in coordinate units, and the decision. Usage (after
-experiments/one_frame.sh has written OUTDIR/damaged, or after `dpcbench damage`):
+sqrt(m^2 - e^2) and the bound, in coordinate units, and the decision. With ``--membrane R``, for each membrane
+(step 6e, `membrane_fill`) of a region of bounding radius R or more, how many of its seeds and anchors each of its
+tests keeps, in run order (`_traced_membrane`): where a large occlusion box ends up mostly open, this says which
+test took the rest. Usage (after experiments/one_frame.sh has written OUTDIR/damaged, or after `dpcbench damage`):
 
-    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged [--holdouts] [--param best_surface=false ...]
+    .venv/bin/python experiments/cascade_trace.py out/ld-medium/damaged [--holdouts] [--membrane 60]
+        [--param best_surface=false ...]
 """
 
 from __future__ import annotations
@@ -85,6 +88,71 @@ def _traced_holdouts(log):
     poisson._holds_out = closed_surface
 
 
+def _traced_membrane(log, least_radius: float) -> None:
+    """Wrap step 6e's membrane (`membrane_fill`, where `spatial` calls it) and the functions it calls in its own
+    module's namespace, so that each membrane of a region of bounding radius ``least_radius`` or more logs, in run
+    order, what each of its tests kept: its seeds and anchors (`LozesPDE.seed_hole`), the height-field test's share of
+    steep anchors (`fit_height_field`, against its bound ``max_steep``), the retry on the hole's sheet
+    (`_flat_anchors`, `_sheet_bounded`), the sag (`membrane_sag`, against the hold-out bound) and the hull rule
+    (`_within_hull_of`), the hold-out (`holdout_passes`), the evolved points, the agreement and layer rules
+    (`grown_agreeing`, `between_layers`) and the points not already covered (`far_from`)."""
+    from dpcbench.methods._spatial_fill import membrane
+    from dpcbench.methods.lozes_pde import LozesPDE
+
+    tracing = [False]
+    labels = {
+        "fit_height_field": lambda args, out: f"height field: {out[4]:.1%} of {len(args[0])} anchors steep",
+        "_flat_anchors": lambda args, out: f"flat anchors (the hole's sheet): {int(out.sum())} of {len(out)}",
+        "_sheet_bounded": lambda args, out: f"seeds bordering the sheet more than the crossing: {int(out.sum())} of {len(out)}",
+        "membrane_sag": lambda args, out: f"sag {out:.3f}",
+        "_within_hull_of": lambda args, out: f"seeds within the hull of the captured points: {int(out.sum())} of {len(out)}",
+        "holdout_passes": lambda args, out: f"hold-out: {'passed' if out else 'refused'} ({len(args[0])} held-out points)",
+        "grown_agreeing": lambda args, out: f"agreeing with the anchors' local surface: {int(out.sum())} of {len(out)}",
+        "between_layers": lambda args, out: f"between two layers (dropped): {int(out.sum())} of {len(out)}",
+        "far_from": lambda args, out: f"not covered already: {int(out.sum())} of {len(out)}",
+    }
+
+    def wrapped(name, function):
+        def traced(*args, **kwargs):
+            out = function(*args, **kwargs)
+            if tracing[0]:
+                log.append("    membrane, " + labels[name](args, out))
+            return out
+        return traced
+
+    for name in labels:
+        setattr(membrane, name, wrapped(name, getattr(membrane, name)))
+    seed_hole, evolve = LozesPDE.seed_hole, LozesPDE.evolve
+
+    def traced_seed_hole(self, points, region, step):
+        seeds, anchors = seed_hole(self, points, region, step)
+        if tracing[0]:
+            log.append(f"    membrane, seeds: {len(seeds)} on the plane of {len(anchors)} anchors (of {len(points)} support "
+                       "points)")
+        return seeds, anchors
+
+    def traced_evolve(self, known, seeds, step):
+        out = evolve(self, known, seeds, step)
+        if tracing[0]:
+            log.append(f"    membrane, evolved: {len(out)} points from {len(seeds)} seeds")
+        return out
+
+    LozesPDE.seed_hole, LozesPDE.evolve = traced_seed_hole, traced_evolve
+    membrane_fill = spatial.membrane_fill
+
+    def traced_membrane_fill(captured, region, *args, **kwargs):
+        tracing[0] = region.bounding_radius >= least_radius
+        if tracing[0]:
+            log.append(f"  membrane of the region at {np.round(region.center, 1).tolist()} "
+                       f"r={region.bounding_radius:.1f}: {len(captured)} captured points round it")
+        try:
+            return membrane_fill(captured, region, *args, **kwargs)
+        finally:
+            tracing[0] = False
+
+    spatial.membrane_fill = traced_membrane_fill
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("damaged", type=Path, help="a `dpcbench damage` output folder (PLY frames + holes.json)")
@@ -92,6 +160,8 @@ def main(argv=None) -> int:
                         help="a temporal-fusion parameter (repeatable), e.g. best_surface=false")
     parser.add_argument("--holdouts", action="store_true",
                         help="also each hold-out (closed surface, tube, membrane), with its figures")
+    parser.add_argument("--membrane", type=float, default=None, metavar="R",
+                        help="also, for each membrane of a region of bounding radius R or more, what each of its tests kept")
     args = parser.parse_args(argv)
     loaded = load_damage_or_exit(args.damaged)
     _, frames, regions = loaded
@@ -100,6 +170,8 @@ def main(argv=None) -> int:
         strategy.fill = _traced(strategy, log)
     if args.holdouts:
         _traced_holdouts(log)
+    if args.membrane is not None:
+        _traced_membrane(log, args.membrane)
     out = TemporalFusion(**parse_params(args.param)).inpaint(frames, regions)
     for entry in log:
         if isinstance(entry, str):

@@ -22,6 +22,11 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
   that copies, the reused fill or partial copies cover in part (the method's own test asks for an emptied region);
 - with ``--last-resort-in-boxes``, the method with its last resort run in every occlusion box too, filling what the
   strategies before it left open there (`last_resort_in_boxes`; measured, not kept);
+- with ``--closed-surface-band bound|last-resort``, the method with its closed surface (`spatial.ClosedSurface`)
+  judged in an occlusion box by the band of captured points bordering its fill rather than by the ring round the
+  whole box, and kept where that hold-out passes the method's bound, or with ``last-resort`` also where it misses by
+  less than the open part's predicted error (the last resort's rule) (`closed_surface_band`; measured, not kept); one
+  line per box judged;
 - with ``--thin-gaps``, for each thin gap that a frame saw whole, its best copy's rim residual, the rim fill's
   hold-out miss and which of them fills it (stage rim fill's decision, `rim_fill.copy_beats_growth`); with
   ``--thin-gaps-by-scatter`` the method run with version 54's rule there instead (measured, not kept);
@@ -43,7 +48,7 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
         [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
-        [--thin-gaps-by-scatter] [--last-resort]
+        [--thin-gaps-by-scatter] [--last-resort] [--last-resort-in-boxes] [--closed-surface-band RULE] [--by-depth]
 """
 
 from __future__ import annotations
@@ -390,6 +395,63 @@ def last_resort_in_boxes() -> None:
     spatial.BestSurface.fill = staticmethod(fill_in_box)
 
 
+#: `closed_surface_band`'s band: the captured points within this many spacings of the untested fill (the closed
+#: surface's attachment reach, `poisson._poisson_points`)
+BAND_SPACINGS = 3.0
+
+
+def closed_surface_band(rule: str) -> None:
+    """In an occlusion box (a region that keeps captured points), let `spatial.ClosedSurface` judge its surface by
+    what borders its fill, not by the ring round the whole box. The method holds out every support point within the
+    ring of the region, which in a box is all the captured points inside it too, so the surface is asked to predict
+    the whole box from outside (the Longdress frame's box of radius 71: a miss of 24.57 voxels). Here: the untested
+    fill (`poisson_surface_fill` with no ring), the band of support points within the ring of the region and within
+    `BAND_SPACINGS` of that fill held out, the crop's surface rebuilt without them (one reconstruction at the
+    hold-out's octree depth, `poisson.POISSON_HOLDOUT_CELL_STEPS`), and their RMS miss m to it. The fill is kept
+    where m^2 - e^2 <= bound^2 (``rule`` "bound": the method's rule, e the band's own scatter), and with ``rule``
+    "last-resort" also where m < o, o its points' RMS distance to what the output holds round them (the last
+    resort's rule, `methods._spatial_fill.best`). Outside boxes the method is unchanged. Prints one line per box
+    judged."""
+    from dataclasses import replace
+
+    from dpcbench.methods._spatial_fill import poisson
+    from dpcbench.methods._spatial_fill.common import own_scatter_sq
+
+    fill = spatial.ClosedSurface.fill
+
+    def fill_in_box(cfg, hole, state):
+        if not hole.in_box:
+            return fill(cfg, hole, state)
+        seq, region, ring = hole.seq, hole.region, hole.ring
+        support = np.vstack([hole.crop.local, hole.accepted])
+        points = poisson.poisson_surface_fill(support, region, state.covered, seq.spacing, voxelized=seq.voxelized,
+                                              step=seq.step, gap_spacings=cfg.fill_gap_spacings, ring=0.0,
+                                              separate_bodies=cfg.poisson_bodies, bridge_ends=cfg.poisson_bridges)
+        if not len(points):
+            return state
+        near_fill = cKDTree(points).query(support, distance_upper_bound=BAND_SPACINGS * seq.spacing)[0]
+        band = region.contains(support, margin=ring) & np.isfinite(near_fill)
+        if band.sum() < 6 or (~band).sum() < 32:
+            return state
+        grid = seq.spacing if seq.voxelized else seq.step
+        cloud, depth = poisson.poisson_input(support[~band], grid, poisson.POISSON_HOLDOUT_CELL_STEPS)
+        held = poisson._mesh_samples(poisson.poisson_mesh(cloud, depth), grid, (region, ring))
+        held = held[region.contains(held, margin=ring)]
+        if not len(held):
+            return state
+        miss = float(np.sqrt(np.mean(cKDTree(held).query(support[band])[0] ** 2)))
+        scatter_sq = own_scatter_sq(support[band], support)
+        open_error = float(np.sqrt(np.mean(state.covered.query(points)[0] ** 2)))
+        bound = cfg.surface_holdout_spacings * seq.spacing
+        kept = miss ** 2 - scatter_sq <= bound ** 2 or (rule == "last-resort" and miss < open_error)
+        print(f"closed surface in the box at {np.round(region.center, 1).tolist()} r={region.bounding_radius:.1f}: "
+              f"{len(points)} points, band {int(band.sum())}, miss {miss:.2f}, scatter {np.sqrt(scatter_sq):.2f}, "
+              f"bound {bound:.2f}, open part's error {open_error:.2f}: {'filled' if kept else 'refused'}", flush=True)
+        return replace(state, spatial=points, poisson_fill=points) if kept else state
+
+    spatial.ClosedSurface.fill = staticmethod(fill_in_box)
+
+
 def truth_frames(truth: Path, damaged: Path) -> list[Path]:
     """The truth's PLY files for the damaged frames: ``truth`` itself when a file; else the files of the folder that
     the damage record (holes.json ``input_files``) names, or all of its PLY files in natural order."""
@@ -440,6 +502,9 @@ def main(argv=None) -> int:
                              "error and true distance to the truth, and which filled")
     parser.add_argument("--last-resort-in-boxes", action="store_true",
                         help="run the last resort (spatial.BestSurface) in occlusion boxes too (measured, not kept)")
+    parser.add_argument("--closed-surface-band", choices=["bound", "last-resort"], default=None,
+                        help="judge the closed surface in occlusion boxes by the band bordering its fill: by the "
+                             "method's bound, or also by the last resort's rule (measured, not kept)")
     parser.add_argument("--by-depth", action="store_true",
                         help="each stage's off RMS by depth: spacings from the damaged frame's nearest point")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
@@ -450,6 +515,8 @@ def main(argv=None) -> int:
         last_resort_where_covered()
     if args.last_resort_in_boxes:
         last_resort_in_boxes()
+    if args.closed_surface_band:
+        closed_surface_band(args.closed_surface_band)
     _, frames, regions = load_damage_or_exit(args.damaged)
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()

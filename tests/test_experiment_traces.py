@@ -65,3 +65,46 @@ def test_fill_audit_by_depth_bins_each_point_by_its_depth_and_gives_the_bin_s_rm
     assert counts == [2, 1, 1, 1]
     assert rms == pytest.approx([np.sqrt((0.09 + 0.16) / 2), 1.0, 3.0, 1.0], abs=0.005)
     assert lines[2].endswith("(> 2 s: 100%)") and lines[0].endswith("(> 2 s:   0%)")
+
+
+@pytest.fixture
+def membrane_trace(monkeypatch, cascade_trace):
+    """experiments/cascade_trace.py with everything `_traced_membrane` wraps put back after the test."""
+    from dpcbench.methods.lozes_pde import LozesPDE
+    from dpcbench.methods.temporal_fusion import spatial
+
+    for name in ("fit_height_field", "_flat_anchors", "_sheet_bounded", "membrane_sag", "_within_hull_of",
+                 "holdout_passes", "grown_agreeing", "between_layers", "far_from"):
+        monkeypatch.setattr(membrane, name, getattr(membrane, name))
+    monkeypatch.setattr(LozesPDE, "seed_hole", LozesPDE.seed_hole)
+    monkeypatch.setattr(LozesPDE, "evolve", LozesPDE.evolve)
+    monkeypatch.setattr(spatial, "membrane_fill", spatial.membrane_fill)
+    return cascade_trace, spatial
+
+
+def test_the_membrane_trace_logs_what_each_test_kept_and_ends_on_the_points_the_membrane_returned(membrane_trace):
+    """--membrane R logs each membrane of a region of radius R or more, step by step; its counts are the method's.
+    A voxelized plane with a disc emptied inside an occlusion box that keeps the rest of the plane in it: the
+    membrane spans the disc, a strip of it already covered (as a copy would), and the log's last line counts exactly
+    the points `membrane_fill` returned, of more; a region under R is not logged."""
+    from scipy.spatial import cKDTree
+
+    cascade_trace, spatial = membrane_trace
+    u, v = np.meshgrid(np.arange(-30.0, 31.0), np.arange(-30.0, 31.0), indexing="ij")
+    plane = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)])
+    captured = plane[np.hypot(plane[:, 0], plane[:, 1]) > 6.0]
+    box = HoleRegion.box([0.0, 0.0, 0.0], [12.0, 12.0, 4.0])
+    log: list = []
+    cascade_trace._traced_membrane(log, 10.0)
+    strip = plane[(np.hypot(plane[:, 0], plane[:, 1]) <= 6.0) & (plane[:, 0] >= 3.0)]
+    points = spatial.membrane_fill(captured, box, cKDTree(np.vstack([captured, strip])), 1.0, step=1.0)
+    assert len(points) > 40  # the disc of radius 6 holds about 113 voxels; the membrane spans most of what is open
+    assert log[0].startswith("  membrane of the region at [0.0, 0.0, 0.0] r=") and f"{len(captured)} captured" in log[0]
+    assert any(line.startswith("    membrane, seeds: ") for line in log)
+    assert any(line == "    membrane, hold-out: passed" or line.startswith("    membrane, hold-out: passed (")
+               for line in log)
+    kept, total = log[-1].split(": ")[1].split(" of ")
+    assert log[-1].startswith("    membrane, not covered already: ") and int(kept) == len(points) < int(total)
+    before = len(log)
+    spatial.membrane_fill(captured, HoleRegion.box([0.0, 0.0, 0.0], [5.0, 5.0, 4.0]), None, 1.0, step=1.0)
+    assert len(log) == before
