@@ -95,7 +95,9 @@ def _traced_membrane(log, least_radius: float) -> None:
     steep anchors (`fit_height_field`, against its bound ``max_steep``), the retry on the hole's sheet
     (`_flat_anchors`, `_sheet_bounded`), the sag (`membrane_sag`, against the hold-out bound) and the hull rule
     (`_within_hull_of`), the hold-out (`holdout_passes`), the evolved points, the agreement and layer rules
-    (`grown_agreeing`, `between_layers`) and the points not already covered (`far_from`)."""
+    (`grown_agreeing`, `between_layers`), the points not already covered (`far_from`), and how far the returned points
+    spread (the grid cells of 1 unit they round to, the voxels on voxelized data, and their median nearest-neighbour
+    distance)."""
     from dpcbench.methods._spatial_fill import membrane
     from dpcbench.methods.lozes_pde import LozesPDE
 
@@ -146,9 +148,16 @@ def _traced_membrane(log, least_radius: float) -> None:
             log.append(f"  membrane of the region at {np.round(region.center, 1).tolist()} "
                        f"r={region.bounding_radius:.1f}: {len(captured)} captured points round it")
         try:
-            return membrane_fill(captured, region, *args, **kwargs)
+            out = membrane_fill(captured, region, *args, **kwargs)
         finally:
             tracing[0] = False
+        if region.bounding_radius >= least_radius:
+            # how far the points spread: on voxelized data, the voxels they round to; else their nearest neighbours
+            nearest = cKDTree(out).query(out, k=2)[0][:, 1] if len(out) > 1 else np.zeros(0)
+            voxels = len(np.unique(np.floor(out + 0.5), axis=0))
+            log.append(f"    membrane, returned: {len(out)} points, on {voxels} grid cells of 1 unit, nearest-neighbour "
+                       f"distance median {np.median(nearest) if len(nearest) else float('nan'):.3f}")
+        return out
 
     spatial.membrane_fill = traced_membrane_fill
 

@@ -27,6 +27,8 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
   whole box, and kept where that hold-out passes the method's bound, or with ``last-resort`` also where it misses by
   less than the open part's predicted error (the last resort's rule) (`closed_surface_band`; measured, not kept); one
   line per box judged;
+- with ``--membrane-height-field``, the method with its membrane a height field over its seeds' plane
+  (`membrane_height_field`; measured, not kept);
 - with ``--thin-gaps``, for each thin gap that a frame saw whole, its best copy's rim residual, the rim fill's
   hold-out miss and which of them fills it (stage rim fill's decision, `rim_fill.copy_beats_growth`); with
   ``--thin-gaps-by-scatter`` the method run with version 54's rule there instead (measured, not kept);
@@ -48,7 +50,8 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
 
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
         [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
-        [--thin-gaps-by-scatter] [--last-resort] [--last-resort-in-boxes] [--closed-surface-band RULE] [--by-depth]
+        [--thin-gaps-by-scatter] [--last-resort] [--last-resort-in-boxes] [--closed-surface-band RULE]
+        [--membrane-height-field] [--by-depth]
 """
 
 from __future__ import annotations
@@ -452,6 +455,38 @@ def closed_surface_band(rule: str) -> None:
     spatial.ClosedSurface.fill = staticmethod(fill_in_box)
 
 
+def membrane_height_field() -> None:
+    """Make temporal-fusion's membrane (`membrane_fill`) a height field over its seeds' plane: each seed keeps its place
+    on the plane and takes only the normal part of its harmonic solution (the solution of each coordinate is
+    harmonic on its own, so this is the harmonic height field of the same graph). The method's membrane moves all
+    three coordinates (`LozesPDE.evolve`): where the anchors bound a large open part on a few sides only, the seeds
+    gather towards them (the one-frame cow's underside: 11,918 membrane points on 1,825 voxels, `cascade_trace.py --membrane`). Only the membrane's
+    calls are changed: lozes-pde itself (``--against lozes-pde``) evolves as before."""
+    from scipy.sparse.csgraph import connected_components
+
+    from dpcbench.methods import lozes_pde
+
+    class HeightFieldPDE(lozes_pde.LozesPDE):
+        def evolve(self, known, seeds, spacing):
+            evolved = super().evolve(known, seeds, spacing)
+            # the seeds `evolve` keeps: those its graph links to a known point, in order (as it decides them)
+            _, labels = connected_components(self._graph(np.vstack([known, seeds]), spacing), directed=False)
+            kept = seeds[np.isin(labels[len(known):], np.unique(labels[:len(known)]))]
+            normal = np.linalg.svd(known - known.mean(axis=0), full_matrices=False)[2][2]
+            return kept + ((evolved - kept) @ normal)[:, None] * normal
+
+    fill = spatial.membrane_fill
+
+    def height_field_membrane(*args, **kwargs):
+        original, lozes_pde.LozesPDE = lozes_pde.LozesPDE, HeightFieldPDE
+        try:
+            return fill(*args, **kwargs)
+        finally:
+            lozes_pde.LozesPDE = original
+
+    spatial.membrane_fill = height_field_membrane
+
+
 def truth_frames(truth: Path, damaged: Path) -> list[Path]:
     """The truth's PLY files for the damaged frames: ``truth`` itself when a file; else the files of the folder that
     the damage record (holes.json ``input_files``) names, or all of its PLY files in natural order."""
@@ -505,6 +540,8 @@ def main(argv=None) -> int:
     parser.add_argument("--closed-surface-band", choices=["bound", "last-resort"], default=None,
                         help="judge the closed surface in occlusion boxes by the band bordering its fill: by the "
                              "method's bound, or also by the last resort's rule (measured, not kept)")
+    parser.add_argument("--membrane-height-field", action="store_true",
+                        help="the membrane as a height field over its seeds' plane (measured, not kept)")
     parser.add_argument("--by-depth", action="store_true",
                         help="each stage's off RMS by depth: spacings from the damaged frame's nearest point")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
@@ -517,6 +554,8 @@ def main(argv=None) -> int:
         last_resort_in_boxes()
     if args.closed_surface_band:
         closed_surface_band(args.closed_surface_band)
+    if args.membrane_height_field:
+        membrane_height_field()
     _, frames, regions = load_damage_or_exit(args.damaged)
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()

@@ -86,7 +86,7 @@ def test_the_membrane_trace_logs_what_each_test_kept_and_ends_on_the_points_the_
     """--membrane R logs each membrane of a region of radius R or more, step by step; its counts are the method's.
     A voxelized plane with a disc emptied inside an occlusion box that keeps the rest of the plane in it: the
     membrane spans the disc, a strip of it already covered (as a copy would), and the log's last line counts exactly
-    the points `membrane_fill` returned, of more; a region under R is not logged."""
+    the points `membrane_fill` returned, of more, and then how they spread; a region under R is not logged."""
     from scipy.spatial import cKDTree
 
     cascade_trace, spatial = membrane_trace
@@ -103,8 +103,14 @@ def test_the_membrane_trace_logs_what_each_test_kept_and_ends_on_the_points_the_
     assert any(line.startswith("    membrane, seeds: ") for line in log)
     assert any(line == "    membrane, hold-out: passed" or line.startswith("    membrane, hold-out: passed (")
                for line in log)
-    kept, total = log[-1].split(": ")[1].split(" of ")
-    assert log[-1].startswith("    membrane, not covered already: ") and int(kept) == len(points) < int(total)
+    kept, total = log[-2].split(": ")[1].split(" of ")
+    assert log[-2].startswith("    membrane, not covered already: ") and int(kept) == len(points) < int(total)
+    # across a small disc the membrane keeps its seeds' grid: its points round to distinct voxels, about one apart
+    cells = len(np.unique(np.floor(points + 0.5), axis=0))
+    median = np.median(cKDTree(points).query(points, k=2)[0][:, 1])
+    assert log[-1] == (f"    membrane, returned: {len(points)} points, on {cells} grid cells of 1 unit, "
+                       f"nearest-neighbour distance median {median:.3f}")
+    assert cells >= 0.9 * len(points) and 0.7 < median <= 1.0
     before = len(log)
     spatial.membrane_fill(captured, HoleRegion.box([0.0, 0.0, 0.0], [5.0, 5.0, 4.0]), None, 1.0, step=1.0)
     assert len(log) == before
