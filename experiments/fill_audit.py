@@ -35,6 +35,10 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--last-resort``, for each hole the cascade's last resort judged (`spatial.BestSurface`), each candidate
   surface's points, hold-out miss and predicted open error (its rule, `methods._spatial_fill.best`), its points' true
   RMS point-to-plane distance to the truth and share > 2 spacings, and which candidate filled;
+- with ``--depth-limit``, the whole-frame D1 / D2 with the spatial stages' new points kept only up to each depth of
+  `DEPTH_LIMITS` (their distance to the damaged frame, in spacings), the other new points all kept: a refusal by
+  depth, which the method could make without the truth (`depth_limit_lines`; the points are taken out of the
+  result, not refused inside the method, so nothing after them is rerun);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
   that knew every fill point's true error could reach, point by point, with the fills the method has. Where no
@@ -51,7 +55,7 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
         [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
         [--thin-gaps-by-scatter] [--last-resort] [--last-resort-in-boxes] [--closed-surface-band RULE]
-        [--membrane-height-field] [--by-depth]
+        [--membrane-height-field] [--by-depth] [--depth-limit]
 """
 
 from __future__ import annotations
@@ -78,6 +82,8 @@ from dpcbench.metrics.pairs import CloudPair
 ATTRIBUTION_SPACINGS = 1.5
 #: ``--refusal-oracle``: the true off-surface errors (in spacings) under which a new point is kept, one result each
 ORACLE_LIMITS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
+#: ``--depth-limit``'s limits, in spacings of depth (a new point's distance to the damaged frame)
+DEPTH_LIMITS = (1.0, 2.0, 4.0, 8.0, 16.0)
 
 
 class StageLog:
@@ -252,7 +258,8 @@ def frame_psnr(pair: CloudPair, peak: float) -> tuple[float, float]:
 
 def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, result: np.ndarray, regions,
                 records, spacing: float, left_open: bool = False, refusal_oracle: bool = False,
-                against: dict[str, np.ndarray] | None = None, by_depth: bool = False) -> list[str]:
+                against: dict[str, np.ndarray] | None = None, by_depth: bool = False,
+                depth_limit: bool = False) -> list[str]:
     """The report lines of one frame (see the module docstring)."""
     filled, empty = CloudPair(truth, result, normals), CloudPair(truth, damaged, normals)
     peak = resolve_peak("intrinsic", filled)
@@ -273,7 +280,8 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
         ba2 = filled.plane_res_to_ref
     new_ba2 = ba2[len(damaged):]
     off = np.sqrt(new_ba2) / spacing
-    depth = cKDTree(damaged).query(new)[0] / spacing if by_depth and len(damaged) else np.zeros(len(new))
+    deep = (by_depth or depth_limit) and len(damaged)
+    depth = cKDTree(damaged).query(new)[0] / spacing if deep else np.zeros(len(new))
     for stage in sorted(set(labels)):
         at = labels == stage
         lines.append(f"  stage {stage:14s} points {at.sum():6d} off RMS {np.sqrt(np.mean(off[at] ** 2)):5.2f} s "
@@ -296,6 +304,8 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
         if left_open:
             d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[~mine]]), normals), peak)
             lines.append(f"    left open, the rest filled: D1 {d1:6.2f} D2 {d2:6.2f}")
+    if depth_limit:
+        lines += depth_limit_lines(truth, normals, damaged, new, np.isin(labels, SPATIAL_STAGES), depth, peak, empty)
     if refusal_oracle:
         lines += refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty, against,
                                       disagreement(damaged, new, regions, spacing))
@@ -342,6 +352,25 @@ def disagreement(damaged: np.ndarray, new: np.ndarray, regions, spacing: float) 
             offset[distance > 2 * spacing] = 0.0
             out[mine] = np.maximum(out[mine], offset)
     return out
+
+
+#: the stages `--depth-limit` may refuse: the spatial cascade's strategies (`spatial.CASCADE`), not the copies
+SPATIAL_STAGES = tuple(strategy.__name__ for strategy in spatial.CASCADE)
+
+
+def depth_limit_lines(truth, normals, damaged, new, spatial_points, depth, peak, empty: CloudPair) -> list[str]:
+    """``--depth-limit``'s lines: per limit L of `DEPTH_LIMITS`, the whole-frame D1 / D2 with the new points of the
+    spatial stages (``spatial_points`` (P,) mask of ``new``) kept only where their ``depth`` (P,), spacings to the
+    damaged frame, is at most L, every other new point kept: a refusal by depth, which the method could make without
+    the truth (the fills are trusted at the rim and drift off deeper in, "How deep the fills hold")."""
+    none_d2 = frame_psnr(empty, peak)[1]
+    lines = [f"  depth limit on the spatial fills ({int(spatial_points.sum())} points; no fill's D2 {none_d2:.2f})"]
+    for limit in DEPTH_LIMITS:
+        keep = ~spatial_points | (depth <= limit)
+        d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[keep]]), normals), peak)
+        lines.append(f"    keep depth <= {limit:4.1f} s: {int((keep & spatial_points).sum()):6d} spatial points  "
+                     f"D1 {d1:6.2f} D2 {d2:6.2f}")
+    return lines
 
 
 def refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty: CloudPair,
@@ -542,6 +571,8 @@ def main(argv=None) -> int:
                              "method's bound, or also by the last resort's rule (measured, not kept)")
     parser.add_argument("--membrane-height-field", action="store_true",
                         help="the membrane as a height field over its seeds' plane (measured, not kept)")
+    parser.add_argument("--depth-limit", action="store_true",
+                        help="also the scores with the spatial fills' points kept only up to each depth limit")
     parser.add_argument("--by-depth", action="store_true",
                         help="each stage's off RMS by depth: spacings from the damaged frame's nearest point")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
@@ -579,7 +610,8 @@ def main(argv=None) -> int:
         print(f"frame {f}: {len(outputs[f]) - len(frames[f])} new points")
         against = {name: result[f] for name, result in others.items()}
         print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
-                                     args.left_open, args.refusal_oracle, against, args.by_depth)))
+                                     args.left_open, args.refusal_oracle, against, args.by_depth,
+                                     args.depth_limit)))
         for line in (text for frame, text in thin_gaps if frame == f):
             print(line)
         for line in last_resort_lines(last_resort, f, truth, normals, spacing):

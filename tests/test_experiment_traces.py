@@ -114,3 +114,34 @@ def test_the_membrane_trace_logs_what_each_test_kept_and_ends_on_the_points_the_
     before = len(log)
     spatial.membrane_fill(captured, HoleRegion.box([0.0, 0.0, 0.0], [5.0, 5.0, 4.0]), None, 1.0, step=1.0)
     assert len(log) == before
+
+
+def test_fill_audit_depth_limit_refuses_only_spatial_points_deeper_than_each_limit(monkeypatch):
+    """`fill_audit.depth_limit_lines` (--depth-limit): at each limit L the spatial points kept are those at depth <= L
+    (a naive count), the others are always kept, and the scores are those of that result: with every deep spatial
+    point taken out, D1 falls as far as leaving them out by hand does; with none spatial, every limit scores alike."""
+    monkeypatch.syspath_prepend(str(EXPERIMENTS))
+    fill_audit = importlib.import_module("fill_audit")
+    from dpcbench.metrics import resolve_peak
+    from dpcbench.metrics.pairs import CloudPair
+
+    u, v = np.meshgrid(np.arange(-20.0, 21.0), np.arange(-20.0, 21.0), indexing="ij")
+    truth = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)])
+    radius = np.hypot(truth[:, 0], truth[:, 1])
+    damaged, new = truth[radius > 10.0], truth[radius <= 10.0] + [0.0, 0.0, 0.3]  # the fill, 0.3 off the plane
+    depth = 10.0 - radius[radius <= 10.0]  # about each point's distance to the damaged frame
+    spatial_points = new[:, 0] > 0.0
+    empty = CloudPair(truth, damaged, None)
+    peak = resolve_peak("intrinsic", CloudPair(truth, np.vstack([damaged, new]), None))
+    lines = fill_audit.depth_limit_lines(truth, None, damaged, new, spatial_points, depth, peak, empty)
+    assert len(lines) == 1 + len(fill_audit.DEPTH_LIMITS)
+    for limit, line in zip(fill_audit.DEPTH_LIMITS, lines[1:]):
+        assert int(line.split(":")[1].split()[0]) == int((spatial_points & (depth <= limit)).sum())
+        keep = ~spatial_points | (depth <= limit)
+        d1, d2 = fill_audit.frame_psnr(CloudPair(truth, np.vstack([damaged, new[keep]]), None), peak)
+        assert line.endswith(f"D1 {d1:6.2f} D2 {d2:6.2f}")
+    scores = {line.split("points")[1] for line in fill_audit.depth_limit_lines(
+        truth, None, damaged, new, np.zeros(len(new), dtype=bool), depth, peak, empty)[1:]}
+    assert len(scores) == 1
+    first, last = (line.split("D1")[1] for line in (lines[1], lines[-1]))
+    assert first != last  # refusing the deep half of the disc changes the score
