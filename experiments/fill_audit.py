@@ -35,9 +35,9 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
 - with ``--last-resort``, for each hole the cascade's last resort judged (`spatial.BestSurface`), each candidate
   surface's points, hold-out miss and predicted open error (its rule, `methods._spatial_fill.best`), its points' true
   RMS point-to-plane distance to the truth and share > 2 spacings, and which candidate filled;
-- with ``--depth-limit``, the whole-frame D1 / D2 with the spatial stages' new points kept only up to each depth of
-  `DEPTH_LIMITS` (their distance to the damaged frame, in spacings), the other new points all kept: a refusal by
-  depth, which the method could make without the truth (`depth_limit_lines`; the points are taken out of the
+- with ``--depth-limit``, the whole-frame D1 / D2 with the spatial stages' new points and the reused fill (in a hole
+  no frame saw, the spatial fill of the frame before, moved) kept only up to each depth of `DEPTH_LIMITS` (their
+  distance to the damaged frame, in spacings), the other new points all kept: a refusal by depth, which the method could make without the truth (`depth_limit_lines`; the points are taken out of the
   result, not refused inside the method, so nothing after them is rerun);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
@@ -305,7 +305,7 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
             d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[~mine]]), normals), peak)
             lines.append(f"    left open, the rest filled: D1 {d1:6.2f} D2 {d2:6.2f}")
     if depth_limit:
-        lines += depth_limit_lines(truth, normals, damaged, new, np.isin(labels, SPATIAL_STAGES), depth, peak, empty)
+        lines += depth_limit_lines(truth, normals, damaged, new, np.isin(labels, REFUSABLE_STAGES), depth, peak, empty)
     if refusal_oracle:
         lines += refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty, against,
                                       disagreement(damaged, new, regions, spacing))
@@ -354,21 +354,25 @@ def disagreement(damaged: np.ndarray, new: np.ndarray, regions, spacing: float) 
     return out
 
 
-#: the stages `--depth-limit` may refuse: the spatial cascade's strategies (`spatial.CASCADE`), not the copies
-SPATIAL_STAGES = tuple(strategy.__name__ for strategy in spatial.CASCADE)
+#: the stages `--depth-limit` may refuse: the spatial cascade's strategies (`spatial.CASCADE`) and the reused fill,
+#: which in a hole no frame saw (coherent holes, occlusion boxes) is frame f-1's spatial fill moved; not the copies
+#: and partial copies (what other frames saw) or the rim fill
+REFUSABLE_STAGES = (*(strategy.__name__ for strategy in spatial.CASCADE), "reuse")
 
 
 def depth_limit_lines(truth, normals, damaged, new, spatial_points, depth, peak, empty: CloudPair) -> list[str]:
     """``--depth-limit``'s lines: per limit L of `DEPTH_LIMITS`, the whole-frame D1 / D2 with the new points of the
-    spatial stages (``spatial_points`` (P,) mask of ``new``) kept only where their ``depth`` (P,), spacings to the
-    damaged frame, is at most L, every other new point kept: a refusal by depth, which the method could make without
-    the truth (the fills are trusted at the rim and drift off deeper in, "How deep the fills hold")."""
+    spatial stages and the reused fill (``spatial_points`` (P,) mask of ``new``, `REFUSABLE_STAGES`) kept only where
+    their ``depth`` (P,), spacings to the damaged frame, is at most L, every other new point kept: a refusal by depth,
+    which the method could make without the truth (the fills are trusted at the rim and drift off deeper in, "How
+    deep the fills hold"). Meant for holes no frame saw: in independent holes the reused fill may be copies."""
     none_d2 = frame_psnr(empty, peak)[1]
-    lines = [f"  depth limit on the spatial fills ({int(spatial_points.sum())} points; no fill's D2 {none_d2:.2f})"]
+    lines = [f"  depth limit on the spatial and reused fills ({int(spatial_points.sum())} points; no fill's D2 "
+             f"{none_d2:.2f})"]
     for limit in DEPTH_LIMITS:
         keep = ~spatial_points | (depth <= limit)
         d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[keep]]), normals), peak)
-        lines.append(f"    keep depth <= {limit:4.1f} s: {int((keep & spatial_points).sum()):6d} spatial points  "
+        lines.append(f"    keep depth <= {limit:4.1f} s: {int((keep & spatial_points).sum()):6d} refusable points  "
                      f"D1 {d1:6.2f} D2 {d2:6.2f}")
     return lines
 

@@ -117,7 +117,7 @@ def test_the_membrane_trace_logs_what_each_test_kept_and_ends_on_the_points_the_
 
 
 def test_fill_audit_depth_limit_refuses_only_spatial_points_deeper_than_each_limit(monkeypatch):
-    """`fill_audit.depth_limit_lines` (--depth-limit): at each limit L the spatial points kept are those at depth <= L
+    """`fill_audit.depth_limit_lines` (--depth-limit): at each limit L the refusable points kept are those at depth <= L
     (a naive count), the others are always kept, and the scores are those of that result: with every deep spatial
     point taken out, D1 falls as far as leaving them out by hand does; with none spatial, every limit scores alike."""
     monkeypatch.syspath_prepend(str(EXPERIMENTS))
