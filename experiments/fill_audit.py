@@ -39,6 +39,8 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
   no frame saw, the spatial fill of the frame before, moved) kept only up to each depth of `DEPTH_LIMITS` (their
   distance to the damaged frame, in spacings), the other new points all kept: a refusal by depth, which the method could make without the truth (`depth_limit_lines`; the points are taken out of the
   result, not refused inside the method, so nothing after them is rerun);
+- with ``--thin``, the whole-frame D1 / D2 with the spatial stages' new points and the reused fill thinned to one
+  point a cubic cell of the damaged frame's sampling step (`thinned_lines`; measured, not kept);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
   point-to-plane error (the BA2 term above, from the truth) is under each of `ORACLE_LIMITS` spacings: what a refusal
   that knew every fill point's true error could reach, point by point, with the fills the method has. Where no
@@ -55,7 +57,7 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
         [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
         [--thin-gaps-by-scatter] [--last-resort] [--last-resort-in-boxes] [--closed-surface-band RULE]
-        [--membrane-height-field] [--by-depth] [--depth-limit]
+        [--membrane-height-field] [--by-depth] [--depth-limit] [--thin]
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ from scipy.spatial import cKDTree
 from dpcbench.bench.core.params import parse_params
 from dpcbench.bench.data.plyio import read_ply
 from dpcbench.bench.results.oracle import DEPTH_EDGES
+from dpcbench.methods._geometry import sampling_step
 from dpcbench.methods.temporal_fusion import method as fusion_method
 from dpcbench.methods.temporal_fusion import spatial
 from dpcbench.metrics import psnr, resolve_peak
@@ -259,7 +262,7 @@ def frame_psnr(pair: CloudPair, peak: float) -> tuple[float, float]:
 def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, result: np.ndarray, regions,
                 records, spacing: float, left_open: bool = False, refusal_oracle: bool = False,
                 against: dict[str, np.ndarray] | None = None, by_depth: bool = False,
-                depth_limit: bool = False) -> list[str]:
+                depth_limit: bool = False, thin: float | None = None) -> list[str]:
     """The report lines of one frame (see the module docstring)."""
     filled, empty = CloudPair(truth, result, normals), CloudPair(truth, damaged, normals)
     peak = resolve_peak("intrinsic", filled)
@@ -304,6 +307,8 @@ def audit_frame(truth: np.ndarray, normals: np.ndarray, damaged: np.ndarray, res
         if left_open:
             d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[~mine]]), normals), peak)
             lines.append(f"    left open, the rest filled: D1 {d1:6.2f} D2 {d2:6.2f}")
+    if thin:
+        lines += thinned_lines(truth, normals, damaged, new, np.isin(labels, REFUSABLE_STAGES), thin, peak)
     if depth_limit:
         lines += depth_limit_lines(truth, normals, damaged, new, np.isin(labels, REFUSABLE_STAGES), depth, peak, empty)
     if refusal_oracle:
@@ -330,8 +335,6 @@ def disagreement(damaged: np.ndarray, new: np.ndarray, regions, spacing: float) 
     """(P,) each of the ``new`` points' disagreement in spacings (the module docstring), 0 where no candidate reaches
     within 2 spacings of it."""
     from candidate_accuracy import region_candidates  # the sibling module (it imports this one)
-
-    from dpcbench.methods._geometry import sampling_step
 
     integer = np.array_equal(damaged, np.round(damaged))
     step = spacing if integer else sampling_step(damaged)
@@ -375,6 +378,20 @@ def depth_limit_lines(truth, normals, damaged, new, spatial_points, depth, peak,
         lines.append(f"    keep depth <= {limit:4.1f} s: {int((keep & spatial_points).sum()):6d} refusable points  "
                      f"D1 {d1:6.2f} D2 {d2:6.2f}")
     return lines
+
+
+def thinned_lines(truth, normals, damaged, new, spatial_points, cell: float, peak) -> list[str]:
+    """``--thin``'s line: the whole-frame D1 / D2 with the new points of the spatial stages and the reused fill
+    (``spatial_points`` (P,) mask of ``new``) thinned to the first in each cubic cell of edge ``cell``
+    (`first_in_cells`, as the closed surface thins its own fill to the capture's density), the others all kept."""
+    from dpcbench.methods._spatial_fill.common import first_in_cells
+
+    rows = np.flatnonzero(spatial_points)
+    keep = ~spatial_points
+    keep[rows[first_in_cells(new[rows], cell)]] = True
+    d1, d2 = frame_psnr(CloudPair(truth, np.vstack([damaged, new[keep]]), normals), peak)
+    return [f"  thinned to one point a cell of {cell:.3f}: {int((keep & spatial_points).sum())} of {len(rows)} "
+            f"spatial and reused points kept  D1 {d1:6.2f} D2 {d2:6.2f}"]
 
 
 def refusal_oracle_lines(truth, normals, damaged, new, off, peak, empty: CloudPair,
@@ -575,6 +592,9 @@ def main(argv=None) -> int:
                              "method's bound, or also by the last resort's rule (measured, not kept)")
     parser.add_argument("--membrane-height-field", action="store_true",
                         help="the membrane as a height field over its seeds' plane (measured, not kept)")
+    parser.add_argument("--thin", action="store_true",
+                        help="also the scores with the spatial and reused fills thinned to one point a cell of the "
+                             "frame's sampling step (the capture's density)")
     parser.add_argument("--depth-limit", action="store_true",
                         help="also the scores with the spatial fills' points kept only up to each depth limit")
     parser.add_argument("--by-depth", action="store_true",
@@ -615,7 +635,7 @@ def main(argv=None) -> int:
         against = {name: result[f] for name, result in others.items()}
         print("\n".join(audit_frame(truth, normals, frames[f], outputs[f], regions[f], log.points[f], spacing,
                                      args.left_open, args.refusal_oracle, against, args.by_depth,
-                                     args.depth_limit)))
+                                     args.depth_limit, sampling_step(frames[f]) if args.thin else None)))
         for line in (text for frame, text in thin_gaps if frame == f):
             print(line)
         for line in last_resort_lines(last_resort, f, truth, normals, spacing):

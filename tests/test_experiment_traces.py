@@ -145,3 +145,35 @@ def test_fill_audit_depth_limit_refuses_only_spatial_points_deeper_than_each_lim
     assert len(scores) == 1
     first, last = (line.split("D1")[1] for line in (lines[1], lines[-1]))
     assert first != last  # refusing the deep half of the disc changes the score
+
+
+def test_fill_audit_thin_keeps_one_refusable_point_a_cell_and_every_other_point(monkeypatch):
+    """`fill_audit.thinned_lines` (--thin): a fill laid twice, each point with a twin a tenth of a cell away, is
+    thinned to one point a cell (a naive count of the occupied cells); the points of other stages are kept even
+    where they share a cell; and a fill already one point a cell scores as the fill itself."""
+    monkeypatch.syspath_prepend(str(EXPERIMENTS))
+    fill_audit = importlib.import_module("fill_audit")
+    from dpcbench.metrics import resolve_peak
+    from dpcbench.metrics.pairs import CloudPair
+
+    u, v = np.meshgrid(np.arange(-20.0, 21.0), np.arange(-20.0, 21.0), indexing="ij")
+    truth = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)]) + 0.5
+    inside = np.hypot(truth[:, 0] - 0.5, truth[:, 1] - 0.5) <= 8.0
+    damaged, fill = truth[~inside], truth[inside] + [0.0, 0.0, 0.2]
+    peak = resolve_peak("intrinsic", CloudPair(truth, truth, None))
+    once = fill_audit.thinned_lines(truth, None, damaged, fill, np.ones(len(fill), dtype=bool), 1.0, peak)[0]
+    d1, d2 = fill_audit.frame_psnr(CloudPair(truth, np.vstack([damaged, fill]), None), peak)
+    assert once.endswith(f"D1 {d1:6.2f} D2 {d2:6.2f}") and f": {len(fill)} of {len(fill)} " in once
+    twice = np.vstack([fill, fill + [0.1, 0.0, 0.0]])
+    spatial_points = np.ones(len(twice), dtype=bool)
+    spatial_points[: len(fill) // 2] = False  # a quarter of the points from another stage: all kept
+    line = fill_audit.thinned_lines(truth, None, damaged, twice, spatial_points, 1.0, peak)[0]
+    cells = len(np.unique(np.floor(twice[spatial_points]), axis=0))
+    assert f": {cells} of {int(spatial_points.sum())} " in line and cells < spatial_points.sum()
+    seen, keep = set(), ~spatial_points
+    for row in np.flatnonzero(spatial_points):  # naive: the first refusable point met in each cell
+        cell = tuple(np.floor(twice[row]).astype(int))
+        keep[row] = cell not in seen
+        seen.add(cell)
+    d1, d2 = fill_audit.frame_psnr(CloudPair(truth, np.vstack([damaged, twice[keep]]), None), peak)
+    assert line.endswith(f"D1 {d1:6.2f} D2 {d2:6.2f}")
