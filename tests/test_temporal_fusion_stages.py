@@ -307,3 +307,34 @@ def test_with_every_ablation_switch_off_the_oldest_pipeline_still_fills_a_hole_a
         fill = out[1][len(frames[1]):]
         assert len(fill) >= 0.8 * len(hidden), params
         assert np.median(cKDTree(hidden).query(fill)[0]) < 0.2 * spacing, params
+
+
+@pytest.mark.parametrize("voxelized", [False, True])
+def test_the_membrane_adds_at_most_one_point_a_grid_cell_on_float_data(monkeypatch, voxelized):
+    """`spatial.Membrane` on data that is not voxelized keeps what `membrane_fill` returns at the capture's density,
+    one point a cubic cell of the grid step (the first in each, as the closed surface's fill): a membrane whose points
+    gathered two to a cell is thinned to one a cell, and what it records (the spatial fill, the parts frame f+1 must
+    not reuse, the membrane alone) is the thinned set. On voxelized data the output's voxel snapping keeps one point a
+    voxel, and the membrane's points are kept as returned."""
+    import dpcbench.methods.temporal_fusion.spatial as spatial
+
+    plane = voxel_plane() + np.array([0.25, 0.25, 0.0])
+    region = HoleRegion.ball([0.0, 0.0, 0.0], 5.0)
+    kept = plane[~region.contains(plane)]
+    cells = plane[region.contains(plane)]
+    gathered = np.vstack([cells, cells + [0.3, 0.2, 0.0]])  # two points in every cubic cell of edge 1
+    monkeypatch.setattr(spatial, "membrane_fill", lambda *args, **kwargs: gathered)
+    monkeypatch.setattr(spatial, "CASCADE", (spatial.Membrane,))
+    cfg = FusionConfig()
+    seq = sequence([kept], [[region]], cfg, voxelized, 1.0)
+    crop = crop_region(cfg, seq, 0, region)
+    empty = np.zeros((0, 3))
+    fill, not_reused = spatial_fill(cfg, seq, 0, region, crop, empty, 0, empty, False)
+    if voxelized:
+        np.testing.assert_array_equal(fill, gathered)
+        return
+    occupied = np.floor(fill / seq.step)
+    assert len(fill) == len(cells) == len(np.unique(occupied, axis=0))  # one a cell, every cell kept
+    np.testing.assert_array_equal(fill, cells)  # the first in each cell, in order
+    assert len(not_reused) == 1
+    np.testing.assert_array_equal(not_reused[0], fill)

@@ -151,7 +151,7 @@ class TemporalFusion(InpaintingMethod):
                "hole stayed open), spline fill of the "
                "rim's surface (or of the hole's own sheet of it) where no frame saw it and the fit is trusted; "
                "a graph membrane across the open parts of occlusion boxes")
-    version = "57"  # the history of each version: docs/temporal-fusion.md
+    version = "58"  # the history of each version: docs/temporal-fusion.md
     uses_neighbour_frames = True
     needs_regions = False
     detects_holes = True
