@@ -40,7 +40,8 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
   distance to the damaged frame, in spacings), the other new points all kept: a refusal by depth, which the method could make without the truth (`depth_limit_lines`; the points are taken out of the
   result, not refused inside the method, so nothing after them is rerun);
 - with ``--thin-membrane``, the method with what its membrane adds thinned to one point a cell of the grid step on
-  float data (`thin_membrane`; measured, not kept);
+  float data (`thin_membrane`): version 58's rule, for measuring it on 57 (at 58 it changes nothing: each cell holds
+  one point already);
 - with ``--thin``, the whole-frame D1 / D2 with the spatial stages' new points and the reused fill thinned to one
   point a cubic cell of the damaged frame's sampling step (`thinned_lines`; measured, not kept);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
@@ -543,7 +544,8 @@ def thin_membrane() -> None:
     """On data that is not voxelized, thin what temporal-fusion's membrane (`spatial.Membrane`) adds to one point a
     cubic cell of the frame's grid step (`first_in_cells`, as the closed surface thins its own fill); voxelized data
     is unchanged (the voxel snapping keeps one point a voxel already). The membrane's points gather towards its anchors
-    (`cascade_trace.py --membrane`), and on float data nothing else thins them."""
+    (`cascade_trace.py --membrane`). temporal-fusion 58 made this its rule (`spatial.Membrane`); on 58 the patch
+    changes nothing."""
     from dataclasses import replace
 
     from dpcbench.methods._spatial_fill.common import first_in_cells
@@ -619,12 +621,13 @@ def main(argv=None) -> int:
     parser.add_argument("--membrane-height-field", action="store_true",
                         help="the membrane as a height field over its seeds' plane (measured, not kept)")
     parser.add_argument("--thin-membrane", action="store_true",
-                        help="thin the membrane's points to one a cell of the grid step on float data (measured, not kept)")
+                        help="thin the membrane's points to one a cell of the grid step on float data (the rule of "
+                             "temporal-fusion 58, for measuring it on 57; at 58 it changes nothing)")
     parser.add_argument("--thin", action="store_true",
                         help="also the scores with the spatial and reused fills thinned to one point a cell of the "
                              "frame's sampling step (the capture's density)")
     parser.add_argument("--depth-limit", action="store_true",
-                        help="also the scores with the spatial fills' points kept only up to each depth limit")
+                        help="also the scores with the spatial and reused fills' points kept only up to each depth limit")
     parser.add_argument("--by-depth", action="store_true",
                         help="each stage's off RMS by depth: spacings from the damaged frame's nearest point")
     parser.add_argument("--thin-gaps-by-scatter", action="store_true",
