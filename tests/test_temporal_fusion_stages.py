@@ -311,11 +311,11 @@ def test_with_every_ablation_switch_off_the_oldest_pipeline_still_fills_a_hole_a
 
 @pytest.mark.parametrize("voxelized", [False, True])
 def test_the_membrane_adds_at_most_one_point_a_grid_cell_on_float_data(monkeypatch, voxelized):
-    """`spatial.Membrane` on data that is not voxelized keeps what `membrane_fill` returns at the capture's density,
-    one point a cubic cell of the grid step (the first in each, as the closed surface's fill): a membrane whose points
-    gathered two to a cell is thinned to one a cell, and what it records (the spatial fill, the parts frame f+1 must
-    not reuse, the membrane alone) is the thinned set. On voxelized data the output's voxel snapping keeps one point a
-    voxel, and the membrane's points are kept as returned."""
+    """`spatial.Membrane` where the output is not snapped to voxels keeps what `membrane_fill` returns at the capture's
+    density, one point a cubic cell of the grid step (the first in each, as the closed surface's fill): a membrane whose
+    points gathered two to a cell is thinned to one a cell, and what it records (the spatial fill, the parts frame f+1 must
+    not reuse, the membrane alone) is the thinned set. Where the output is snapped (voxelized data) the snapping keeps
+    one point a voxel, and the membrane's points are kept as returned."""
     import dpcbench.methods.temporal_fusion.spatial as spatial
 
     plane = voxel_plane() + np.array([0.25, 0.25, 0.0])

@@ -15,8 +15,8 @@ In run order:
 4. `ClosedSurface` (``poisson``): screened Poisson of the crop's bodies (a hole round a limb or a neck).
 5. `Cap` (``cap``, voxelized input): the harmonic membrane across an opening's loop (a base, a sole).
 6. `Membrane` (``membrane``): the graph membrane of the data round and inside R (an occlusion box's open
-   parts); in a region that keeps captured points also after `ClosedSurface` (``membrane_after_poisson``); on data
-   that is not voxelized, thinned to one point a cubic cell of the grid step (the capture's density).
+   parts); in a region that keeps captured points also after `ClosedSurface` (``membrane_after_poisson``); where the
+   output is not snapped to voxels, thinned to one point a cubic cell of the grid step (the capture's density).
 7. `Front` (``front``, off): an advancing front grown chart by chart from the rim and the copies.
 8. `BestSurface` (``best_surface``): where every strategy before refused and nothing else covers any of R (no copy,
    reused fill, partial copy or captured point inside it), the candidate surfaces (spline, sheet spline, closed surface, without their refusal
@@ -194,7 +194,7 @@ class Membrane:
                                  agree_spacings=cfg.accept_spacings, max_holdout_spacings=cfg.surface_holdout_spacings)
         if not seq.voxelized and len(membrane):
             # at the capture's density, one point a cubic cell of the grid step, as the closed surface's fill: the
-            # harmonic solution gathers its seeds towards the anchors, and on float data nothing after it thins them
+            # harmonic solution gathers its seeds towards the anchors, and unsnapped nothing after it thins them
             # (the float cow's occlusion rig: about 45 % of its points shared a cell; docs, "Version 58")
             membrane = membrane[first_in_cells(membrane, seq.step)]
         alone = membrane if not len(state.spatial) else state.membrane_alone
