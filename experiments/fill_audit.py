@@ -39,9 +39,6 @@ Per frame it prints whole-frame D1 / D2 of the result and of no fill, and per st
   no frame saw, the spatial fill of the frame before, moved) kept only up to each depth of `DEPTH_LIMITS` (their
   distance to the damaged frame, in spacings), the other new points all kept: a refusal by depth, which the method could make without the truth (`depth_limit_lines`; the points are taken out of the
   result, not refused inside the method, so nothing after them is rerun);
-- with ``--thin-membrane``, the method with what its membrane adds thinned to one point a cell of the grid step on
-  float data (`thin_membrane`): version 58's rule, for measuring it on 57 (at 58 it changes nothing: each cell holds
-  one point already);
 - with ``--thin``, the whole-frame D1 / D2 with the spatial stages' new points and the reused fill thinned to one
   point a cubic cell of the damaged frame's sampling step (`thinned_lines`; measured, not kept);
 - with ``--refusal-oracle``, the whole-frame D1 / D2 of the result keeping only the new points whose own
@@ -60,7 +57,7 @@ Usage (after `dpcbench damage TRUTH --out DAMAGED ...`):
     .venv/bin/python experiments/fill_audit.py TRUTH DAMAGED [--frames 0,1] [--left-open] [--param name=value ...]
         [--against METHOD[,METHOD...]] [--refusal-oracle] [--last-resort-where-covered] [--thin-gaps]
         [--thin-gaps-by-scatter] [--last-resort] [--last-resort-in-boxes] [--closed-surface-band RULE]
-        [--membrane-height-field] [--by-depth] [--depth-limit] [--thin] [--thin-membrane]
+        [--membrane-height-field] [--by-depth] [--depth-limit] [--thin]
 """
 
 from __future__ import annotations
@@ -540,31 +537,6 @@ def membrane_height_field() -> None:
     spatial.membrane_fill = height_field_membrane
 
 
-def thin_membrane() -> None:
-    """On data that is not voxelized, thin what temporal-fusion's membrane (`spatial.Membrane`) adds to one point a
-    cubic cell of the frame's grid step (`first_in_cells`, as the closed surface thins its own fill); voxelized data
-    is unchanged (the voxel snapping keeps one point a voxel already). The membrane's points gather towards its anchors
-    (`cascade_trace.py --membrane`). temporal-fusion 58 made this its rule (`spatial.Membrane`); on 58 the patch
-    changes nothing."""
-    from dataclasses import replace
-
-    from dpcbench.methods._spatial_fill.common import first_in_cells
-
-    fill = spatial.Membrane.fill
-
-    def thinned(cfg, hole, state):
-        out = fill(cfg, hole, state)
-        added = out.spatial[len(state.spatial):]
-        if hole.seq.voxelized or not len(added):
-            return out
-        kept = added[first_in_cells(added, hole.seq.step)]
-        alone = kept if not len(state.spatial) else out.membrane_alone  # as `Membrane.fill` sets it
-        return replace(out, spatial=np.vstack([state.spatial, kept]), not_reused=out.not_reused[:-1] + (kept,),
-                       membrane_alone=alone)
-
-    spatial.Membrane.fill = staticmethod(thinned)
-
-
 def truth_frames(truth: Path, damaged: Path) -> list[Path]:
     """The truth's PLY files for the damaged frames: ``truth`` itself when a file; else the files of the folder that
     the damage record (holes.json ``input_files``) names, or all of its PLY files in natural order."""
@@ -620,9 +592,6 @@ def main(argv=None) -> int:
                              "method's bound, or also by the last resort's rule (measured, not kept)")
     parser.add_argument("--membrane-height-field", action="store_true",
                         help="the membrane as a height field over its seeds' plane (measured, not kept)")
-    parser.add_argument("--thin-membrane", action="store_true",
-                        help="thin the membrane's points to one a cell of the grid step on float data (the rule of "
-                             "temporal-fusion 58, for measuring it on 57; at 58 it changes nothing)")
     parser.add_argument("--thin", action="store_true",
                         help="also the scores with the spatial and reused fills thinned to one point a cell of the "
                              "frame's sampling step (the capture's density)")
@@ -642,8 +611,6 @@ def main(argv=None) -> int:
         closed_surface_band(args.closed_surface_band)
     if args.membrane_height_field:
         membrane_height_field()
-    if args.thin_membrane:
-        thin_membrane()
     _, frames, regions = load_damage_or_exit(args.damaged)
     truth_files = truth_frames_or_exit(args.truth, args.damaged, len(frames))
     log = StageLog()
